@@ -1,0 +1,256 @@
+use crate::error::{non_negative, positive, ModelError};
+use crate::DampingMode;
+
+/// Shortest command period the dead-time buffer is sized for (s). Commands sent faster
+/// than this with a dead time overwrite the oldest pending command instead of allocating.
+const MIN_COMMAND_PERIOD_S: f64 = 1e-4;
+
+/// Proportional pressure valve. The paper's model feeds the command straight into the
+/// muscle ([`ValveParams::ideal`]); a real valve lags, so the lag is explicit here.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct ValveParams {
+    /// Highest pressure the valve delivers (Pa); commands are clamped to `[0, max]`.
+    pub pressure_max_pa: f64,
+    /// First-order time constant (s); `0` for an instantaneous valve.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub time_constant_s: f64,
+    /// Largest pressure rate (Pa/s); `None` for unlimited.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub rate_limit_pa_per_s: Option<f64>,
+    /// Transport delay between command and valve response (s).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub dead_time_s: f64,
+}
+
+impl ValveParams {
+    /// The paper's plant: pressure equals the (clamped) command at once. 0-6 bar, the
+    /// operating range of the Festo DMSP-20 muscle.
+    pub const fn ideal() -> Self {
+        Self {
+            pressure_max_pa: 6.0e5,
+            time_constant_s: 0.0,
+            rate_limit_pa_per_s: None,
+            dead_time_s: 0.0,
+        }
+    }
+
+    /// First-order lag with time constant `tau_s`.
+    pub const fn with_lag(self, tau_s: f64) -> Self {
+        Self {
+            time_constant_s: tau_s,
+            ..self
+        }
+    }
+
+    /// Checks ranges: positive maximum, non-negative lag and dead time, positive rate limit.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        positive("pressure_max_pa", self.pressure_max_pa)?;
+        non_negative("time_constant_s", self.time_constant_s)?;
+        non_negative("dead_time_s", self.dead_time_s)?;
+        if let Some(r) = self.rate_limit_pa_per_s {
+            positive("rate_limit_pa_per_s", r)?;
+        }
+        Ok(())
+    }
+
+    /// Whether the output follows the command instantly.
+    pub fn is_instantaneous(&self) -> bool {
+        self.time_constant_s == 0.0 && self.rate_limit_pa_per_s.is_none() && self.dead_time_s == 0.0
+    }
+
+    /// Clamps a command to the valve's range; NaN becomes 0 (vent), the safe value.
+    pub fn clamp(&self, command_pa: f64) -> f64 {
+        if command_pa.is_nan() {
+            0.0
+        } else {
+            command_pa.clamp(0.0, self.pressure_max_pa)
+        }
+    }
+}
+
+impl Default for ValveParams {
+    fn default() -> Self {
+        Self::ideal()
+    }
+}
+
+/// Valve state: output pressure, the damping mode its last change implies, and commands
+/// still in transit through the dead time.
+#[derive(Debug, Clone)]
+pub struct Valve {
+    params: ValveParams,
+    pressure_pa: f64,
+    target_pa: f64,
+    mode: DampingMode,
+    clock_s: f64,
+    pending: Vec<(f64, f64)>,
+    pending_head: usize,
+    pending_len: usize,
+}
+
+impl Valve {
+    /// A valve at `initial_pa` (clamped), all buffers allocated here.
+    pub fn new(params: ValveParams, initial_pa: f64) -> Result<Self, ModelError> {
+        params.validate()?;
+        let p = params.clamp(initial_pa);
+        let capacity = (params.dead_time_s / MIN_COMMAND_PERIOD_S).ceil() as usize + 2;
+        Ok(Self {
+            params,
+            pressure_pa: p,
+            target_pa: p,
+            mode: DampingMode::Inflation,
+            clock_s: 0.0,
+            pending: vec![(0.0, p); capacity],
+            pending_head: 0,
+            pending_len: 0,
+        })
+    }
+
+    /// Parameters.
+    pub fn params(&self) -> &ValveParams {
+        &self.params
+    }
+
+    /// Output pressure (Pa).
+    pub fn pressure(&self) -> f64 {
+        self.pressure_pa
+    }
+
+    /// Damping mode implied by the last pressure change.
+    pub fn mode(&self) -> DampingMode {
+        self.mode
+    }
+
+    /// Issues a new set point (clamped to the valve range). An instantaneous valve jumps
+    /// now; otherwise the command takes effect after the dead time and the lag.
+    pub fn command(&mut self, command_pa: f64) {
+        let c = self.params.clamp(command_pa);
+        if self.params.dead_time_s > 0.0 {
+            self.push_pending(self.clock_s + self.params.dead_time_s, c);
+        } else {
+            self.target_pa = c;
+        }
+        if self.params.is_instantaneous() {
+            self.set_pressure(c);
+        }
+    }
+
+    /// Advances the valve by `h_s` seconds with the current command held.
+    pub fn advance(&mut self, h_s: f64) {
+        self.clock_s += h_s;
+        self.release_due_commands();
+        let target = self.target_pa;
+        let mut next = if self.params.time_constant_s > 0.0 {
+            let a = 1.0 - (-h_s / self.params.time_constant_s).exp();
+            self.pressure_pa + a * (target - self.pressure_pa)
+        } else {
+            target
+        };
+        if let Some(r) = self.params.rate_limit_pa_per_s {
+            let max_step = r * h_s;
+            next = self.pressure_pa + (next - self.pressure_pa).clamp(-max_step, max_step);
+        }
+        self.set_pressure(next);
+    }
+
+    fn set_pressure(&mut self, p: f64) {
+        self.mode = self.mode.after_change(p - self.pressure_pa);
+        self.pressure_pa = p;
+    }
+
+    fn push_pending(&mut self, due_s: f64, command_pa: f64) {
+        let cap = self.pending.len();
+        if self.pending_len == cap {
+            // Full: commands arrive faster than the buffer was sized for; the oldest one
+            // has the least time left in transit, so apply it now.
+            self.target_pa = self.pending[self.pending_head].1;
+            self.pending_head = (self.pending_head + 1) % cap;
+            self.pending_len -= 1;
+        }
+        let tail = (self.pending_head + self.pending_len) % cap;
+        self.pending[tail] = (due_s, command_pa);
+        self.pending_len += 1;
+    }
+
+    fn release_due_commands(&mut self) {
+        let cap = self.pending.len();
+        // A small tolerance so that a dead time that is a whole number of periods releases
+        // the command on the period it is due, not one later through rounding.
+        while self.pending_len > 0 && self.pending[self.pending_head].0 <= self.clock_s + 1e-12 {
+            self.target_pa = self.pending[self.pending_head].1;
+            self.pending_head = (self.pending_head + 1) % cap;
+            self.pending_len -= 1;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ideal_valve_follows_command_and_clamps() {
+        let mut v = Valve::new(ValveParams::ideal(), 0.0).unwrap();
+        v.command(2.0e5);
+        assert_eq!(v.pressure(), 2.0e5);
+        v.command(9.0e5);
+        assert_eq!(v.pressure(), 6.0e5);
+        v.command(-1.0);
+        assert_eq!(v.pressure(), 0.0);
+        assert_eq!(v.mode(), DampingMode::Deflation);
+        v.command(f64::NAN);
+        assert_eq!(v.pressure(), 0.0);
+    }
+
+    #[test]
+    fn lag_matches_the_exponential_step_response() {
+        let tau = 0.02;
+        let mut v = Valve::new(ValveParams::ideal().with_lag(tau), 0.0).unwrap();
+        v.command(1.0e5);
+        let h = 1e-4;
+        for _ in 0..200 {
+            v.advance(h);
+        }
+        let exact = 1.0e5 * (1.0 - (-0.02_f64 / tau).exp());
+        assert!((v.pressure() - exact).abs() < 1e-6, "{} vs {exact}", v.pressure());
+    }
+
+    #[test]
+    fn rate_limit_bounds_the_slope() {
+        let p = ValveParams {
+            rate_limit_pa_per_s: Some(1.0e6),
+            ..ValveParams::ideal()
+        };
+        let mut v = Valve::new(p, 0.0).unwrap();
+        v.command(5.0e5);
+        v.advance(0.1);
+        assert!((v.pressure() - 1.0e5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn dead_time_delays_the_command() {
+        let p = ValveParams {
+            dead_time_s: 0.005,
+            ..ValveParams::ideal()
+        };
+        let mut v = Valve::new(p, 0.0).unwrap();
+        v.command(3.0e5);
+        for _ in 0..4 {
+            v.advance(0.001);
+            assert_eq!(v.pressure(), 0.0);
+        }
+        v.advance(0.001);
+        assert_eq!(v.pressure(), 3.0e5);
+    }
+
+    #[test]
+    fn invalid_params_are_rejected() {
+        let p = ValveParams {
+            time_constant_s: -1.0,
+            ..ValveParams::ideal()
+        };
+        assert!(Valve::new(p, 0.0).is_err());
+    }
+}
