@@ -1,1 +1,170 @@
+//! Controllers for a single pneumatic muscle, all behind one [`Controller`] trait:
+//! APRC-NDO and APRC (Cao et al. 2020), PSMC (Kikuuwe et al. 2010), NDO-SMC with `sat`,
+//! super-twisting (STA) and PID; plus the reference trajectories and metrics of the paper.
+//!
+//! Every controller receives the reference sample, the *measured position only* and the
+//! period `dt`; velocity (and acceleration, for the disturbance observer) come from a
+//! [`KinematicObserver`] inside the controller, so simulation and rig run the same code.
+//!
+//! ```
+//! use pma_control::{build_controller, CommandLimits, ControllerConfig, Measurement,
+//!                   NominalModel, Reference, SineReference};
+//! let cfg = ControllerConfig::default(); // APRC-NDO with the paper's gains
+//! let mut c = build_controller(&cfg, NominalModel::paper(), CommandLimits::default()).unwrap();
+//! let r = SineReference::paper();
+//! c.reset(Measurement { position_m: 0.015 }, r.sample(0.0));
+//! let out = c.update(&r.sample(0.001), &Measurement { position_m: 0.015 }, 0.001);
+//! assert!(out.pressure_cmd_pa >= 0.0 && out.pressure_cmd_pa <= 6.0e5);
+//! ```
+#![warn(missing_docs)]
 
+mod aprc;
+mod command;
+mod config;
+mod estimator;
+mod implicit;
+mod metrics;
+mod ndo;
+mod ndo_smc;
+mod nominal;
+mod pid;
+mod psmc;
+mod reference;
+mod sta;
+
+pub use aprc::{AprcGains, AprcNdo};
+pub use config::{build_controller, ConfigError, ControllerConfig, ControllerKind};
+pub use estimator::KinematicObserver;
+pub use implicit::implicit_sign_solve;
+pub use metrics::{Metrics, TrackingStats};
+pub use ndo::DisturbanceObserver;
+pub use ndo_smc::{NdoSmc, NdoSmcGains};
+pub use nominal::NominalModel;
+pub use pid::{Pid, PidGains};
+pub use psmc::{Psmc, PsmcGains};
+pub use reference::{ChirpReference, Reference, SineReference, StepReference};
+pub use sta::{SuperTwisting, StaGains};
+
+/// Desired trajectory at one instant, with analytic derivatives.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RefSample {
+    /// `x_d` (m).
+    pub position_m: f64,
+    /// `x_d'` (m/s).
+    pub velocity_m_s: f64,
+    /// `x_d''` (m/s^2).
+    pub acceleration_m_s2: f64,
+}
+
+/// What the sensor delivers each period: position only, as on the rig.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Measurement {
+    /// Measured contraction (m).
+    pub position_m: f64,
+}
+
+/// Internal states worth plotting; `NaN` where a controller has no such state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Diagnostics {
+    /// Proxy position `x_p` (m).
+    pub proxy_position_m: f64,
+    /// Proxy sliding variable `S_p`, eq. (4) (m/s).
+    pub s_p: f64,
+    /// Object sliding variable `S_q`, eq. (3) (m/s).
+    pub s_q: f64,
+    /// Adaptive gain `Gamma_hat`, eq. (10).
+    pub gain_hat: f64,
+    /// Disturbance estimate `tau_hat`, eq. (37) (m/s^2).
+    pub disturbance_hat: f64,
+    /// Estimated velocity (m/s).
+    pub velocity_m_s: f64,
+}
+
+impl Diagnostics {
+    /// All states absent.
+    pub const NONE: Diagnostics = Diagnostics {
+        proxy_position_m: f64::NAN,
+        s_p: f64::NAN,
+        s_q: f64::NAN,
+        gain_hat: f64::NAN,
+        disturbance_hat: f64::NAN,
+        velocity_m_s: f64::NAN,
+    };
+}
+
+/// One period's result.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ControlOutput {
+    /// Pressure set point (Pa), already clamped to the command limits.
+    pub pressure_cmd_pa: f64,
+    /// Internal states.
+    pub diagnostics: Diagnostics,
+}
+
+/// Valve command range the controllers saturate to (and apply anti-windup at).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CommandLimits {
+    /// Lowest command (Pa).
+    pub min_pa: f64,
+    /// Highest command (Pa).
+    pub max_pa: f64,
+}
+
+impl Default for CommandLimits {
+    /// 0-6 bar: the Festo DMSP-20's operating range.
+    fn default() -> Self {
+        Self {
+            min_pa: 0.0,
+            max_pa: 6.0e5,
+        }
+    }
+}
+
+/// Which side a command was clamped on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Saturation {
+    /// Within range.
+    #[default]
+    None,
+    /// Clamped to the maximum.
+    High,
+    /// Clamped to the minimum.
+    Low,
+}
+
+impl Saturation {
+    /// Whether a contribution of sign `push` (positive raises the command) would drive
+    /// the command further into this saturation: integrators must then hold.
+    pub fn blocks(self, push: f64) -> bool {
+        match self {
+            Saturation::None => false,
+            Saturation::High => push > 0.0,
+            Saturation::Low => push < 0.0,
+        }
+    }
+}
+
+impl CommandLimits {
+    /// Clamps `u` (NaN becomes the minimum: vent) and reports the side.
+    pub fn clamp(&self, u: f64) -> (f64, Saturation) {
+        if u.is_nan() || u < self.min_pa {
+            (self.min_pa, Saturation::Low)
+        } else if u > self.max_pa {
+            (self.max_pa, Saturation::High)
+        } else {
+            (u, Saturation::None)
+        }
+    }
+}
+
+/// A position controller for one muscle. `dt_s` is passed every period; implementations
+/// allocate nothing in [`Controller::update`].
+pub trait Controller: Send {
+    /// Short name as used on the command line (`aprc-ndo`, `psmc`, ...).
+    fn name(&self) -> &'static str;
+    /// Restarts from rest at `measurement` with the first reference sample (the proxy
+    /// starts on the reference, `x_p = x_d`, as Corollaries 1-2 assume).
+    fn reset(&mut self, measurement: Measurement, reference: RefSample);
+    /// One control period.
+    fn update(&mut self, reference: &RefSample, measurement: &Measurement, dt_s: f64) -> ControlOutput;
+}

@@ -1,0 +1,65 @@
+use pma_model::{DampingMode, MuscleParams, GRAVITY_M_S2};
+
+/// The model a model-based controller believes in: eq. (2) with the muscle parameters and
+/// the load mass it assumes. The paper's controllers use Table I and the 2 kg load.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NominalModel {
+    /// Muscle parameters (eq. 1).
+    pub muscle: MuscleParams,
+    /// Assumed load mass (kg).
+    pub mass_kg: f64,
+}
+
+impl NominalModel {
+    /// Table I with a 2 kg load.
+    pub const fn paper() -> Self {
+        Self {
+            muscle: MuscleParams::TABLE_I,
+            mass_kg: 2.0,
+        }
+    }
+
+    /// Drift term `f(x, xdot)` of eq. (2) (m/s^2).
+    pub fn drift(&self, x: f64, v: f64, mode: DampingMode) -> f64 {
+        let (b0, _) = self.muscle.damping_coefficients(mode);
+        let m = self.mass_kg;
+        (self.muscle.f0_n - m * GRAVITY_M_S2 - b0 * v - self.muscle.k0_n_per_m * x) / m
+    }
+
+    /// Input gain `b(x, xdot)` of eq. (2) (m/s^2 per Pa).
+    pub fn input_gain(&self, x: f64, v: f64, mode: DampingMode) -> f64 {
+        let (_, b1) = self.muscle.damping_coefficients(mode);
+        (self.muscle.f1_n_per_pa - b1 * v - self.muscle.k1_n_per_m_pa * x) / self.mass_kg
+    }
+
+    /// The input gain, kept away from zero and from the wrong sign: a fast extension can
+    /// make `f1 - b1 xdot` vanish, and dividing by it would command nonsense. The floor is
+    /// a tenth of the gain at rest.
+    pub fn safe_input_gain(&self, x: f64, v: f64, mode: DampingMode) -> f64 {
+        let floor = 0.1 * self.muscle.f1_n_per_pa / self.mass_kg;
+        self.input_gain(x, v, mode).max(floor)
+    }
+}
+
+impl Default for NominalModel {
+    fn default() -> Self {
+        Self::paper()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn static_pressure_makes_the_nominal_acceleration_vanish() {
+        let n = NominalModel::paper();
+        let x = 0.02;
+        let p = n
+            .muscle
+            .static_pressure_for(n.mass_kg * GRAVITY_M_S2, x)
+            .unwrap();
+        let a = n.drift(x, 0.0, DampingMode::Inflation) + n.input_gain(x, 0.0, DampingMode::Inflation) * p;
+        assert!(a.abs() < 1e-9, "a = {a}");
+    }
+}

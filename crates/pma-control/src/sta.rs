@@ -1,0 +1,94 @@
+use crate::command::CommandState;
+use crate::{
+    CommandLimits, ControlOutput, Controller, Diagnostics, KinematicObserver, Measurement,
+    NominalModel, RefSample,
+};
+
+/// Gains of the super-twisting algorithm on `s = e' + c1 e`:
+/// `s' = -k1 |s|^(1/2) sgn(s) + w`, `w' = -k2 sgn(s)`, on top of the nominal model's
+/// equivalent control (as NDO-SMC and APRC-NDO, it uses Table I).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
+pub struct StaGains {
+    /// Sliding surface `c1` (1/s).
+    pub c1_per_s: f64,
+    /// Proportional STA gain `k1` (m^0.5 / s^1.5).
+    pub k1: f64,
+    /// Integral STA gain `k2` (m/s^3).
+    pub k2: f64,
+    /// Kinematic observer bandwidth (rad/s).
+    pub estimator_bandwidth_rad_s: f64,
+}
+
+impl Default for StaGains {
+    fn default() -> Self {
+        crate::config::tuned::STA
+    }
+}
+
+/// Super-twisting sliding mode control (Levant), integral term by forward Euler.
+#[derive(Debug, Clone)]
+pub struct SuperTwisting {
+    gains: StaGains,
+    model: NominalModel,
+    limits: CommandLimits,
+    observer: KinematicObserver,
+    w: f64,
+    cmd: CommandState,
+}
+
+impl SuperTwisting {
+    /// STA on the nominal model.
+    pub fn new(gains: StaGains, model: NominalModel, limits: CommandLimits) -> Self {
+        Self {
+            gains,
+            model,
+            limits,
+            observer: KinematicObserver::new(gains.estimator_bandwidth_rad_s),
+            w: 0.0,
+            cmd: CommandState::at_rest(&model, &limits, 0.0),
+        }
+    }
+}
+
+impl Controller for SuperTwisting {
+    fn name(&self) -> &'static str {
+        "sta"
+    }
+
+    fn reset(&mut self, measurement: Measurement, _reference: RefSample) {
+        self.observer.reset(measurement.position_m);
+        self.w = 0.0;
+        self.cmd = CommandState::at_rest(&self.model, &self.limits, measurement.position_m);
+    }
+
+    fn update(&mut self, r: &RefSample, m: &Measurement, dt: f64) -> ControlOutput {
+        self.observer.update(m.position_m, dt);
+        let (x, v) = (self.observer.position(), self.observer.velocity());
+        let g = &self.gains;
+        let e = r.position_m - x;
+        let s = (r.velocity_m_s - v) + g.c1_per_s * e;
+        let twist = g.k1 * s.abs().sqrt() * s.signum();
+        let desired = r.acceleration_m_s2 + g.c1_per_s * (r.velocity_m_s - v)
+            - self.model.drift(x, v, self.cmd.mode)
+            + twist
+            + self.w;
+        let u = self
+            .cmd
+            .apply(&self.limits, desired / self.model.safe_input_gain(x, v, self.cmd.mode));
+        let push = s.signum();
+        if !self.cmd.saturation.blocks(push) {
+            self.w += dt * g.k2 * push;
+        }
+        ControlOutput {
+            pressure_cmd_pa: u,
+            diagnostics: Diagnostics {
+                s_q: s,
+                disturbance_hat: -self.w,
+                velocity_m_s: v,
+                ..Diagnostics::NONE
+            },
+        }
+    }
+}
