@@ -204,15 +204,10 @@ impl Controller for AprcNdo {
         let (s_p, u_l) = self.step_proxy(r, x, v, dt);
         self.adapt_gain(s_p, dt);
         let g = &self.gains;
-        let desired = r.acceleration_m_s2
-            + g.c1_per_s * (r.velocity_m_s - v)
-            + g.c2_per_s2 * (r.position_m - x)
-            - self.model.drift(x, v, self.cmd.mode)
-            + u_l
+        // Eq. (43): everything but the drift f(x, xdot), which `invert` subtracts.
+        let accel = r.acceleration_m_s2 + g.c1_per_s * (r.velocity_m_s - v) + g.c2_per_s2 * (r.position_m - x) + u_l
             - tau_hat;
-        let u = self
-            .cmd
-            .apply(&self.limits, desired / self.model.safe_input_gain(x, v, self.cmd.mode));
+        let u = self.cmd.invert(&self.limits, &self.model, x, v, accel);
         let s_q = r.velocity_m_s - v + g.c1_per_s * (r.position_m - x) + g.c2_per_s2 * self.int_ref_object;
         ControlOutput {
             pressure_cmd_pa: u,

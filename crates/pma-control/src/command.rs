@@ -27,6 +27,38 @@ impl CommandState {
         }
     }
 
+    /// Inverts the nominal model for a desired acceleration: the pressure `u` with
+    /// `f(x, v; mode) + b(x, v; mode) u = accel`, clamped and recorded.
+    ///
+    /// The damping mode of eq. (1) depends on the sign of the pressure change that `u`
+    /// itself makes, so the inversion is solved for a *consistent* mode: inflation only
+    /// if `u` rises, deflation only if it falls. Using the previous period's mode instead
+    /// puts an error of `(b0i - b0d) xdot` (~80 N at 20 mm/s, four times a 2 kg load's
+    /// weight) on the plant every time the command turns, which destabilises APRC and STA
+    /// without an observer. Where both modes are consistent the current one is kept;
+    /// where neither is, the pressure is held, which is consistent by definition.
+    pub fn invert(&mut self, limits: &CommandLimits, model: &NominalModel, x: f64, v: f64, accel: f64) -> f64 {
+        let solve = |mode| (accel - model.drift(x, v, mode)) / model.safe_input_gain(x, v, mode);
+        let consistent = |mode, u: f64| u == self.u_prev || self.mode.after_change(u - self.u_prev) == mode;
+        let current = self.mode;
+        let other = match current {
+            DampingMode::Inflation => DampingMode::Deflation,
+            DampingMode::Deflation => DampingMode::Inflation,
+        };
+        let u_current = solve(current);
+        let raw = if consistent(current, u_current) {
+            u_current
+        } else {
+            let u_other = solve(other);
+            if consistent(other, u_other) {
+                u_other
+            } else {
+                self.u_prev
+            }
+        };
+        self.apply(limits, raw)
+    }
+
     /// Clamps the raw command, records saturation and damping mode, returns the command.
     pub fn apply(&mut self, limits: &CommandLimits, raw: f64) -> f64 {
         let (u, sat) = limits.clamp(raw);

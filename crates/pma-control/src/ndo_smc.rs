@@ -83,14 +83,10 @@ impl Controller for NdoSmc {
         }
         let s = (r.velocity_m_s - v) + g.c1_per_s * e + g.c2_per_s2 * self.int_error;
         let sat = (s / g.phi_m_s).clamp(-1.0, 1.0);
-        let desired = r.acceleration_m_s2 + g.c1_per_s * (r.velocity_m_s - v) + g.c2_per_s2 * e
-            - self.model.drift(x, v, self.cmd.mode)
-            - tau_hat
+        let accel = r.acceleration_m_s2 + g.c1_per_s * (r.velocity_m_s - v) + g.c2_per_s2 * e - tau_hat
             + g.k_per_s * s
             + g.eta_m_s2 * sat;
-        let u = self
-            .cmd
-            .apply(&self.limits, desired / self.model.safe_input_gain(x, v, self.cmd.mode));
+        let u = self.cmd.invert(&self.limits, &self.model, x, v, accel);
         ControlOutput {
             pressure_cmd_pa: u,
             diagnostics: Diagnostics {

@@ -70,13 +70,8 @@ impl Controller for SuperTwisting {
         let e = r.position_m - x;
         let s = (r.velocity_m_s - v) + g.c1_per_s * e;
         let twist = g.k1 * s.abs().sqrt() * s.signum();
-        let desired = r.acceleration_m_s2 + g.c1_per_s * (r.velocity_m_s - v)
-            - self.model.drift(x, v, self.cmd.mode)
-            + twist
-            + self.w;
-        let u = self
-            .cmd
-            .apply(&self.limits, desired / self.model.safe_input_gain(x, v, self.cmd.mode));
+        let accel = r.acceleration_m_s2 + g.c1_per_s * (r.velocity_m_s - v) + twist + self.w;
+        let u = self.cmd.invert(&self.limits, &self.model, x, v, accel);
         let push = s.signum();
         if !self.cmd.saturation.blocks(push) {
             self.w += dt * g.k2 * push;

@@ -1,0 +1,198 @@
+use crate::{PlantConfig, SimError};
+use pma_control::Measurement;
+use pma_model::{
+    LoadProfile, MuscleParams, PositionSensor, Valve, GRAVITY_M_S2,
+};
+
+/// Anything the closed loop can drive: it takes a pressure command held for `dt` and
+/// returns sensor readings. Implemented by the single-muscle bench here; the leg and the
+/// rig implement the same contract.
+pub trait Plant {
+    /// Sensor reading at the current time.
+    fn measure(&mut self) -> Measurement;
+    /// Sends a pressure command and advances the plant by `dt_s` with it held.
+    fn apply(&mut self, pressure_cmd_pa: f64, dt_s: f64);
+    /// True contraction (m).
+    fn position(&self) -> f64;
+    /// True pressure in the muscle (Pa).
+    fn pressure(&self) -> f64;
+    /// Plant time (s).
+    fn time(&self) -> f64;
+}
+
+/// One muscle holding a hanging load (the paper's Fig. 3 rig):
+/// `m(t) xddot = F(P, x, xdot) - m(t) g`, `F` eq. (1) clamped at zero.
+///
+/// Integration: with the damping pole `b/m ~ 3000 1/s` at 2 kg, explicit Euler at the
+/// 1 ms control period diverges. Each period is split into `substeps` steps of the
+/// trapezoidal rule, which is A-stable and second order; since the force is affine in
+/// `(x, xdot)` for a given pressure, its implicit equation is solved in closed form.
+/// Where the end-of-step force would be negative the muscle is slack and the step is
+/// redone with zero force.
+#[derive(Debug, Clone)]
+pub struct MuscleBench {
+    muscle: MuscleParams,
+    load: LoadProfile,
+    valve: Valve,
+    sensor: PositionSensor,
+    substeps: u32,
+    x: f64,
+    v: f64,
+    t: f64,
+}
+
+impl MuscleBench {
+    /// A bench at rest at contraction `x0_m`, the valve holding the pressure that
+    /// balances the initial load there.
+    pub fn at_rest(cfg: &PlantConfig, x0_m: f64) -> Result<Self, SimError> {
+        cfg.validate()?;
+        let wrap = |source| SimError::Model {
+            plant: cfg.name.clone(),
+            source,
+        };
+        let muscle = cfg.true_muscle();
+        let w = cfg.load.mass_at(0.0) * GRAVITY_M_S2;
+        let p0 = muscle.static_pressure_for(w, x0_m).unwrap_or(0.0);
+        Ok(Self {
+            muscle,
+            load: cfg.load,
+            valve: Valve::new(cfg.valve, p0).map_err(wrap)?,
+            sensor: PositionSensor::new(cfg.sensor).map_err(wrap)?,
+            substeps: cfg.substeps_per_period,
+            x: x0_m,
+            v: 0.0,
+            t: 0.0,
+        })
+    }
+
+    /// Overrides the substep count (for convergence studies).
+    pub fn with_substeps(mut self, substeps: u32) -> Self {
+        self.substeps = substeps.max(1);
+        self
+    }
+
+    /// Velocity (m/s).
+    pub fn velocity(&self) -> f64 {
+        self.v
+    }
+
+    /// Muscle force at the current state (N).
+    pub fn force(&self) -> f64 {
+        self.muscle.force(self.valve.pressure(), self.x, self.v, self.valve.mode())
+    }
+
+    fn accel(&self, p: f64, x: f64, v: f64, m: f64, mode: pma_model::DampingMode) -> f64 {
+        self.muscle.force(p, x, v, mode) / m - GRAVITY_M_S2
+    }
+
+    fn substep(&mut self, h: f64) {
+        let m = self.load.mass_at(self.t);
+        let (p0, mode0) = (self.valve.pressure(), self.valve.mode());
+        let a0 = self.accel(p0, self.x, self.v, m, mode0);
+        self.valve.advance(h);
+        let (p1, mode1) = (self.valve.pressure(), self.valve.mode());
+        let c = self.muscle.contractile_force(p1);
+        let k = self.muscle.stiffness(p1);
+        let b = self.muscle.damping(p1, mode1);
+        // Trapezoid: x1 = x0 + h/2 (v0 + v1), v1 = v0 + h/2 (a0 + a1),
+        // a1 = (c - k x1 - b v1)/m - g, solved for v1.
+        let hh = 0.5 * h;
+        let rhs = self.v + hh * a0 + hh * ((c - k * (self.x + hh * self.v)) / m - GRAVITY_M_S2);
+        let mut v1 = rhs / (1.0 + hh * (k * hh + b) / m);
+        let mut x1 = self.x + hh * (self.v + v1);
+        if c - k * x1 - b * v1 < 0.0 {
+            v1 = self.v + hh * (a0 - GRAVITY_M_S2);
+            x1 = self.x + hh * (self.v + v1);
+        }
+        self.x = x1;
+        self.v = v1;
+        self.t += h;
+    }
+}
+
+impl Plant for MuscleBench {
+    fn measure(&mut self) -> Measurement {
+        Measurement {
+            position_m: self.sensor.measure(self.x),
+        }
+    }
+
+    fn apply(&mut self, pressure_cmd_pa: f64, dt_s: f64) {
+        self.valve.command(pressure_cmd_pa);
+        let h = dt_s / f64::from(self.substeps);
+        for _ in 0..self.substeps {
+            self.substep(h);
+        }
+    }
+
+    fn position(&self) -> f64 {
+        self.x
+    }
+
+    fn pressure(&self) -> f64 {
+        self.valve.pressure()
+    }
+
+    fn time(&self) -> f64 {
+        self.t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ideal() -> PlantConfig {
+        PlantConfig::preset("ideal").unwrap()
+    }
+
+    #[test]
+    fn resting_bench_stays_at_rest() {
+        let mut b = MuscleBench::at_rest(&ideal(), 0.02).unwrap();
+        let p = b.pressure();
+        for _ in 0..5000 {
+            b.apply(p, 1e-3);
+        }
+        assert!((b.position() - 0.02).abs() < 1e-12, "{}", b.position());
+    }
+
+    #[test]
+    fn pressure_step_settles_at_the_static_equilibrium() {
+        let cfg = ideal();
+        let mut b = MuscleBench::at_rest(&cfg, 0.0).unwrap();
+        let m = cfg.true_muscle();
+        let p = m.static_pressure_for(2.0 * GRAVITY_M_S2, 0.025).unwrap();
+        // Slow pole k/b ~ 1.1 1/s at 1.1 bar while inflating: 30 s is ~33 time constants.
+        for _ in 0..30_000 {
+            b.apply(p, 1e-3);
+        }
+        assert!((b.position() - 0.025).abs() < 1e-9, "{}", b.position());
+    }
+
+    #[test]
+    fn step_response_matches_the_analytic_overdamped_solution() {
+        // Constant pressure, linear ODE m x'' + b x' + k x = c - m g: compare with the
+        // closed-form solution of the two real roots.
+        let cfg = ideal();
+        let mut bench = MuscleBench::at_rest(&cfg, 0.0).unwrap().with_substeps(8);
+        let mu = cfg.true_muscle();
+        let p = 0.9e5;
+        bench.apply(p, 1e-3); // the first period switches the valve; from here P is constant
+        let (x0, v0, t0) = (bench.position(), bench.velocity(), bench.time());
+        let (m, k, b) = (2.0, mu.stiffness(p), mu.damping(p, pma_model::DampingMode::Inflation));
+        let xe = (mu.contractile_force(p) - m * GRAVITY_M_S2) / k;
+        let disc = (b * b - 4.0 * m * k).sqrt();
+        let (r1, r2) = ((-b + disc) / (2.0 * m), (-b - disc) / (2.0 * m));
+        let (y0, dy0) = (x0 - xe, v0);
+        let c2 = (dy0 - r1 * y0) / (r2 - r1);
+        let c1 = y0 - c2;
+        let mut worst: f64 = 0.0;
+        for _ in 0..2000 {
+            bench.apply(p, 1e-3);
+            let t = bench.time() - t0;
+            let exact = xe + c1 * (r1 * t).exp() + c2 * (r2 * t).exp();
+            worst = worst.max((bench.position() - exact).abs());
+        }
+        assert!(worst < 1e-8, "worst {worst}");
+    }
+}
