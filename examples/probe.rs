@@ -1,15 +1,34 @@
-use pma_control::{AprcGains, ControllerConfig, SineReference};
-use pma_sim::{run_single, PlantConfig, RunSpec};
+use pma_control::Reference;
+use pma_control::SineReference;
+use pma_model::GRAVITY_M_S2;
+use pma_sim::{MuscleBench, Plant, PlantConfig};
 fn main() {
-    let base = PlantConfig::preset("realistic").unwrap();
-    let mut lag_only = base.clone(); lag_only.sensor = PlantConfig::preset("mismatch").unwrap().sensor;
-    let mut noise_only = base.clone(); noise_only.valve.time_constant_s = 0.0;
-    let mut quant_only = noise_only.clone(); quant_only.sensor.noise_rms_m = 0.0;
-    for (name, cfg) in [("lag", &lag_only), ("noise+quant", &noise_only), ("quant", &quant_only), ("all", &base)] {
-        for bw in [100.0, 200.0, 400.0] {
-            let g = AprcGains { estimator_bandwidth_rad_s: bw, ..AprcGains::PAPER };
-            let n = run_single(&ControllerConfig::AprcNdo(g), cfg, &SineReference::paper(), &RunSpec::default(), None).unwrap();
-            println!("{name:12} bw {bw:5} aprc-ndo RTE {:8.3} MAE {:8.2e}", n.stats.rte_percent, n.stats.mae_m);
-        }
+    let plant = PlantConfig::preset("realistic").unwrap();
+    let run = |n: u32| {
+        let m = plant.true_muscle();
+        let mut b = MuscleBench::at_rest(&plant, 0.015)
+            .unwrap()
+            .with_substeps(n);
+        let r = SineReference::paper();
+        (1..=20000)
+            .map(|k| {
+                let xd = r.sample(k as f64 * 1e-3).position_m;
+                let p = m
+                    .static_pressure_for(plant.load.mass_kg * GRAVITY_M_S2, xd)
+                    .unwrap();
+                b.apply(p, 1e-3);
+                b.position()
+            })
+            .collect::<Vec<f64>>()
+    };
+    let fine = run(640);
+    for n in [2u32, 4, 8, 16, 32, 64] {
+        let c = run(n);
+        let e = c
+            .iter()
+            .zip(&fine)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        println!("substeps {n:3} err vs 640: {e:.3e}");
     }
 }

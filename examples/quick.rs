@@ -3,7 +3,10 @@ use pma_control::{ChirpReference, ControllerKind, Reference, SineReference};
 use pma_sim::{run_single, PlantConfig, RunSpec, PRESET_NAMES};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let refs: [(&str, &dyn Reference); 2] = [("sine", &SineReference::paper()), ("chirp", &ChirpReference::paper())];
+    let refs: [(&str, &dyn Reference); 2] = [
+        ("sine", &SineReference::paper()),
+        ("chirp", &ChirpReference::paper()),
+    ];
     for (rname, r) in refs {
         for plant in PRESET_NAMES {
             let cfg = PlantConfig::preset(plant)?;

@@ -1,1 +1,341 @@
-fn main(){}
+//! `pma-exo`: single-muscle runs, the paper's experiments, and gain tuning.
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand, ValueEnum};
+use pma_control::{ChirpReference, ControllerConfig, ControllerKind, Reference, SineReference};
+use pma_sim::{run_single, PlantConfig, RunSpec, Sample};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+mod paper;
+
+#[derive(Parser)]
+#[command(
+    name = "pma-exo",
+    version,
+    about = "Pneumatic-muscle control (APRC-NDO, Cao et al. 2020): simulation and experiments"
+)]
+struct Cli {
+    /// Without a subcommand: `paper --out paper-out` (the paper's experiments).
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum RefName {
+    /// A = 15 mm, f = 0.25 Hz, B = 15 mm.
+    Sine,
+    /// 0.1 -> 0.5 Hz linearly in 20 s, A = B = 15 mm.
+    Chirp,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// One controller on the single-muscle bench.
+    Single {
+        /// aprc-ndo, aprc, psmc, ndo-smc, sta or pid.
+        #[arg(long, default_value = "aprc-ndo")]
+        controller: ControllerKind,
+        /// Reference trajectory.
+        #[arg(long, value_enum, default_value = "sine")]
+        reference: RefName,
+        /// Plant preset (ideal, mismatch, realistic) or a plant .toml file.
+        #[arg(long, default_value = "ideal")]
+        plant: String,
+        /// Simulated seconds.
+        #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
+        duration: f64,
+        /// Gain file (TOML) for the controller.
+        #[arg(long)]
+        gains: Option<PathBuf>,
+        /// Write the time series as CSV.
+        #[arg(long)]
+        csv: Option<PathBuf>,
+        /// Print one JSON object instead of a summary line.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Rerun the paper's experiments in simulation: results.json, report.md, plots.
+    Paper {
+        /// Output directory.
+        #[arg(long, default_value = "paper-out")]
+        out: PathBuf,
+    },
+    /// Tune a baseline's gains with the firefly algorithm on the sine (IAE objective).
+    Tune {
+        /// psmc, ndo-smc, sta or pid.
+        #[arg(long)]
+        controller: ControllerKind,
+        /// Plant the gains are tuned on.
+        #[arg(long, default_value = "mismatch")]
+        plant: String,
+        /// Fireflies.
+        #[arg(long, default_value_t = 20)]
+        population: usize,
+        /// Generations.
+        #[arg(long, default_value_t = 40)]
+        generations: usize,
+        /// Simulated seconds per evaluation.
+        #[arg(long, default_value_t = 20.0)]
+        duration: f64,
+        /// Optimiser seed.
+        #[arg(long, default_value_t = 2019)]
+        seed: u64,
+        /// Write the gain file here (printed otherwise).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+}
+
+fn main() {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            use clap::error::ErrorKind;
+            if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+                let _ = e.print();
+                std::process::exit(0);
+            }
+            let text = e.to_string();
+            eprintln!(
+                "{}",
+                text.lines().next().unwrap_or("error: invalid arguments")
+            );
+            std::process::exit(2);
+        }
+    };
+    if let Err(e) = run(cli) {
+        // One line: the error and its causes.
+        let chain: Vec<String> = e.chain().map(|c| c.to_string()).collect();
+        eprintln!("error: {}", chain.join(": "));
+        std::process::exit(1);
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    let command = cli.command.unwrap_or(Command::Paper {
+        out: PathBuf::from("paper-out"),
+    });
+    match command {
+        Command::Single {
+            controller,
+            reference,
+            plant,
+            duration,
+            gains,
+            csv,
+            json,
+        } => single(
+            controller,
+            reference,
+            &plant,
+            duration,
+            gains.as_deref(),
+            csv.as_deref(),
+            json,
+        ),
+        Command::Paper { out } => paper::run(&out),
+        Command::Tune {
+            controller,
+            plant,
+            population,
+            generations,
+            duration,
+            seed,
+            out,
+        } => tune(
+            controller,
+            &plant,
+            population,
+            generations,
+            duration,
+            seed,
+            out.as_deref(),
+        ),
+    }
+}
+
+/// A preset name or a path to a plant TOML file.
+pub(crate) fn load_plant(name: &str) -> Result<PlantConfig> {
+    if name.ends_with(".toml") {
+        let text = std::fs::read_to_string(name)
+            .with_context(|| format!("cannot read plant file `{name}`"))?;
+        Ok(PlantConfig::from_toml_str(&text, name)?)
+    } else {
+        Ok(PlantConfig::preset(name)?)
+    }
+}
+
+fn load_gains(kind: ControllerKind, path: Option<&Path>) -> Result<ControllerConfig> {
+    let Some(path) = path else {
+        return Ok(kind.default_config());
+    };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read gain file `{}`", path.display()))?;
+    let cfg = ControllerConfig::from_toml_str(&text)
+        .with_context(|| format!("gain file `{}`", path.display()))?;
+    // APRC and APRC-NDO share one gain set, so an APRC-NDO file may drive the ablation.
+    let compatible = cfg.kind() == kind
+        || matches!(
+            (cfg.kind(), kind),
+            (ControllerKind::AprcNdo, ControllerKind::Aprc)
+                | (ControllerKind::Aprc, ControllerKind::AprcNdo)
+        );
+    if !compatible {
+        return Err(pma_control::ConfigError::WrongController {
+            requested: kind,
+            found: cfg.kind(),
+        })
+        .with_context(|| format!("gain file `{}`", path.display()));
+    }
+    Ok(match (cfg, kind) {
+        (ControllerConfig::AprcNdo(g), ControllerKind::Aprc) => ControllerConfig::Aprc(g),
+        (ControllerConfig::Aprc(g), ControllerKind::AprcNdo) => ControllerConfig::AprcNdo(g),
+        (c, _) => c,
+    })
+}
+
+fn check_duration(duration: f64) -> Result<()> {
+    if !(duration.is_finite() && duration > 0.0) {
+        bail!("--duration must be a finite number of seconds > 0 (got {duration})");
+    }
+    Ok(())
+}
+
+fn reference_of(name: RefName) -> (&'static str, Box<dyn Reference>) {
+    match name {
+        RefName::Sine => ("sine", Box::new(SineReference::paper())),
+        RefName::Chirp => ("chirp", Box::new(ChirpReference::paper())),
+    }
+}
+
+fn single(
+    kind: ControllerKind,
+    reference: RefName,
+    plant: &str,
+    duration: f64,
+    gains: Option<&Path>,
+    csv: Option<&Path>,
+    json: bool,
+) -> Result<()> {
+    check_duration(duration)?;
+    let plant_cfg = load_plant(plant)?;
+    let config = load_gains(kind, gains)?;
+    let (ref_name, r) = reference_of(reference);
+    let spec = RunSpec {
+        duration_s: duration,
+        ..RunSpec::default()
+    };
+    let mut samples: Vec<Sample> = Vec::with_capacity(if csv.is_some() { spec.steps() } else { 0 });
+    let mut record = |s: &Sample| samples.push(*s);
+    let observe: Option<&mut dyn FnMut(&Sample)> = if csv.is_some() {
+        Some(&mut record)
+    } else {
+        None
+    };
+    let res = run_single(&config, &plant_cfg, r.as_ref(), &spec, observe)?;
+    if let Some(path) = csv {
+        write_csv(path, &samples)?;
+    }
+    if !res.finite {
+        bail!(
+            "the run went non-finite (controller {}, plant {})",
+            kind,
+            plant_cfg.name
+        );
+    }
+    let s = res.stats;
+    if json {
+        let v = serde_json::json!({
+            "controller": kind.as_str(),
+            "reference": ref_name,
+            "plant": plant_cfg.name,
+            "duration_s": duration,
+            "mae_m": s.mae_m,
+            "iae_m": s.iae_m,
+            "rte_percent": s.rte_percent,
+            "rms_m": s.rms_m,
+            "x_a_m": res.x_a_m,
+            "command_variation_bar_per_s": res.command_variation_pa_per_s / 1e5,
+            "samples": s.samples,
+            "real_time_factor": res.real_time_factor,
+        });
+        println!("{v}");
+    } else {
+        println!(
+            "{kind} on {} ({ref_name}, {duration} s): MAE {:.3e} m, IAE {:.3e} m, RTE {:.3} %, RMS {:.3e} m, {:.0}x real time",
+            plant_cfg.name, s.mae_m, s.iae_m, s.rte_percent, s.rms_m, res.real_time_factor
+        );
+    }
+    Ok(())
+}
+
+fn write_csv(path: &Path, samples: &[Sample]) -> Result<()> {
+    let file = std::fs::File::create(path)
+        .with_context(|| format!("cannot create `{}`", path.display()))?;
+    let mut w = std::io::BufWriter::new(file);
+    writeln!(w, "t_s,reference_m,position_m,pressure_cmd_pa,pressure_pa,proxy_m,s_p,s_q,gain_hat,disturbance_hat")?;
+    for s in samples {
+        let d = &s.diagnostics;
+        writeln!(
+            w,
+            "{},{},{},{},{},{},{},{},{},{}",
+            s.t_s,
+            s.reference_m,
+            s.position_m,
+            s.pressure_cmd_pa,
+            s.pressure_pa,
+            d.proxy_position_m,
+            d.s_p,
+            d.s_q,
+            d.gain_hat,
+            d.disturbance_hat
+        )?;
+    }
+    w.flush()
+        .with_context(|| format!("cannot write `{}`", path.display()))?;
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn tune(
+    kind: ControllerKind,
+    plant: &str,
+    population: usize,
+    generations: usize,
+    duration: f64,
+    seed: u64,
+    out: Option<&Path>,
+) -> Result<()> {
+    check_duration(duration)?;
+    if population < 2 {
+        bail!("--population must be at least 2 (got {population})");
+    }
+    let plant_cfg = load_plant(plant)?;
+    let opts = pma_sim::tune::FireflyOptions {
+        population,
+        generations,
+        seed,
+        ..Default::default()
+    };
+    let Some(res) = pma_sim::tune::tune(kind, &plant_cfg, &opts, duration) else {
+        bail!("{kind} is not tuned here: APRC(-NDO) uses the paper's gains (pass --gains to change them)");
+    };
+    let text = format!(
+        "# Tuned by `pma-exo tune --controller {kind} --plant {} --population {population} --generations {generations} --duration {duration} --seed {seed}`\n# ({} runs, sine IAE {:.4e} m)\n{}",
+        plant_cfg.name,
+        res.evaluations,
+        res.iae_m,
+        res.config.to_toml_string()
+    );
+    match out {
+        Some(p) => {
+            std::fs::write(p, &text).with_context(|| format!("cannot write `{}`", p.display()))?
+        }
+        None => print!("{text}"),
+    }
+    eprintln!(
+        "{kind}: IAE {:.4e} m after {} runs",
+        res.iae_m, res.evaluations
+    );
+    Ok(())
+}

@@ -112,7 +112,12 @@ pub struct AprcNdo {
 
 impl AprcNdo {
     /// APRC-NDO when `with_ndo`, else APRC.
-    pub fn new(gains: AprcGains, model: NominalModel, limits: CommandLimits, with_ndo: bool) -> Self {
+    pub fn new(
+        gains: AprcGains,
+        model: NominalModel,
+        limits: CommandLimits,
+        with_ndo: bool,
+    ) -> Self {
         Self {
             gains,
             model,
@@ -147,7 +152,8 @@ impl AprcNdo {
         let e0 = self.int_proxy_object + t_int * (xi0 - x);
         let s0 = r.velocity_m_s + c1 * (r.position_m - xi0) + c2 * ip0;
         let ul0 = kp * (xi0 - x) + ki * e0 + kd * (0.0 - v);
-        let d0 = r.acceleration_m_s2 + self.vp / dt + c1 * r.velocity_m_s + c2 * (r.position_m - xi0);
+        let d0 =
+            r.acceleration_m_s2 + self.vp / dt + c1 * r.velocity_m_s + c2 * (r.position_m - xi0);
         // Slopes with respect to xi: dS_p/dxi = -sigma, du_l/dxi = lambda.
         let sigma = 1.0 / dt + c1 + c2 * dt;
         let lambda = kp + ki * t_int + kd / dt;
@@ -195,7 +201,11 @@ impl Controller for AprcNdo {
 
     fn update(&mut self, r: &RefSample, m: &Measurement, dt: f64) -> ControlOutput {
         self.observer.update(m.position_m, dt);
-        let (x, v, a) = (self.observer.position(), self.observer.velocity(), self.observer.acceleration());
+        let (x, v, a) = (
+            self.observer.position(),
+            self.observer.velocity(),
+            self.observer.acceleration(),
+        );
         let tau_hat = match self.ndo.as_mut() {
             Some(n) => n.update(&self.model, x, v, a, self.cmd.u_prev, self.cmd.mode, dt),
             None => 0.0,
@@ -205,10 +215,15 @@ impl Controller for AprcNdo {
         self.adapt_gain(s_p, dt);
         let g = &self.gains;
         // Eq. (43): everything but the drift f(x, xdot), which `invert` subtracts.
-        let accel = r.acceleration_m_s2 + g.c1_per_s * (r.velocity_m_s - v) + g.c2_per_s2 * (r.position_m - x) + u_l
+        let accel = r.acceleration_m_s2
+            + g.c1_per_s * (r.velocity_m_s - v)
+            + g.c2_per_s2 * (r.position_m - x)
+            + u_l
             - tau_hat;
         let u = self.cmd.invert(&self.limits, &self.model, x, v, accel);
-        let s_q = r.velocity_m_s - v + g.c1_per_s * (r.position_m - x) + g.c2_per_s2 * self.int_ref_object;
+        let s_q = r.velocity_m_s - v
+            + g.c1_per_s * (r.position_m - x)
+            + g.c2_per_s2 * self.int_ref_object;
         ControlOutput {
             pressure_cmd_pa: u,
             diagnostics: Diagnostics {
@@ -216,7 +231,11 @@ impl Controller for AprcNdo {
                 s_p,
                 s_q,
                 gain_hat: self.gain_hat,
-                disturbance_hat: if self.ndo.is_some() { tau_hat } else { f64::NAN },
+                disturbance_hat: if self.ndo.is_some() {
+                    tau_hat
+                } else {
+                    f64::NAN
+                },
                 velocity_m_s: v,
             },
         }
@@ -239,28 +258,43 @@ mod tests {
         // After a step, S_p returned must equal eq. (4) evaluated on the new proxy state,
         // and m_p dS_p/dt = -u_r + u_l must hold with u_r in Gamma sgn(S_p).
         let mut c = AprcNdo::new(
-            AprcGains { gain_initial: 0.3, ..AprcGains::PAPER },
+            AprcGains {
+                gain_initial: 0.3,
+                ..AprcGains::PAPER
+            },
             NominalModel::paper(),
             CommandLimits::default(),
             true,
         );
-        let r0 = RefSample { position_m: 0.015, velocity_m_s: 0.02, acceleration_m_s2: 0.0 };
+        let r0 = RefSample {
+            position_m: 0.015,
+            velocity_m_s: 0.02,
+            acceleration_m_s2: 0.0,
+        };
         c.reset(Measurement { position_m: 0.014 }, r0);
         let dt = 1e-3;
-        let r = RefSample { position_m: 0.01502, velocity_m_s: 0.0201, acceleration_m_s2: -0.01 };
+        let r = RefSample {
+            position_m: 0.01502,
+            velocity_m_s: 0.0201,
+            acceleration_m_s2: -0.01,
+        };
         let x = 0.0141;
         let (xp0, vp0) = (c.xp, c.vp);
         let ip_before = c.int_ref_proxy;
         let (s_p, u_l) = c.step_proxy(&r, x, 0.001, dt);
         let g = c.gains;
-        let s_def = r.velocity_m_s - c.vp + g.c1_per_s * (r.position_m - c.xp) + g.c2_per_s2 * c.int_ref_proxy;
+        let s_def = r.velocity_m_s - c.vp
+            + g.c1_per_s * (r.position_m - c.xp)
+            + g.c2_per_s2 * c.int_ref_proxy;
         assert!((s_p - s_def).abs() < 1e-9, "{s_p} vs {s_def}");
         assert!((c.int_ref_proxy - ip_before - dt * (r.position_m - c.xp)).abs() < 1e-15);
         assert!((c.vp - (c.xp - xp0) / dt).abs() < 1e-12);
         // Discrete eq. (12) residual: m_p (xdd_d - a_p + c1 (xd_d - v_p) + c2 (x_d - x_p)) = -u_r + u_l
         let ap = (c.vp - vp0) / dt;
         let lhs = g.proxy_mass
-            * (r.acceleration_m_s2 - ap + g.c1_per_s * (r.velocity_m_s - c.vp) + g.c2_per_s2 * (r.position_m - c.xp));
+            * (r.acceleration_m_s2 - ap
+                + g.c1_per_s * (r.velocity_m_s - c.vp)
+                + g.c2_per_s2 * (r.position_m - c.xp));
         let u_r = lhs - u_l; // = -(Gamma sgn S_p) must lie in [-Gamma, Gamma], equal if S_p != 0
         if s_p != 0.0 {
             assert!((u_r + 0.3 * s_p.signum()).abs() < 1e-6, "u_r {u_r}");

@@ -37,9 +37,17 @@ impl CommandState {
     /// weight) on the plant every time the command turns, which destabilises APRC and STA
     /// without an observer. Where both modes are consistent the current one is kept;
     /// where neither is, the pressure is held, which is consistent by definition.
-    pub fn invert(&mut self, limits: &CommandLimits, model: &NominalModel, x: f64, v: f64, accel: f64) -> f64 {
+    pub fn invert(
+        &mut self,
+        limits: &CommandLimits,
+        model: &NominalModel,
+        x: f64,
+        v: f64,
+        accel: f64,
+    ) -> f64 {
         let solve = |mode| (accel - model.drift(x, v, mode)) / model.safe_input_gain(x, v, mode);
-        let consistent = |mode, u: f64| u == self.u_prev || self.mode.after_change(u - self.u_prev) == mode;
+        let consistent =
+            |mode, u: f64| u == self.u_prev || self.mode.after_change(u - self.u_prev) == mode;
         let current = self.mode;
         let other = match current {
             DampingMode::Inflation => DampingMode::Deflation,

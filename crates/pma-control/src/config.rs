@@ -92,7 +92,10 @@ impl FromStr for ControllerKind {
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(tag = "controller", rename_all = "kebab-case"))]
+#[cfg_attr(
+    feature = "serde",
+    serde(tag = "controller", rename_all = "kebab-case")
+)]
 pub enum ControllerConfig {
     /// APRC-NDO.
     AprcNdo(AprcGains),
@@ -143,7 +146,9 @@ pub enum ConfigError {
         expected: &'static str,
     },
     /// A stability condition of Theorem 1/2 of the paper fails.
-    #[error("gain set violates the stability condition {condition} of Theorems 1-2 (value {value})")]
+    #[error(
+        "gain set violates the stability condition {condition} of Theorems 1-2 (value {value})"
+    )]
     Theorem {
         /// The condition, as written in the paper.
         condition: &'static str,
@@ -301,7 +306,8 @@ impl ControllerConfig {
     /// Parses and validates a gain file.
     #[cfg(feature = "serde")]
     pub fn from_toml_str(text: &str) -> Result<Self, ConfigError> {
-        let cfg: ControllerConfig = toml::from_str(text).map_err(|e| ConfigError::Parse(one_line(&e.to_string())))?;
+        let cfg: ControllerConfig =
+            toml::from_str(text).map_err(|e| ConfigError::Parse(one_line(&e.to_string())))?;
         cfg.validate()?;
         Ok(cfg)
     }
@@ -315,7 +321,11 @@ impl ControllerConfig {
 
 #[cfg(feature = "serde")]
 fn one_line(s: &str) -> String {
-    s.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join(" ")
+    s.lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// Validates `config` and builds the controller.
@@ -343,12 +353,16 @@ mod tests {
     fn paper_gain_file_round_trips() {
         let text = ControllerConfig::default().to_toml_string();
         assert!(text.contains("controller = \"aprc-ndo\""), "{text}");
-        assert_eq!(ControllerConfig::from_toml_str(&text).unwrap(), ControllerConfig::default());
+        assert_eq!(
+            ControllerConfig::from_toml_str(&text).unwrap(),
+            ControllerConfig::default()
+        );
     }
 
     #[test]
     fn partial_file_keeps_defaults() {
-        let cfg = ControllerConfig::from_toml_str("controller = \"aprc\"\nproxy_mass = 5.0\n").unwrap();
+        let cfg =
+            ControllerConfig::from_toml_str("controller = \"aprc\"\nproxy_mass = 5.0\n").unwrap();
         match cfg {
             ControllerConfig::Aprc(g) => {
                 assert_eq!(g.proxy_mass, 5.0);
@@ -360,22 +374,35 @@ mod tests {
 
     #[test]
     fn unknown_field_is_rejected_with_its_name() {
-        let e = ControllerConfig::from_toml_str("controller = \"aprc-ndo\"\nkp = 3.0\n").unwrap_err();
+        let e =
+            ControllerConfig::from_toml_str("controller = \"aprc-ndo\"\nkp = 3.0\n").unwrap_err();
         assert!(e.to_string().contains("kp"), "{e}");
     }
 
     #[test]
     fn nan_gain_is_rejected_with_its_name() {
-        let e = ControllerConfig::from_toml_str("controller = \"pid\"\nkp_pa_per_m = nan\n").unwrap_err();
-        assert!(matches!(e, ConfigError::NotFinite { field: "kp_pa_per_m", .. }), "{e}");
+        let e = ControllerConfig::from_toml_str("controller = \"pid\"\nkp_pa_per_m = nan\n")
+            .unwrap_err();
+        assert!(
+            matches!(
+                e,
+                ConfigError::NotFinite {
+                    field: "kp_pa_per_m",
+                    ..
+                }
+            ),
+            "{e}"
+        );
     }
 
     #[test]
     fn theorem_violations_name_the_condition() {
-        let e = ControllerConfig::from_toml_str("controller = \"aprc-ndo\"\nproxy_mass = 0.0\n").unwrap_err();
+        let e = ControllerConfig::from_toml_str("controller = \"aprc-ndo\"\nproxy_mass = 0.0\n")
+            .unwrap_err();
         assert!(e.to_string().contains("m_p > 0"), "{e}");
         // varpi = Kp c1 - Ki - Kd c2 < 0 with K_c still positive definite.
-        let e = ControllerConfig::from_toml_str("controller = \"aprc-ndo\"\nkp_per_s2 = 10.0\n").unwrap_err();
+        let e = ControllerConfig::from_toml_str("controller = \"aprc-ndo\"\nkp_per_s2 = 10.0\n")
+            .unwrap_err();
         assert!(e.to_string().contains("varpi"), "{e}");
     }
 

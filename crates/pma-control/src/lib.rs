@@ -43,7 +43,7 @@ pub use nominal::NominalModel;
 pub use pid::{Pid, PidGains};
 pub use psmc::{Psmc, PsmcGains};
 pub use reference::{ChirpReference, Reference, SineReference, StepReference};
-pub use sta::{SuperTwisting, StaGains};
+pub use sta::{StaGains, SuperTwisting};
 
 /// Desired trajectory at one instant, with analytic derivatives.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -166,5 +166,10 @@ pub trait Controller: Send {
     /// starts on the reference, `x_p = x_d`, as Corollaries 1-2 assume).
     fn reset(&mut self, measurement: Measurement, reference: RefSample);
     /// One control period.
-    fn update(&mut self, reference: &RefSample, measurement: &Measurement, dt_s: f64) -> ControlOutput;
+    fn update(
+        &mut self,
+        reference: &RefSample,
+        measurement: &Measurement,
+        dt_s: f64,
+    ) -> ControlOutput;
 }

@@ -35,7 +35,11 @@ impl Metrics {
         self.n += 1;
         self.sum_abs += a;
         self.sum_sq += error_m * error_m;
-        self.max_abs = if a.is_nan() { f64::NAN } else { self.max_abs.max(a) };
+        self.max_abs = if a.is_nan() {
+            f64::NAN
+        } else {
+            self.max_abs.max(a)
+        };
     }
 
     /// Final figures; `x_a_m` is the maximum running displacement of eq. (53).

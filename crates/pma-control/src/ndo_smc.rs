@@ -74,8 +74,14 @@ impl Controller for NdoSmc {
 
     fn update(&mut self, r: &RefSample, m: &Measurement, dt: f64) -> ControlOutput {
         self.observer.update(m.position_m, dt);
-        let (x, v, a) = (self.observer.position(), self.observer.velocity(), self.observer.acceleration());
-        let tau_hat = self.ndo.update(&self.model, x, v, a, self.cmd.u_prev, self.cmd.mode, dt);
+        let (x, v, a) = (
+            self.observer.position(),
+            self.observer.velocity(),
+            self.observer.acceleration(),
+        );
+        let tau_hat = self
+            .ndo
+            .update(&self.model, x, v, a, self.cmd.u_prev, self.cmd.mode, dt);
         let g = &self.gains;
         let e = r.position_m - x;
         if !self.cmd.saturation.blocks(e) {
@@ -83,7 +89,8 @@ impl Controller for NdoSmc {
         }
         let s = (r.velocity_m_s - v) + g.c1_per_s * e + g.c2_per_s2 * self.int_error;
         let sat = (s / g.phi_m_s).clamp(-1.0, 1.0);
-        let accel = r.acceleration_m_s2 + g.c1_per_s * (r.velocity_m_s - v) + g.c2_per_s2 * e - tau_hat
+        let accel = r.acceleration_m_s2 + g.c1_per_s * (r.velocity_m_s - v) + g.c2_per_s2 * e
+            - tau_hat
             + g.k_per_s * s
             + g.eta_m_s2 * sat;
         let u = self.cmd.invert(&self.limits, &self.model, x, v, accel);
@@ -98,4 +105,3 @@ impl Controller for NdoSmc {
         }
     }
 }
-

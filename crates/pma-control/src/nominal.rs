@@ -59,7 +59,8 @@ mod tests {
             .muscle
             .static_pressure_for(n.mass_kg * GRAVITY_M_S2, x)
             .unwrap();
-        let a = n.drift(x, 0.0, DampingMode::Inflation) + n.input_gain(x, 0.0, DampingMode::Inflation) * p;
+        let a = n.drift(x, 0.0, DampingMode::Inflation)
+            + n.input_gain(x, 0.0, DampingMode::Inflation) * p;
         assert!(a.abs() < 1e-9, "a = {a}");
     }
 }

@@ -76,7 +76,8 @@ impl Controller for Psmc {
         // Start the integral where the resting pressure needs it, so the first command
         // does not drop the load.
         self.int_proxy_object = if self.gains.ki_pa_per_m_s > 0.0 {
-            (self.cmd.u_prev - self.gains.bias_pa).clamp(-self.gains.force_max_pa, self.gains.force_max_pa)
+            (self.cmd.u_prev - self.gains.bias_pa)
+                .clamp(-self.gains.force_max_pa, self.gains.force_max_pa)
                 / self.gains.ki_pa_per_m_s
         } else {
             0.0
@@ -91,7 +92,8 @@ impl Controller for Psmc {
         let t_int = if hold { 0.0 } else { dt };
         let p0 = self.p;
         let sigma0 = (r.position_m - p0) + g.h_s * r.velocity_m_s;
-        let f0 = g.kp_pa_per_m * (p0 - x) + g.ki_pa_per_m_s * (self.int_proxy_object + t_int * (p0 - x))
+        let f0 = g.kp_pa_per_m * (p0 - x)
+            + g.ki_pa_per_m_s * (self.int_proxy_object + t_int * (p0 - x))
             - g.kd_pa_s_per_m * v;
         let sigma_slope = 1.0 + g.h_s / dt;
         let lambda = g.kp_pa_per_m + g.ki_pa_per_m_s * t_int + g.kd_pa_s_per_m / dt;

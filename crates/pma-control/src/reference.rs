@@ -113,7 +113,11 @@ pub struct StepReference {
 impl Reference for StepReference {
     fn sample(&self, t: f64) -> RefSample {
         RefSample {
-            position_m: if t >= self.time_s { self.final_m } else { self.initial_m },
+            position_m: if t >= self.time_s {
+                self.final_m
+            } else {
+                self.initial_m
+            },
             ..RefSample::default()
         }
     }
@@ -131,8 +135,16 @@ mod tests {
             let (a, b, c) = (r.sample(t - h), r.sample(t), r.sample(t + h));
             let v_num = (c.position_m - a.position_m) / (2.0 * h);
             let a_num = (c.velocity_m_s - a.velocity_m_s) / (2.0 * h);
-            assert!((v_num - b.velocity_m_s).abs() < 1e-8, "t={t}: v {v_num} vs {}", b.velocity_m_s);
-            assert!((a_num - b.acceleration_m_s2).abs() < 1e-6, "t={t}: a {a_num} vs {}", b.acceleration_m_s2);
+            assert!(
+                (v_num - b.velocity_m_s).abs() < 1e-8,
+                "t={t}: v {v_num} vs {}",
+                b.velocity_m_s
+            );
+            assert!(
+                (a_num - b.acceleration_m_s2).abs() < 1e-6,
+                "t={t}: a {a_num} vs {}",
+                b.acceleration_m_s2
+            );
             t += 0.37;
         }
     }

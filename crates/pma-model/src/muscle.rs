@@ -110,7 +110,13 @@ impl MuscleParams {
 
     /// Eq. (1) force without the slack clamp: may be negative, which a real muscle cannot
     /// produce. Controllers' nominal models use this form.
-    pub fn force_unclamped(&self, pressure_pa: f64, x_m: f64, v_m_s: f64, mode: DampingMode) -> f64 {
+    pub fn force_unclamped(
+        &self,
+        pressure_pa: f64,
+        x_m: f64,
+        v_m_s: f64,
+        mode: DampingMode,
+    ) -> f64 {
         self.contractile_force(pressure_pa)
             - self.stiffness(pressure_pa) * x_m
             - self.damping(pressure_pa, mode) * v_m_s
@@ -175,15 +181,27 @@ mod tests {
     fn damping_mode_follows_pressure_rate_and_holds_when_flat() {
         let m = DampingMode::Inflation;
         assert_eq!(m.after_change(-1.0), DampingMode::Deflation);
-        assert_eq!(DampingMode::Deflation.after_change(0.0), DampingMode::Deflation);
-        assert_eq!(DampingMode::Deflation.after_change(2.0), DampingMode::Inflation);
+        assert_eq!(
+            DampingMode::Deflation.after_change(0.0),
+            DampingMode::Deflation
+        );
+        assert_eq!(
+            DampingMode::Deflation.after_change(2.0),
+            DampingMode::Inflation
+        );
     }
 
     #[test]
     fn validate_rejects_nan_and_non_pulling_muscle() {
         let mut m = MuscleParams::TABLE_I;
         m.k0_n_per_m = f64::NAN;
-        assert!(matches!(m.validate(), Err(ModelError::NotFinite { name: "k0_n_per_m", .. })));
+        assert!(matches!(
+            m.validate(),
+            Err(ModelError::NotFinite {
+                name: "k0_n_per_m",
+                ..
+            })
+        ));
         let mut m = MuscleParams::TABLE_I;
         m.f1_n_per_pa = -1.0;
         assert!(m.validate().is_err());

@@ -145,7 +145,10 @@ mod tests {
         };
         let mut s = PositionSensor::new(p).unwrap();
         let n = 50_000;
-        let ms: f64 = (0..n).map(|_| (s.measure(0.01) - 0.01).powi(2)).sum::<f64>() / n as f64;
+        let ms: f64 = (0..n)
+            .map(|_| (s.measure(0.01) - 0.01).powi(2))
+            .sum::<f64>()
+            / n as f64;
         assert!((ms.sqrt() - 20e-6).abs() < 0.5e-6, "rms {}", ms.sqrt());
     }
 }

@@ -1,8 +1,6 @@
 use crate::{PlantConfig, SimError};
 use pma_control::Measurement;
-use pma_model::{
-    LoadProfile, MuscleParams, PositionSensor, Valve, GRAVITY_M_S2,
-};
+use pma_model::{LoadProfile, MuscleParams, PositionSensor, Valve, GRAVITY_M_S2};
 
 /// Anything the closed loop can drive: it takes a pressure command held for `dt` and
 /// returns sensor readings. Implemented by the single-muscle bench here; the leg and the
@@ -78,27 +76,31 @@ impl MuscleBench {
 
     /// Muscle force at the current state (N).
     pub fn force(&self) -> f64 {
-        self.muscle.force(self.valve.pressure(), self.x, self.v, self.valve.mode())
-    }
-
-    fn accel(&self, p: f64, x: f64, v: f64, m: f64, mode: pma_model::DampingMode) -> f64 {
-        self.muscle.force(p, x, v, mode) / m - GRAVITY_M_S2
+        self.muscle
+            .force(self.valve.pressure(), self.x, self.v, self.valve.mode())
     }
 
     fn substep(&mut self, h: f64) {
-        let m = self.load.mass_at(self.t);
-        let (p0, mode0) = (self.valve.pressure(), self.valve.mode());
-        let a0 = self.accel(p0, self.x, self.v, m, mode0);
+        let inv_m = 1.0 / self.load.mass_at(self.t);
+        let p0 = self.valve.pressure();
         self.valve.advance(h);
-        let (p1, mode1) = (self.valve.pressure(), self.valve.mode());
-        let c = self.muscle.contractile_force(p1);
-        let k = self.muscle.stiffness(p1);
-        let b = self.muscle.damping(p1, mode1);
+        let (p1, mode) = (self.valve.pressure(), self.valve.mode());
+        // The damping mode belongs to the substep (the direction the pressure moves in
+        // over it), so both ends of the trapezoid use it; taking the previous mode at the
+        // left end makes the scheme first order wherever the pressure turns.
+        let mu = &self.muscle;
+        let f_start = mu.force(p0, self.x, self.v, mode);
+        let a0 = f_start * inv_m - GRAVITY_M_S2;
+        let (c, k, b) = (
+            mu.contractile_force(p1),
+            mu.stiffness(p1),
+            mu.damping(p1, mode),
+        );
         // Trapezoid: x1 = x0 + h/2 (v0 + v1), v1 = v0 + h/2 (a0 + a1),
         // a1 = (c - k x1 - b v1)/m - g, solved for v1.
         let hh = 0.5 * h;
-        let rhs = self.v + hh * a0 + hh * ((c - k * (self.x + hh * self.v)) / m - GRAVITY_M_S2);
-        let mut v1 = rhs / (1.0 + hh * (k * hh + b) / m);
+        let rhs = self.v + hh * a0 + hh * ((c - k * (self.x + hh * self.v)) * inv_m - GRAVITY_M_S2);
+        let mut v1 = rhs / (1.0 + hh * (k * hh + b) * inv_m);
         let mut x1 = self.x + hh * (self.v + v1);
         if c - k * x1 - b * v1 < 0.0 {
             v1 = self.v + hh * (a0 - GRAVITY_M_S2);
@@ -179,7 +181,11 @@ mod tests {
         let p = 0.9e5;
         bench.apply(p, 1e-3); // the first period switches the valve; from here P is constant
         let (x0, v0, t0) = (bench.position(), bench.velocity(), bench.time());
-        let (m, k, b) = (2.0, mu.stiffness(p), mu.damping(p, pma_model::DampingMode::Inflation));
+        let (m, k, b) = (
+            2.0,
+            mu.stiffness(p),
+            mu.damping(p, pma_model::DampingMode::Inflation),
+        );
         let xe = (mu.contractile_force(p) - m * GRAVITY_M_S2) / k;
         let disc = (b * b - 4.0 * m * k).sqrt();
         let (r1, r2) = ((-b + disc) / (2.0 * m), (-b - disc) / (2.0 * m));

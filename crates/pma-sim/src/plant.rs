@@ -8,8 +8,14 @@ pub const PRESET_NAMES: [&str; 3] = ["ideal", "mismatch", "realistic"];
 
 const PRESETS: [(&str, &str); 3] = [
     ("ideal", include_str!("../../../models/plants/ideal.toml")),
-    ("mismatch", include_str!("../../../models/plants/mismatch.toml")),
-    ("realistic", include_str!("../../../models/plants/realistic.toml")),
+    (
+        "mismatch",
+        include_str!("../../../models/plants/mismatch.toml"),
+    ),
+    (
+        "realistic",
+        include_str!("../../../models/plants/realistic.toml"),
+    ),
 ];
 
 /// Factors applied to Table I to obtain the *true* muscle (1.0 = nominal).
@@ -117,7 +123,13 @@ impl PlantConfig {
     pub fn from_toml_str(text: &str, file: &str) -> Result<Self, SimError> {
         let cfg: PlantConfig = toml::from_str(text).map_err(|e| SimError::Parse {
             file: file.to_owned(),
-            message: e.to_string().lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join(" "),
+            message: e
+                .to_string()
+                .lines()
+                .map(str::trim)
+                .filter(|l| !l.is_empty())
+                .collect::<Vec<_>>()
+                .join(" "),
         })?;
         cfg.validate()?;
         Ok(cfg)
@@ -133,7 +145,9 @@ impl PlantConfig {
         self.load.validate().map_err(wrap)?;
         self.valve.validate().map_err(wrap)?;
         self.sensor.validate().map_err(wrap)?;
-        LoadProfile::constant(self.nominal.mass_kg).validate().map_err(wrap)?;
+        LoadProfile::constant(self.nominal.mass_kg)
+            .validate()
+            .map_err(wrap)?;
         if self.substeps_per_period == 0 {
             return Err(SimError::InvalidRun {
                 name: "substeps_per_period",
@@ -186,10 +200,15 @@ mod tests {
     fn bad_plant_files_name_the_problem() {
         let e = PlantConfig::preset("vacuum").unwrap_err();
         assert!(e.to_string().contains("vacuum"));
-        let text = include_str!("../../../models/plants/ideal.toml").replace("[load]", "[load]\nmas_kg = 1");
+        let text = include_str!("../../../models/plants/ideal.toml")
+            .replace("[load]", "[load]\nmas_kg = 1");
         let e = PlantConfig::from_toml_str(&text, "x.toml").unwrap_err();
-        assert!(e.to_string().contains("mas_kg") && e.to_string().contains("x.toml"), "{e}");
-        let text = include_str!("../../../models/plants/ideal.toml").replace("mass_kg = 2.0\n\n[valve]", "mass_kg = -2.0\n\n[valve]");
+        assert!(
+            e.to_string().contains("mas_kg") && e.to_string().contains("x.toml"),
+            "{e}"
+        );
+        let text = include_str!("../../../models/plants/ideal.toml")
+            .replace("mass_kg = 2.0\n\n[valve]", "mass_kg = -2.0\n\n[valve]");
         let e = PlantConfig::from_toml_str(&text, "x.toml").unwrap_err();
         assert!(e.to_string().contains("mass_kg"), "{e}");
     }

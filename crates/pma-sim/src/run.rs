@@ -1,7 +1,7 @@
 use crate::{MuscleBench, Plant, PlantConfig, SimError};
 use pma_control::{
-    build_controller, CommandLimits, Controller, ControllerConfig, Diagnostics, Metrics,
-    Reference, TrackingStats,
+    build_controller, CommandLimits, Controller, ControllerConfig, Diagnostics, Metrics, Reference,
+    TrackingStats,
 };
 use std::time::Instant;
 
@@ -77,6 +77,10 @@ pub struct RunResult {
     pub stats: TrackingStats,
     /// `x_a` used for RTE (m).
     pub x_a_m: f64,
+    /// Total variation of the pressure command per simulated second (Pa/s): how much the
+    /// valve is asked to move. A smooth command for the paper's sine needs ~0.4 bar/s;
+    /// chattering shows up here long before it shows in the tracking error.
+    pub command_variation_pa_per_s: f64,
     /// Simulated seconds per wall-clock second.
     pub real_time_factor: f64,
     /// Whether every state stayed finite.
@@ -103,6 +107,7 @@ pub fn run_loop(
     let mut metrics = Metrics::new();
     let mut x_a: f64 = 0.0;
     let mut finite = true;
+    let mut variation = 0.0;
     let start = Instant::now();
     for k in 1..=spec.steps() {
         plant.apply(u, dt);
@@ -110,6 +115,7 @@ pub fn run_loop(
         let meas = plant.measure();
         let r = reference.sample(t);
         let out = controller.update(&r, &meas, dt);
+        variation += (out.pressure_cmd_pa - u).abs();
         u = out.pressure_cmd_pa;
         let x = plant.position();
         finite &= x.is_finite() && u.is_finite();
@@ -133,6 +139,7 @@ pub fn run_loop(
         controller: controller.name(),
         stats: metrics.finish(x_a),
         x_a_m: x_a,
+        command_variation_pa_per_s: variation / spec.duration_s,
         real_time_factor: spec.duration_s / wall.max(1e-12),
         finite,
     })

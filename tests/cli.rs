@@ -1,0 +1,146 @@
+//! The `pma-exo` binary: JSON output, files, and one-line errors on bad input.
+use std::process::Command;
+
+fn pma_exo(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args(args)
+        .output()
+        .expect("run pma-exo")
+}
+
+fn assert_one_line_error(args: &[&str], needle: &str) {
+    let out = pma_exo(args);
+    assert!(!out.status.success(), "{args:?} succeeded");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+    assert!(err.contains(needle), "{args:?}: {err}");
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+}
+
+#[test]
+fn single_prints_the_metrics_as_json() {
+    let out = pma_exo(&[
+        "single",
+        "--controller",
+        "aprc-ndo",
+        "--reference",
+        "sine",
+        "--plant",
+        "ideal",
+        "--duration",
+        "2",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in [
+        "controller",
+        "reference",
+        "plant",
+        "mae_m",
+        "iae_m",
+        "rte_percent",
+        "rms_m",
+        "real_time_factor",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key} in {v}");
+    }
+    assert_eq!(v["controller"], "aprc-ndo");
+    assert_eq!(v["plant"], "ideal");
+    assert!(v["rte_percent"].as_f64().unwrap() < 1.0);
+}
+
+#[test]
+fn single_writes_the_csv_time_series() {
+    let dir = std::env::temp_dir().join(format!("pma-exo-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("run.csv");
+    let out = pma_exo(&[
+        "single",
+        "--controller",
+        "pid",
+        "--duration",
+        "0.5",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "t_s,reference_m,position_m,pressure_cmd_pa,pressure_pa,proxy_m,s_p,s_q,gain_hat,disturbance_hat"
+    );
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), 500);
+    // PID has no proxy: NaN there, not a made-up number.
+    assert!(rows[0]
+        .split(',')
+        .nth(5)
+        .unwrap()
+        .eq_ignore_ascii_case("nan"));
+}
+
+#[test]
+fn bad_input_gives_one_line_errors() {
+    assert_one_line_error(&["single", "--controller", "lqr"], "lqr");
+    assert_one_line_error(&["single", "--duration", "-3"], "duration");
+    assert_one_line_error(&["single", "--duration", "nan"], "duration");
+    assert_one_line_error(&["single", "--plant", "vacuum"], "vacuum");
+    let dir = std::env::temp_dir().join(format!("pma-exo-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let write = |name: &str, text: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_owned()
+    };
+    let f = write("unknown.toml", "controller = \"aprc-ndo\"\nkp = 1.0\n");
+    assert_one_line_error(&["single", "--gains", &f], "kp");
+    let f = write(
+        "malformed.toml",
+        "controller = \"aprc-ndo\"\nc1_per_s = = 3\n",
+    );
+    assert_one_line_error(&["single", "--gains", &f], "malformed.toml");
+    let f = write("nan.toml", "controller = \"aprc-ndo\"\nki_per_s3 = nan\n");
+    assert_one_line_error(&["single", "--gains", &f], "ki_per_s3");
+    let f = write(
+        "varpi.toml",
+        "controller = \"aprc-ndo\"\nkp_per_s2 = 10.0\n",
+    );
+    assert_one_line_error(&["single", "--gains", &f], "varpi");
+    let f = write("pid.toml", "controller = \"pid\"\n");
+    assert_one_line_error(&["single", "--controller", "sta", "--gains", &f], "pid");
+    assert_one_line_error(
+        &["single", "--gains", "/nonexistent/gains.toml"],
+        "gains.toml",
+    );
+    let f = write("plant.toml", "name = \"x\"\n");
+    assert_one_line_error(&["single", "--plant", &f], "plant.toml");
+}
+
+#[test]
+fn paper_writes_results_report_and_plots() {
+    let dir = std::env::temp_dir().join(format!("pma-exo-paper-{}", std::process::id()));
+    let out = pma_exo(&["paper", "--out", dir.to_str().unwrap()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap();
+    for key in ["table2", "chirp", "mp_sweep", "amplitudes", "load_step"] {
+        assert!(v[key].as_array().is_some_and(|a| !a.is_empty()), "{key}");
+        let png = std::fs::read(dir.join(format!("{key}.png"))).unwrap();
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{key}.png");
+    }
+    for key in ["controller", "mae_m", "iae_m", "rte_percent"] {
+        assert!(v["table2"][0].get(key).is_some(), "table2 lacks {key}");
+    }
+    let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    assert!(md.contains("Table II") && md.contains("| aprc-ndo | paper |"));
+}

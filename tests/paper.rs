@@ -1,0 +1,53 @@
+//! The paper's experiments (Section IV) in simulation: what reproduces.
+use pma_sim::experiments::paper::compute;
+use pma_sim::{PlantConfig, RunSpec};
+
+#[test]
+fn paper_experiments_reproduce_the_qualitative_claims() {
+    let plant = PlantConfig::preset("mismatch").unwrap();
+    let (r, plots) = compute(&plant, &RunSpec::default()).unwrap();
+    assert_eq!(plots.len(), 5);
+    assert_eq!(r.table2.len(), 8);
+
+    // Table II / Fig. 7: every controller tracks, and the observer is what makes APRC work
+    // under mismatch, with the paper's gains and with tuned ones, on sine and chirp.
+    for rows in [&r.table2, &r.chirp] {
+        for row in rows.iter() {
+            assert!(row.iae_m.is_finite() && row.mae_m.is_finite(), "{row:?}");
+        }
+        let iae = |c: &str, g: &str| {
+            rows.iter()
+                .find(|x| x.controller == c && x.gains == g)
+                .unwrap()
+                .iae_m
+        };
+        assert!(iae("aprc", "paper") >= 3.0 * iae("aprc-ndo", "paper"));
+        assert!(iae("aprc", "tuned") >= 3.0 * iae("aprc-ndo", "tuned"));
+    }
+
+    // Fig. 4 / Corollary 1: with a fixed gain, S_q varies less as m_p grows.
+    for w in r.mp_sweep.windows(2) {
+        assert!(w[1].sq_std <= w[0].sq_std, "{:?} -> {:?}", w[0], w[1]);
+        assert!(w[1].sp_max <= w[0].sp_max, "{:?} -> {:?}", w[0], w[1]);
+    }
+
+    // Fig. 5: unchanged gains give similar relative accuracy at every amplitude.
+    let rte: Vec<f64> = r.amplitudes.iter().map(|a| a.rte_percent).collect();
+    let (lo, hi) = rte
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(l, h), x| (l.min(*x), h.max(*x)));
+    assert!(hi < 1.5 * lo, "RTE over amplitudes {rte:?}");
+
+    // Fig. 8: the heavier load deviates further, and both recover.
+    let (a, b) = (&r.load_step[0], &r.load_step[1]);
+    assert_eq!((a.load_kg, b.load_kg), (2.5, 5.0));
+    assert!(b.max_deviation_m > a.max_deviation_m, "{a:?} {b:?}");
+    assert!(
+        b.step_effect_m > a.step_effect_m && a.step_effect_m > 0.0,
+        "{a:?} {b:?}"
+    );
+    assert!(
+        a.recovery_s.is_some_and(|s| s < 5.0) && b.recovery_s.is_some_and(|s| s < 5.0),
+        "{a:?} {b:?}"
+    );
+}
