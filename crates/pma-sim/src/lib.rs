@@ -16,6 +16,7 @@
 mod bench;
 mod error;
 pub mod experiments;
+pub mod gait;
 mod plant;
 mod run;
 pub mod tune;
