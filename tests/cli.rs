@@ -51,7 +51,26 @@ fn single_prints_the_metrics_as_json() {
     }
     assert_eq!(v["controller"], "aprc-ndo");
     assert_eq!(v["plant"], "ideal");
-    assert!(v["rte_percent"].as_f64().unwrap() < 1.0);
+    // The binary reports what the library computes for the same run.
+    let lib = pma_sim::run_single(
+        &pma_control::ControllerKind::AprcNdo.default_config(),
+        &pma_sim::PlantConfig::preset("ideal").unwrap(),
+        &pma_control::SineReference::paper(),
+        &pma_sim::RunSpec {
+            duration_s: 2.0,
+            ..Default::default()
+        },
+        None,
+    )
+    .unwrap();
+    assert_eq!(v["iae_m"].as_f64().unwrap(), lib.stats.iae_m);
+    assert_eq!(v["mae_m"].as_f64().unwrap(), lib.stats.mae_m);
+    assert_eq!(v["samples"].as_u64().unwrap(), 2000);
+    let rte = v["rte_percent"].as_f64().unwrap();
+    assert!(
+        (rte - lib.stats.iae_m / 0.030 * 100.0).abs() < 1e-9,
+        "RTE {rte}"
+    );
 }
 
 #[test]

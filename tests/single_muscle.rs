@@ -185,6 +185,58 @@ fn implicit_proxy_does_not_chatter() {
     }
 }
 
+/// Command turns (sign changes of its increments) per reference period after the start-up,
+/// and its total variation per second (Pa/s).
+fn command_activity(kind: ControllerConfig, plant: &str) -> (f64, f64) {
+    let plant = PlantConfig::preset(plant).unwrap();
+    let mut u = Vec::with_capacity(16_000);
+    run_single(
+        &kind,
+        &plant,
+        &SineReference::paper(),
+        &RunSpec::default(),
+        Some(&mut |s: &Sample| {
+            if s.t_s > 4.0 {
+                u.push(s.pressure_cmd_pa);
+            }
+        }),
+    )
+    .unwrap();
+    let (mut turns, mut last, mut variation) = (0usize, 0.0f64, 0.0);
+    for w in u.windows(2) {
+        let d = w[1] - w[0];
+        variation += d.abs();
+        if d != 0.0 {
+            if last != 0.0 && d.signum() != last {
+                turns += 1;
+            }
+            last = d.signum();
+        }
+    }
+    (turns as f64 / 4.0, variation / 16.0)
+}
+
+/// Regression: inverting eq. (1) exactly at every period, the command alternated between
+/// the inflation and deflation solutions while the load decelerated on the rise (58 turns
+/// per period, jumps of 0.56 bar, 5.2 bar/s on `ideal`). A sine needs two turns per period
+/// and ~0.4 bar/s.
+#[test]
+fn command_does_not_ripple_between_damping_modes() {
+    for plant in ["ideal", "mismatch"] {
+        for cfg in [
+            ControllerConfig::AprcNdo(AprcGains::PAPER),
+            ControllerConfig::Aprc(AprcGains::PAPER),
+        ] {
+            let (turns, variation) = command_activity(cfg, plant);
+            assert!(turns <= 8.0, "{plant}: {turns} command turns per period");
+            assert!(
+                variation < 1.5e5,
+                "{plant}: command variation {variation} Pa/s"
+            );
+        }
+    }
+}
+
 #[test]
 fn proxy_sticks_on_the_sliding_surface_most_of_the_time() {
     let plant = PlantConfig::preset("mismatch").unwrap();

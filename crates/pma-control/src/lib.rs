@@ -39,7 +39,7 @@ pub use implicit::implicit_sign_solve;
 pub use metrics::{Metrics, TrackingStats};
 pub use ndo::DisturbanceObserver;
 pub use ndo_smc::{NdoSmc, NdoSmcGains};
-pub use nominal::NominalModel;
+pub use nominal::{NominalModel, DEFAULT_MODE_SWITCH_DEADBAND_PA, DEFAULT_MODE_SWITCH_FRACTION};
 pub use pid::{Pid, PidGains};
 pub use psmc::{Psmc, PsmcGains};
 pub use reference::{ChirpReference, Reference, SineReference, StepReference};

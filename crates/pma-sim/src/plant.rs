@@ -77,6 +77,20 @@ impl MuscleScale {
 pub struct NominalSpec {
     /// Assumed load mass (kg).
     pub mass_kg: f64,
+    /// See [`NominalModel::mode_switch_deadband_pa`].
+    #[serde(default = "default_deadband")]
+    pub mode_switch_deadband_pa: f64,
+    /// See [`NominalModel::mode_switch_fraction`].
+    #[serde(default = "default_fraction")]
+    pub mode_switch_fraction: f64,
+}
+
+fn default_deadband() -> f64 {
+    pma_control::DEFAULT_MODE_SWITCH_DEADBAND_PA
+}
+
+fn default_fraction() -> f64 {
+    pma_control::DEFAULT_MODE_SWITCH_FRACTION
 }
 
 fn default_substeps() -> u32 {
@@ -168,6 +182,8 @@ impl PlantConfig {
         NominalModel {
             muscle: MuscleParams::TABLE_I,
             mass_kg: self.nominal.mass_kg,
+            mode_switch_deadband_pa: self.nominal.mode_switch_deadband_pa,
+            mode_switch_fraction: self.nominal.mode_switch_fraction,
         }
     }
 }
