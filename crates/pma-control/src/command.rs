@@ -1,5 +1,5 @@
 use crate::{CommandLimits, NominalModel, Saturation};
-use pma_model::{DampingMode, GRAVITY_M_S2};
+use pma_model::DampingMode;
 
 /// What every controller remembers about its own last command: the value held over the
 /// coming period (the disturbance observer needs it), the damping mode its change implies,
@@ -15,10 +15,9 @@ impl CommandState {
     /// Starting from rest at `x`: the pressure that held the load there per the nominal
     /// model (the bench and the rig both start from a held, resting muscle).
     pub fn at_rest(model: &NominalModel, limits: &CommandLimits, x: f64) -> Self {
-        let w = model.mass_kg * GRAVITY_M_S2;
         let u = model
             .muscle
-            .static_pressure_for(w, x)
+            .static_pressure_for(model.load_force_n, x)
             .map_or(limits.min_pa, |p| limits.clamp(p).0);
         Self {
             u_prev: u,

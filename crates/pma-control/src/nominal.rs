@@ -1,13 +1,17 @@
 use pma_model::{DampingMode, MuscleParams, GRAVITY_M_S2};
 
-/// The model a model-based controller believes in: eq. (2) with the muscle parameters and
-/// the load mass it assumes. The paper's controllers use Table I and the 2 kg load.
+/// The model a model-based controller believes in: eq. (2) with the muscle parameters, the
+/// mass it assumes, and the static load it expects to hold. The paper's controllers use
+/// Table I and a hanging 2 kg load (`load_force_n = m g`); a muscle on an exoskeleton joint
+/// sees the joint inertia reflected through its moment arm and its antagonist's pull.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NominalModel {
     /// Muscle parameters (eq. 1).
     pub muscle: MuscleParams,
     /// Assumed load mass (kg).
     pub mass_kg: f64,
+    /// Static load the muscle holds (N): `m g` for the paper's hanging mass.
+    pub load_force_n: f64,
     /// Cap (Pa) of the band within which the command holds instead of reversing direction
     /// (see [`NominalModel::mode_switch_band`]).
     pub mode_switch_deadband_pa: f64,
@@ -26,6 +30,7 @@ impl NominalModel {
         Self {
             muscle: MuscleParams::TABLE_I,
             mass_kg: 2.0,
+            load_force_n: 2.0 * GRAVITY_M_S2,
             mode_switch_deadband_pa: DEFAULT_MODE_SWITCH_DEADBAND_PA,
             mode_switch_fraction: DEFAULT_MODE_SWITCH_FRACTION,
         }
@@ -42,11 +47,10 @@ impl NominalModel {
         (self.mode_switch_fraction * width_pa).min(self.mode_switch_deadband_pa)
     }
 
-    /// Drift term `f(x, xdot)` of eq. (2) (m/s^2).
+    /// Drift term `f(x, xdot)` of eq. (2) (m/s^2), with `m g` generalised to the static load.
     pub fn drift(&self, x: f64, v: f64, mode: DampingMode) -> f64 {
         let (b0, _) = self.muscle.damping_coefficients(mode);
-        let m = self.mass_kg;
-        (self.muscle.f0_n - m * GRAVITY_M_S2 - b0 * v - self.muscle.k0_n_per_m * x) / m
+        (self.muscle.f0_n - self.load_force_n - b0 * v - self.muscle.k0_n_per_m * x) / self.mass_kg
     }
 
     /// Input gain `b(x, xdot)` of eq. (2) (m/s^2 per Pa).
@@ -80,7 +84,7 @@ mod tests {
         let x = 0.02;
         let p = n
             .muscle
-            .static_pressure_for(n.mass_kg * GRAVITY_M_S2, x)
+            .static_pressure_for(n.load_force_n, x)
             .unwrap();
         let a = n.drift(x, 0.0, DampingMode::Inflation)
             + n.input_gain(x, 0.0, DampingMode::Inflation) * p;

@@ -182,6 +182,7 @@ impl PlantConfig {
         NominalModel {
             muscle: MuscleParams::TABLE_I,
             mass_kg: self.nominal.mass_kg,
+            load_force_n: self.nominal.mass_kg * pma_model::GRAVITY_M_S2,
             mode_switch_deadband_pa: self.nominal.mode_switch_deadband_pa,
             mode_switch_fraction: self.nominal.mode_switch_fraction,
         }

@@ -1,0 +1,341 @@
+//! Scenario and muscle-geometry files (TOML, `deny_unknown_fields`, units in the names).
+use crate::error::{finite_non_negative, finite_positive, one_line, LegError};
+use pma_control::AprcGains;
+use pma_model::{SensorParams, ValveParams};
+use pma_sim::gait::GaitSpeed;
+use pma_sim::MuscleScale;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The embedded leg model (`models/exo_leg.urdf`).
+pub const EMBEDDED_URDF: &str = include_str!("../../../models/exo_leg.urdf");
+/// The embedded muscle geometry (`models/muscles.toml`).
+pub const EMBEDDED_MUSCLES: &str = include_str!("../../../models/muscles.toml");
+/// The embedded default scenario (`models/scenarios/gait_training.toml`).
+pub const EMBEDDED_GAIT_TRAINING: &str = include_str!("../../../models/scenarios/gait_training.toml");
+/// The embedded realistic scenario (`models/scenarios/gait_realistic.toml`).
+pub const EMBEDDED_GAIT_REALISTIC: &str = include_str!("../../../models/scenarios/gait_realistic.toml");
+
+/// Which way a muscle pulls the joint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Side {
+    /// Flexion contracts it.
+    Flexor,
+    /// Flexion stretches it.
+    Extensor,
+}
+
+impl Side {
+    /// `+1` for a flexor, `-1` for an extensor.
+    pub fn sign(self) -> f64 {
+        match self {
+            Side::Flexor => 1.0,
+            Side::Extensor => -1.0,
+        }
+    }
+}
+
+/// One muscle's geometry (see `models/muscles.toml`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MuscleGeometry {
+    /// Unique name.
+    pub name: String,
+    /// URDF joint it acts on.
+    pub joint: String,
+    /// Flexor or extensor.
+    pub side: Side,
+    /// URDF link along which the muscle body lies (one of the joint's two links).
+    pub body_link: String,
+    /// Anchor of the muscle body in `body_link`'s frame (m).
+    pub anchor_m: [f64; 3],
+    /// Pulley radius at the joint (m): the moment arm.
+    pub pulley_radius_m: f64,
+    /// Contraction at zero joint angle (m).
+    pub contraction_at_zero_m: f64,
+}
+
+impl MuscleGeometry {
+    /// Contraction (m) at joint angle `theta_rad`.
+    pub fn contraction(&self, theta_rad: f64) -> f64 {
+        self.contraction_at_zero_m + self.side.sign() * self.pulley_radius_m * theta_rad
+    }
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MuscleFile {
+    muscles: Vec<MuscleGeometry>,
+}
+
+/// Parses a muscle geometry file; `file` names it in errors.
+pub fn parse_muscles(text: &str, file: &str) -> Result<Vec<MuscleGeometry>, LegError> {
+    let f: MuscleFile = toml::from_str(text).map_err(|e| LegError::Parse {
+        file: file.to_owned(),
+        message: one_line(&e.to_string()),
+    })?;
+    for m in &f.muscles {
+        finite_positive(&format!("{}.pulley_radius_m", m.name), m.pulley_radius_m)?;
+        if !m.contraction_at_zero_m.is_finite() || m.anchor_m.iter().any(|v| !v.is_finite()) {
+            return Err(LegError::Muscle {
+                muscle: m.name.clone(),
+                message: "contraction_at_zero_m and anchor_m must be finite".into(),
+            });
+        }
+    }
+    Ok(f.muscles)
+}
+
+/// Viscous damping and Coulomb friction of a joint, set explicitly in rapier (which would
+/// otherwise add its own default damping and ignores URDF `<dynamics>`).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointSettings {
+    /// Viscous damping (N m s/rad).
+    pub damping_nm_s_per_rad: f64,
+    /// Coulomb friction (N m).
+    #[serde(default)]
+    pub friction_nm: f64,
+}
+
+/// Both joints.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Joints {
+    /// Hip.
+    pub hip: JointSettings,
+    /// Knee.
+    pub knee: JointSettings,
+}
+
+/// Gait reference.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GaitSettings {
+    /// Normative speed class whose curve shape is used.
+    #[serde(default)]
+    pub speed: GaitSpeed,
+    /// Stride period (s).
+    pub stride_period_s: f64,
+    /// Smooth start from standing (s).
+    pub ramp_s: f64,
+}
+
+/// Joint angle sensor (encoder) of each joint; both muscles of a joint read their
+/// contraction from it, so their measured lengths are exactly complementary.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EncoderSettings {
+    /// Resolution over the encoder's full turn (bits); 0 for a continuous reading.
+    #[serde(default)]
+    pub resolution_bits: u32,
+    /// RMS noise (rad).
+    #[serde(default)]
+    pub noise_rms_rad: f64,
+    /// Seed (the knee uses `seed + 1`).
+    #[serde(default)]
+    pub seed: u64,
+}
+
+impl EncoderSettings {
+    /// As sensor parameters over one turn.
+    pub fn sensor(&self, joint_index: u64) -> SensorParams {
+        SensorParams {
+            range_min_m: -std::f64::consts::PI,
+            range_max_m: std::f64::consts::PI,
+            resolution_bits: self.resolution_bits,
+            noise_rms_m: self.noise_rms_rad,
+            seed: self.seed.wrapping_add(joint_index),
+        }
+    }
+}
+
+/// The true plant: valves, encoders, and each muscle's deviation from Table I.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlantSettings {
+    /// Valve of every muscle.
+    pub valve: ValveParams,
+    /// Joint encoders.
+    #[serde(default = "default_encoder")]
+    pub encoder: EncoderSettings,
+    /// Per-muscle factors on Table I (muscle name -> factors); absent = nominal.
+    #[serde(default)]
+    pub muscle_scale: BTreeMap<String, MuscleScale>,
+}
+
+fn default_encoder() -> EncoderSettings {
+    EncoderSettings {
+        resolution_bits: 0,
+        noise_rms_rad: 0.0,
+        seed: 0,
+    }
+}
+
+/// Controllers: one APRC-NDO per muscle and the co-contraction regulator per joint.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControlSettings {
+    /// APRC-NDO gains of every muscle (fields left out keep the paper's values).
+    #[serde(default)]
+    pub gains: AprcGains,
+    /// Target common-mode pressure `(p_flexor + p_extensor) / 2` of each joint (Pa).
+    pub cocontraction_pa: f64,
+    /// Co-contraction regulator: length-reference interference per pascal of common-mode
+    /// error (m/Pa).
+    pub cocontraction_gain_m_per_pa: f64,
+    /// Largest interference (m).
+    pub cocontraction_max_m: f64,
+    /// Time constant of the common-mode pressure filter (s).
+    pub cocontraction_filter_s: f64,
+}
+
+/// A gait-training scenario (`models/scenarios/*.toml`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Name.
+    pub name: String,
+    /// One line.
+    #[serde(default)]
+    pub description: String,
+    /// URDF path relative to the scenario file; absent = the embedded `exo_leg.urdf`.
+    #[serde(default)]
+    pub urdf: Option<PathBuf>,
+    /// Muscle geometry path relative to the scenario file; absent = the embedded one.
+    #[serde(default)]
+    pub muscle_geometry: Option<PathBuf>,
+    /// Default duration (s).
+    pub duration_s: f64,
+    /// Control period (s).
+    pub period_s: f64,
+    /// Physics steps per control period.
+    pub physics_substeps: u32,
+    /// Gait reference.
+    pub gait: GaitSettings,
+    /// Joint damping and friction.
+    pub joints: Joints,
+    /// True plant.
+    pub plant: PlantSettings,
+    /// Controllers.
+    pub control: ControlSettings,
+}
+
+/// A scenario with its URDF and muscle geometry loaded.
+#[derive(Debug, Clone)]
+pub struct LoadedScenario {
+    /// The scenario.
+    pub scenario: Scenario,
+    /// URDF text.
+    pub urdf_text: String,
+    /// Where the URDF came from (for messages).
+    pub urdf_source: String,
+    /// Muscles.
+    pub muscles: Vec<MuscleGeometry>,
+}
+
+fn read(path: &Path) -> Result<String, LegError> {
+    std::fs::read_to_string(path).map_err(|e| LegError::Io {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    })
+}
+
+impl Scenario {
+    /// Parses and validates scenario text; `file` names it in errors.
+    pub fn from_toml_str(text: &str, file: &str) -> Result<Self, LegError> {
+        let s: Scenario = toml::from_str(text).map_err(|e| LegError::Parse {
+            file: file.to_owned(),
+            message: one_line(&e.to_string()),
+        })?;
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// Range checks.
+    pub fn validate(&self) -> Result<(), LegError> {
+        finite_positive("duration_s", self.duration_s)?;
+        finite_positive("period_s", self.period_s)?;
+        if self.physics_substeps == 0 {
+            return Err(LegError::Invalid {
+                name: "physics_substeps".into(),
+                value: 0.0,
+                expected: "must be >= 1",
+            });
+        }
+        finite_positive("gait.stride_period_s", self.gait.stride_period_s)?;
+        finite_non_negative("gait.ramp_s", self.gait.ramp_s)?;
+        for (n, j) in [("hip", self.joints.hip), ("knee", self.joints.knee)] {
+            finite_non_negative(&format!("joints.{n}.damping_nm_s_per_rad"), j.damping_nm_s_per_rad)?;
+            finite_non_negative(&format!("joints.{n}.friction_nm"), j.friction_nm)?;
+        }
+        self.plant.valve.validate()?;
+        self.plant.encoder.sensor(0).validate()?;
+        finite_positive("control.cocontraction_pa", self.control.cocontraction_pa)?;
+        finite_non_negative("control.cocontraction_gain_m_per_pa", self.control.cocontraction_gain_m_per_pa)?;
+        finite_non_negative("control.cocontraction_max_m", self.control.cocontraction_max_m)?;
+        finite_positive("control.cocontraction_filter_s", self.control.cocontraction_filter_s)?;
+        pma_control::ControllerConfig::AprcNdo(self.control.gains).validate()?;
+        Ok(())
+    }
+
+    /// The embedded default (`gait_training`) or realistic scenario by name.
+    pub fn embedded(name: &str) -> Option<LoadedScenario> {
+        let text = match name {
+            "gait_training" => EMBEDDED_GAIT_TRAINING,
+            "gait_realistic" => EMBEDDED_GAIT_REALISTIC,
+            _ => return None,
+        };
+        Self::load_embedded(text, name).ok()
+    }
+
+    fn load_embedded(text: &str, name: &str) -> Result<LoadedScenario, LegError> {
+        let scenario = Scenario::from_toml_str(text, &format!("{name}.toml"))?;
+        Ok(LoadedScenario {
+            scenario,
+            urdf_text: EMBEDDED_URDF.to_owned(),
+            urdf_source: "models/exo_leg.urdf".into(),
+            muscles: parse_muscles(EMBEDDED_MUSCLES, "models/muscles.toml")?,
+        })
+    }
+
+    /// Loads a scenario: an embedded name (`gait_training`, `gait_realistic`) or a file,
+    /// with the URDF and muscle geometry it refers to (relative to its directory).
+    pub fn load(name_or_path: &str) -> Result<LoadedScenario, LegError> {
+        if !name_or_path.ends_with(".toml") {
+            return match name_or_path {
+                "gait_training" => Self::load_embedded(EMBEDDED_GAIT_TRAINING, "gait_training"),
+                "gait_realistic" => Self::load_embedded(EMBEDDED_GAIT_REALISTIC, "gait_realistic"),
+                other => Err(LegError::Parse {
+                    file: other.to_owned(),
+                    message: "unknown scenario (expected gait_training, gait_realistic or a .toml file)".into(),
+                }),
+            };
+        }
+        let path = Path::new(name_or_path);
+        let scenario = Scenario::from_toml_str(&read(path)?, name_or_path)?;
+        let dir = path.parent().unwrap_or_else(|| Path::new("."));
+        let (urdf_text, urdf_source) = match &scenario.urdf {
+            Some(p) => {
+                let full = dir.join(p);
+                (read(&full)?, full.display().to_string())
+            }
+            None => (EMBEDDED_URDF.to_owned(), "models/exo_leg.urdf".into()),
+        };
+        let muscles = match &scenario.muscle_geometry {
+            Some(p) => {
+                let full = dir.join(p);
+                parse_muscles(&read(&full)?, &full.display().to_string())?
+            }
+            None => parse_muscles(EMBEDDED_MUSCLES, "models/muscles.toml")?,
+        };
+        Ok(LoadedScenario {
+            scenario,
+            urdf_text,
+            urdf_source,
+            muscles,
+        })
+    }
+}

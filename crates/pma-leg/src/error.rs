@@ -1,0 +1,85 @@
+use thiserror::Error;
+
+/// Errors of the leg simulation: bad files and bad parameters, never a panic.
+#[derive(Debug, Error)]
+pub enum LegError {
+    /// A file could not be read.
+    #[error("cannot read `{path}`: {message}")]
+    Io {
+        /// Path.
+        path: String,
+        /// OS message.
+        message: String,
+    },
+    /// A TOML file could not be parsed (syntax, unknown field, wrong type).
+    #[error("`{file}`: {message}")]
+    Parse {
+        /// File.
+        file: String,
+        /// Parser message, on one line.
+        message: String,
+    },
+    /// The URDF is malformed or lacks what the leg needs.
+    #[error("URDF `{file}`: {message}")]
+    Urdf {
+        /// File.
+        file: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A muscle refers to something the URDF does not have, or is inconsistent.
+    #[error("muscle `{muscle}`: {message}")]
+    Muscle {
+        /// Muscle name.
+        muscle: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A parameter is out of range.
+    #[error("{name} = {value} is invalid: {expected}")]
+    Invalid {
+        /// Parameter.
+        name: String,
+        /// Value.
+        value: f64,
+        /// Requirement.
+        expected: &'static str,
+    },
+    /// A controller gain set is invalid.
+    #[error(transparent)]
+    Controller(#[from] pma_control::ConfigError),
+    /// A model parameter is invalid.
+    #[error(transparent)]
+    Model(#[from] pma_model::ModelError),
+    /// A gait parameter is invalid.
+    #[error(transparent)]
+    Gait(#[from] pma_sim::SimError),
+}
+
+pub(crate) fn one_line(s: &str) -> String {
+    s.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join(" ")
+}
+
+pub(crate) fn finite_positive(name: &str, value: f64) -> Result<f64, LegError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(LegError::Invalid {
+            name: name.to_owned(),
+            value,
+            expected: "must be a finite number > 0",
+        })
+    }
+}
+
+pub(crate) fn finite_non_negative(name: &str, value: f64) -> Result<f64, LegError> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
+    } else {
+        Err(LegError::Invalid {
+            name: name.to_owned(),
+            value,
+            expected: "must be a finite number >= 0",
+        })
+    }
+}

@@ -1,0 +1,13 @@
+//! The exoskeleton leg: a URDF loaded into rapier3d as a multibody with a fixed pelvis,
+//! a flexor and an extensor pneumatic muscle on the hip and on the knee, each muscle the
+//! three-element model of `pma-model` driven by its own APRC-NDO from `pma-control`,
+//! tracking length references derived from normative gait.
+#![warn(missing_docs)]
+
+pub mod config;
+mod error;
+pub mod leg;
+
+pub use config::{LoadedScenario, MuscleGeometry, Scenario, Side};
+pub use error::LegError;
+pub use leg::{Leg, LegInertia};
