@@ -7,6 +7,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 mod paper;
+mod simulate;
 
 #[derive(Parser)]
 #[command(
@@ -15,7 +16,7 @@ mod paper;
     about = "Pneumatic-muscle control (APRC-NDO, Cao et al. 2020): simulation and experiments"
 )]
 struct Cli {
-    /// Without a subcommand: `paper --out paper-out` (the paper's experiments).
+    /// Without a subcommand: `simulate` (the default gait-training simulation).
     #[command(subcommand)]
     command: Option<Command>,
 }
@@ -30,6 +31,21 @@ enum RefName {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Gait training on the exoskeleton leg (rapier), four muscles under APRC-NDO.
+    Simulate {
+        /// gait_training (default), gait_realistic, or a scenario .toml file.
+        #[arg(default_value = "gait_training")]
+        scenario: String,
+        /// Simulated seconds (default: the scenario's).
+        #[arg(long, allow_negative_numbers = true)]
+        duration: Option<f64>,
+        /// Write the time series as CSV.
+        #[arg(long)]
+        csv: Option<PathBuf>,
+        /// Print one JSON object instead of the summary.
+        #[arg(long)]
+        json: bool,
+    },
     /// One controller on the single-muscle bench.
     Single {
         /// aprc-ndo, aprc, psmc, ndo-smc, sta or pid.
@@ -59,6 +75,25 @@ enum Command {
         /// Output directory.
         #[arg(long, default_value = "paper-out")]
         out: PathBuf,
+    },
+    /// Tune a leg scenario's shared APRC-NDO gains with the same firefly search (objective:
+    /// hip + knee RMS error plus 0.01 deg per bar/s of command variation).
+    TuneLeg {
+        /// gait_training, gait_realistic, or a scenario .toml file.
+        #[arg(default_value = "gait_training")]
+        scenario: String,
+        /// Fireflies.
+        #[arg(long, default_value_t = 20)]
+        population: usize,
+        /// Generations.
+        #[arg(long, default_value_t = 25)]
+        generations: usize,
+        /// Simulated seconds per evaluation.
+        #[arg(long, default_value_t = 6.4)]
+        duration: f64,
+        /// Optimiser seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
     },
     /// Tune a baseline's gains with the firefly algorithm on the sine (IAE objective).
     Tune {
@@ -112,10 +147,19 @@ fn main() {
 }
 
 fn run(cli: Cli) -> Result<()> {
-    let command = cli.command.unwrap_or(Command::Paper {
-        out: PathBuf::from("paper-out"),
+    let command = cli.command.unwrap_or(Command::Simulate {
+        scenario: "gait_training".into(),
+        duration: None,
+        csv: None,
+        json: false,
     });
     match command {
+        Command::Simulate {
+            scenario,
+            duration,
+            csv,
+            json,
+        } => simulate::run(&scenario, duration, csv.as_deref(), json),
         Command::Single {
             controller,
             reference,
@@ -134,6 +178,13 @@ fn run(cli: Cli) -> Result<()> {
             json,
         ),
         Command::Paper { out } => paper::run(&out),
+        Command::TuneLeg {
+            scenario,
+            population,
+            generations,
+            duration,
+            seed,
+        } => tune_leg(&scenario, population, generations, duration, seed),
         Command::Tune {
             controller,
             plant,
@@ -336,6 +387,32 @@ fn tune(
     eprintln!(
         "{kind}: IAE {:.4e} m after {} runs",
         res.iae_m, res.evaluations
+    );
+    Ok(())
+}
+
+fn tune_leg(
+    scenario: &str,
+    population: usize,
+    generations: usize,
+    duration: f64,
+    seed: u64,
+) -> Result<()> {
+    check_duration(duration)?;
+    if population < 2 {
+        bail!("--population must be at least 2 (got {population})");
+    }
+    let loaded = pma_leg::Scenario::load(scenario)?;
+    let opts = pma_sim::tune::FireflyOptions {
+        population,
+        generations,
+        seed,
+        ..Default::default()
+    };
+    let (gains, best, runs) = pma_leg::tune::tune(&loaded, &opts, duration);
+    let table = toml::to_string(&gains).context("serialising the gains")?;
+    println!(
+        "# `pma-exo tune-leg {scenario} --population {population} --generations {generations} --duration {duration} --seed {seed}`:\n# {runs} runs, objective {best:.4} (hip RMS + knee RMS in deg + 0.01 x bar/s)\n[control.gains]\n{table}"
     );
     Ok(())
 }

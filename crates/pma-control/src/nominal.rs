@@ -82,10 +82,7 @@ mod tests {
     fn static_pressure_makes_the_nominal_acceleration_vanish() {
         let n = NominalModel::paper();
         let x = 0.02;
-        let p = n
-            .muscle
-            .static_pressure_for(n.load_force_n, x)
-            .unwrap();
+        let p = n.muscle.static_pressure_for(n.load_force_n, x).unwrap();
         let a = n.drift(x, 0.0, DampingMode::Inflation)
             + n.input_gain(x, 0.0, DampingMode::Inflation) * p;
         assert!(a.abs() < 1e-9, "a = {a}");

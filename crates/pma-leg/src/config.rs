@@ -13,9 +13,11 @@ pub const EMBEDDED_URDF: &str = include_str!("../../../models/exo_leg.urdf");
 /// The embedded muscle geometry (`models/muscles.toml`).
 pub const EMBEDDED_MUSCLES: &str = include_str!("../../../models/muscles.toml");
 /// The embedded default scenario (`models/scenarios/gait_training.toml`).
-pub const EMBEDDED_GAIT_TRAINING: &str = include_str!("../../../models/scenarios/gait_training.toml");
+pub const EMBEDDED_GAIT_TRAINING: &str =
+    include_str!("../../../models/scenarios/gait_training.toml");
 /// The embedded realistic scenario (`models/scenarios/gait_realistic.toml`).
-pub const EMBEDDED_GAIT_REALISTIC: &str = include_str!("../../../models/scenarios/gait_realistic.toml");
+pub const EMBEDDED_GAIT_REALISTIC: &str =
+    include_str!("../../../models/scenarios/gait_realistic.toml");
 
 /// Which way a muscle pulls the joint.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -181,6 +183,13 @@ pub struct ControlSettings {
     /// APRC-NDO gains of every muscle (fields left out keep the paper's values).
     #[serde(default)]
     pub gains: AprcGains,
+    /// Fraction of the joint inertia reflected through the pulley (`I / r^2`) that each
+    /// muscle's nominal model assumes as its mass. The control law turns every m/s^2 of
+    /// acceleration error (observer lag, model error) into `m / f1` pascals: with the full
+    /// reflected inertia (14 700 kg at the hip) 0.01 m/s^2 is 20 kPa and the valves end up
+    /// switching between 0 and 6 bar. A fraction leaves the remaining inertia to the
+    /// disturbance observer, the usual nominal-inertia trade-off of DOB control.
+    pub nominal_inertia_fraction: f64,
     /// Target common-mode pressure `(p_flexor + p_extensor) / 2` of each joint (Pa).
     pub cocontraction_pa: f64,
     /// Co-contraction regulator: length-reference interference per pascal of common-mode
@@ -268,15 +277,31 @@ impl Scenario {
         finite_positive("gait.stride_period_s", self.gait.stride_period_s)?;
         finite_non_negative("gait.ramp_s", self.gait.ramp_s)?;
         for (n, j) in [("hip", self.joints.hip), ("knee", self.joints.knee)] {
-            finite_non_negative(&format!("joints.{n}.damping_nm_s_per_rad"), j.damping_nm_s_per_rad)?;
+            finite_non_negative(
+                &format!("joints.{n}.damping_nm_s_per_rad"),
+                j.damping_nm_s_per_rad,
+            )?;
             finite_non_negative(&format!("joints.{n}.friction_nm"), j.friction_nm)?;
         }
         self.plant.valve.validate()?;
         self.plant.encoder.sensor(0).validate()?;
         finite_positive("control.cocontraction_pa", self.control.cocontraction_pa)?;
-        finite_non_negative("control.cocontraction_gain_m_per_pa", self.control.cocontraction_gain_m_per_pa)?;
-        finite_non_negative("control.cocontraction_max_m", self.control.cocontraction_max_m)?;
-        finite_positive("control.cocontraction_filter_s", self.control.cocontraction_filter_s)?;
+        finite_positive(
+            "control.nominal_inertia_fraction",
+            self.control.nominal_inertia_fraction,
+        )?;
+        finite_non_negative(
+            "control.cocontraction_gain_m_per_pa",
+            self.control.cocontraction_gain_m_per_pa,
+        )?;
+        finite_non_negative(
+            "control.cocontraction_max_m",
+            self.control.cocontraction_max_m,
+        )?;
+        finite_positive(
+            "control.cocontraction_filter_s",
+            self.control.cocontraction_filter_s,
+        )?;
         pma_control::ControllerConfig::AprcNdo(self.control.gains).validate()?;
         Ok(())
     }
@@ -310,7 +335,9 @@ impl Scenario {
                 "gait_realistic" => Self::load_embedded(EMBEDDED_GAIT_REALISTIC, "gait_realistic"),
                 other => Err(LegError::Parse {
                     file: other.to_owned(),
-                    message: "unknown scenario (expected gait_training, gait_realistic or a .toml file)".into(),
+                    message:
+                        "unknown scenario (expected gait_training, gait_realistic or a .toml file)"
+                            .into(),
                 }),
             };
         }

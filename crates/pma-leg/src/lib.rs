@@ -7,7 +7,10 @@
 pub mod config;
 mod error;
 pub mod leg;
+pub mod sim;
+pub mod tune;
 
 pub use config::{LoadedScenario, MuscleGeometry, Scenario, Side};
 pub use error::LegError;
 pub use leg::{Leg, LegInertia};
+pub use sim::{LegReport, LegSample, LegSim, MuscleActuator};

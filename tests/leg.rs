@@ -1,0 +1,253 @@
+//! The exoskeleton leg through the public API: gait tracking, co-contraction over a long
+//! run, energy and static equilibrium against hand calculations, bad input.
+use pma_leg::config::EMBEDDED_URDF;
+use pma_leg::{LegReport, LegSim, Scenario, Side};
+
+fn run(name: &str, duration_s: f64) -> LegReport {
+    let loaded = Scenario::load(name).expect("scenario");
+    let mut sim = LegSim::new(&loaded).expect("sim");
+    sim.run(duration_s, None, None).expect("run")
+}
+
+const TEN_STRIDES_S: f64 = 16.0;
+
+#[test]
+fn gait_training_tracks_within_a_degree_over_ten_strides() {
+    let r = run("gait_training", TEN_STRIDES_S);
+    eprintln!("gait_training: {r:?}");
+    assert!(r.finite);
+    for (name, j) in &r.joints {
+        assert!(j.rms_deg < 1.0, "{name}: RMS {} deg", j.rms_deg);
+        assert!(j.max_deg < 3.0, "{name}: max {} deg", j.max_deg);
+    }
+}
+
+#[test]
+fn gait_realistic_tracks_within_three_degrees_rms() {
+    let r = run("gait_realistic", TEN_STRIDES_S);
+    eprintln!("gait_realistic: {r:?}");
+    assert!(r.finite);
+    for (name, j) in &r.joints {
+        assert!(j.rms_deg < 3.0, "{name}: RMS {} deg", j.rms_deg);
+    }
+}
+
+#[test]
+fn ten_minutes_of_gait_keep_pressures_in_range_and_cocontraction_bounded() {
+    let r = run("gait_training", 600.0);
+    assert!(r.finite);
+    for (name, m) in &r.muscles {
+        assert!(m.p_min_pa >= 0.0 && m.p_max_pa <= 6.0e5, "{name}: {m:?}");
+    }
+    let (start, end) = (r.cocontraction_pa.start, r.cocontraction_pa.end);
+    eprintln!("600 s: {r:?}");
+    assert!(
+        (end - start).abs() <= 0.2 * start,
+        "common mode {start} Pa -> {end} Pa"
+    );
+    for j in r.joints.values() {
+        assert!(j.rms_deg < 1.0, "{j:?}");
+    }
+}
+
+/// The loaded default scenario with its URDF's joint limits opened: rapier's limit
+/// impacts are inelastic, and the hanging leg's rest pose sits on the knee's 0 deg limit,
+/// so any passive swing would hit it.
+fn without_limits(mut loaded: pma_leg::LoadedScenario) -> pma_leg::LoadedScenario {
+    loaded.urdf_text = EMBEDDED_URDF
+        .replace(
+            r#"lower="0.0" upper="1.3963""#,
+            r#"lower="-3.0" upper="3.0""#,
+        )
+        .replace(
+            r#"lower="-0.3491" upper="0.8727""#,
+            r#"lower="-3.0" upper="3.0""#,
+        );
+    assert_ne!(loaded.urdf_text, EMBEDDED_URDF);
+    loaded
+}
+
+#[test]
+fn passive_leg_with_vented_muscles_conserves_energy() {
+    let mut loaded = without_limits(Scenario::load("gait_training").unwrap());
+    loaded.scenario.joints.hip.damping_nm_s_per_rad = 0.0;
+    loaded.scenario.joints.knee.damping_nm_s_per_rad = 0.0;
+    let mut sim = LegSim::new(&loaded).unwrap();
+    let vented = [0.0; 4];
+    sim.step_with_commands(vented); // vent every muscle
+    let rest = sim.leg().inertia().energy([0.0, 0.0], [0.0, 0.0]);
+    for q0 in [[0.5, 0.6], [0.4, 0.8], [0.6, 0.0]] {
+        sim.set_state(q0, [0.0, 0.0]);
+        let e0 = sim.leg().energy();
+        let drop = e0 - rest;
+        let (mut worst, mut max_force): (f64, f64) = (0.0, 0.0);
+        for _ in 0..2000 {
+            let s = sim.step_with_commands(vented);
+            worst = worst.max((sim.leg().energy() - e0).abs());
+            max_force = s.force_n.iter().fold(max_force, |m, f| m.max(*f));
+        }
+        // Vented muscles are slack (f0 < 0) except when stretched fast enough for their
+        // damper to exceed |f0| + k x: then they dissipate a little, within the budget.
+        eprintln!("released at {q0:?}: |E - E0| <= {worst:.4} J of {drop:.3} J, vented pull <= {max_force:.2} N");
+        assert!(
+            worst < 0.01 * drop,
+            "released at {q0:?}: energy off by {worst} J of {drop} J (largest vented-muscle pull {max_force} N)"
+        );
+    }
+}
+
+/// Pressures `(flexor, extensor)` that hold a joint still against `gravity_nm` with mean
+/// `p_mean`, from eq. (1) at rest: F = (f0 - k0 x) + (f1 - k1 x) p on each side and
+/// r (F_flexor - F_extensor) + gravity = 0.
+fn hand_pressures(
+    f: &pma_leg::sim::MuscleActuator,
+    e: &pma_leg::sim::MuscleActuator,
+    q: f64,
+    gravity_nm: f64,
+    p_mean: f64,
+) -> (f64, f64) {
+    let coeff = |m: &pma_leg::sim::MuscleActuator| {
+        let x = m.geometry.contraction(q);
+        let p = &m.params;
+        (
+            p.f0_n - p.k0_n_per_m * x,
+            p.f1_n_per_pa - p.k1_n_per_m_pa * x,
+        )
+    };
+    let ((af, bf), (ae, be)) = (coeff(f), coeff(e));
+    let r = f.geometry.pulley_radius_m;
+    assert_eq!(r, e.geometry.pulley_radius_m);
+    let p_f = (-gravity_nm / r - af + ae + 2.0 * be * p_mean) / (bf + be);
+    (p_f, 2.0 * p_mean - p_f)
+}
+
+#[test]
+fn static_pose_is_held_at_the_hand_computed_equilibrium_pressures() {
+    let loaded = Scenario::load("gait_training").unwrap();
+    let mut sim = LegSim::new(&loaded).unwrap();
+    let pose = [0.35, 0.5];
+    sim.hold_pose(pose);
+    let mut last = Vec::new();
+    // 20 s: the co-contraction loop and the slow pole of the sliding surface (c2/c1 ~ 1/s)
+    // settle in ~10 s; the last second is averaged.
+    let settle = 20_000;
+    for k in 0..settle + 1000 {
+        let s = sim.step();
+        if k >= settle {
+            last.push(s);
+        }
+    }
+    let n = last.len() as f64;
+    let mean_p = |i: usize| last.iter().map(|s| s.pressure_pa[i]).sum::<f64>() / n;
+    let q = [
+        last.iter().map(|s| s.angle_rad[0]).sum::<f64>() / n,
+        last.iter().map(|s| s.angle_rad[1]).sum::<f64>() / n,
+    ];
+    // Held near the commanded pose (the co-contraction interference can leave up to
+    // delta / (2 r) ~ 3 mrad) and still: the hand check uses the angles actually held.
+    assert!(
+        (q[0] - pose[0]).abs() < 0.01 && (q[1] - pose[1]).abs() < 0.01,
+        "held at {q:?}"
+    );
+    for j in 0..2 {
+        let (lo, hi) = last.iter().fold((f64::MAX, f64::MIN), |(l, h), s| {
+            (l.min(s.angle_rad[j]), h.max(s.angle_rad[j]))
+        });
+        assert!(hi - lo < 1e-4, "joint {j} still moves by {} rad", hi - lo);
+    }
+    let gravity = sim.leg().inertia().gravity_torques(q[0], q[1]);
+    let muscles = sim.muscles();
+    for joint in 0..2 {
+        let idx = |side| {
+            (0..4)
+                .find(|&i| muscles[i].joint == joint && muscles[i].geometry.side == side)
+                .unwrap()
+        };
+        let (fi, ei) = (idx(Side::Flexor), idx(Side::Extensor));
+        let (pf, pe) = (mean_p(fi), mean_p(ei));
+        let (hf, he) = hand_pressures(
+            &muscles[fi],
+            &muscles[ei],
+            q[joint],
+            gravity[joint],
+            0.5 * (pf + pe),
+        );
+        eprintln!("joint {joint} at {:.4} rad: flexor {pf:.0} Pa (hand {hf:.0}), extensor {pe:.0} Pa (hand {he:.0})", q[joint]);
+        assert!(
+            (pf - hf).abs() < 0.01 * hf,
+            "joint {joint}: flexor {pf} Pa, by hand {hf} Pa"
+        );
+        assert!(
+            (pe - he).abs() < 0.01 * he,
+            "joint {joint}: extensor {pe} Pa, by hand {he} Pa"
+        );
+    }
+}
+
+fn tmp(name: &str, text: &str) -> String {
+    let dir = std::env::temp_dir().join(format!("pma-leg-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.to_str().unwrap().to_owned()
+}
+
+fn scenario_text() -> String {
+    include_str!("../models/scenarios/gait_training.toml").to_owned()
+}
+
+fn load_err(text: &str, extra_files: &[(&str, &str)]) -> String {
+    for (n, t) in extra_files {
+        tmp(n, t);
+    }
+    let path = tmp("scenario.toml", text);
+    match Scenario::load(&path).and_then(|l| LegSim::new(&l).map(|_| ())) {
+        Ok(()) => panic!("accepted: {text}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn bad_scenarios_and_urdfs_are_named_in_one_line() {
+    let one_line = |e: &str| assert_eq!(e.lines().count(), 1, "{e}");
+    // Missing file.
+    let e = Scenario::load("/nonexistent/leg.toml")
+        .unwrap_err()
+        .to_string();
+    one_line(&e);
+    assert!(e.contains("/nonexistent/leg.toml"), "{e}");
+    // Unknown field.
+    let e = load_err(
+        &scenario_text().replace("[gait]", "[gait]\ncadence = 3"),
+        &[],
+    );
+    one_line(&e);
+    assert!(e.contains("cadence"), "{e}");
+    // Unknown link in a muscle.
+    let muscles = include_str!("../models/muscles.toml").replacen(
+        "body_link = \"thigh\"",
+        "body_link = \"femur\"",
+        1,
+    );
+    let text = format!("muscle_geometry = \"muscles.toml\"\n{}", scenario_text());
+    let e = load_err(&text, &[("muscles.toml", &muscles)]);
+    one_line(&e);
+    assert!(e.contains("femur") && e.contains("hip_flexor"), "{e}");
+    // Malformed XML.
+    let text = format!("urdf = \"leg.urdf\"\n{}", scenario_text());
+    let e = load_err(
+        &text,
+        &[("leg.urdf", "<robot name=\"x\"><link name=\"a\"></robot>")],
+    );
+    one_line(&e);
+    assert!(e.contains("leg.urdf"), "{e}");
+    // A URDF without the knee.
+    let no_knee = EMBEDDED_URDF.replace("name=\"knee\"", "name=\"ankle\"");
+    let e = load_err(&text, &[("leg.urdf", &no_knee)]);
+    assert!(e.contains("knee"), "{e}");
+    // Unknown scenario name.
+    assert!(Scenario::load("gait_jogging")
+        .unwrap_err()
+        .to_string()
+        .contains("gait_jogging"));
+}
