@@ -163,3 +163,47 @@ fn paper_writes_results_report_and_plots() {
     let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
     assert!(md.contains("Table II") && md.contains("| aprc-ndo | paper |"));
 }
+
+#[test]
+fn simulate_prints_the_gait_metrics_as_json() {
+    let out = pma_exo(&["simulate", "--duration", "3.2", "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["scenario"], "gait_training");
+    assert_eq!(v["duration_s"], 3.2);
+    for joint in ["hip", "knee"] {
+        for key in ["rms_deg", "max_deg"] {
+            assert!(
+                v["joints"][joint][key].as_f64().is_some(),
+                "joints.{joint}.{key} in {v}"
+            );
+        }
+    }
+    for m in ["hip_flexor", "hip_extensor", "knee_flexor", "knee_extensor"] {
+        for key in ["p_min_pa", "p_max_pa", "slack_s"] {
+            assert!(
+                v["muscles"][m][key].as_f64().is_some(),
+                "muscles.{m}.{key} in {v}"
+            );
+        }
+    }
+    assert!(
+        v["cocontraction_pa"]["start"].as_f64().is_some()
+            && v["cocontraction_pa"]["end"].as_f64().is_some()
+    );
+    assert!(v["real_time_factor"].as_f64().is_some_and(|r| r > 0.0));
+}
+
+#[test]
+fn simulate_bad_input_gives_one_line_errors() {
+    assert_one_line_error(
+        &["simulate", "/nonexistent/scenario.toml"],
+        "/nonexistent/scenario.toml",
+    );
+    assert_one_line_error(&["simulate", "gait_jogging"], "gait_jogging");
+    assert_one_line_error(&["simulate", "--duration", "-2"], "duration");
+}

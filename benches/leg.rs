@@ -1,0 +1,44 @@
+//! One closed-loop period of the default gait scenario (rapier + 4 muscles + 4 APRC-NDO
+//! controllers + references) beside rapier's bare step of the same leg with the same
+//! physics substeps, in one run.
+use criterion::{criterion_group, criterion_main, Criterion};
+use pma_leg::leg::Leg;
+use pma_leg::{LegSim, Scenario};
+use std::hint::black_box;
+
+fn leg(c: &mut Criterion) {
+    let loaded = Scenario::load("gait_training").expect("embedded scenario");
+    let sc = &loaded.scenario;
+    let mut group = c.benchmark_group("leg_period_1ms");
+    let mut bare = Leg::from_urdf_str(
+        &loaded.urdf_text,
+        &loaded.urdf_source,
+        [sc.joints.hip, sc.joints.knee],
+        sc.period_s,
+        sc.physics_substeps,
+    )
+    .expect("leg");
+    let mut k = 0u64;
+    group.bench_function("rapier_bare", |b| {
+        b.iter(|| {
+            // A moving leg (a resting one would cost the same: sleeping is disabled).
+            k += 1;
+            let a = (k as f64 * 0.004).sin();
+            bare.step(|_, _| [20.0 * a, 5.0 * a]);
+            black_box(bare.angles())
+        })
+    });
+    let mut sim = LegSim::new(&loaded).expect("sim");
+    group.bench_function("closed_loop", |b| {
+        b.iter(|| {
+            if sim.time() > 600.0 {
+                sim = LegSim::new(&loaded).expect("sim");
+            }
+            black_box(sim.step())
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, leg);
+criterion_main!(benches);
