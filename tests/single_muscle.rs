@@ -137,33 +137,41 @@ fn closed_loop_converges_under_plant_step_refinement() {
     assert!(err < 1e-6, "closed loop differs by {err} m");
 }
 
-/// Sign changes of the proxy's sliding variable per reference period after the start-up,
-/// and the fraction of samples in which the proxy sticks exactly on `S_p = 0`.
-fn proxy_flips_per_period(kind: ControllerConfig, plant: &str) -> (f64, f64) {
+/// The samples of a 20 s sine run after the 4 s start-up (16 s = 4 reference periods).
+fn sine_samples_after_startup(cfg: ControllerConfig, plant: &str) -> Vec<Sample> {
     let plant = PlantConfig::preset(plant).unwrap();
-    let (mut flips, mut last, mut zero, mut n) = (0usize, 0.0f64, 0usize, 0usize);
+    let mut samples = Vec::with_capacity(16_000);
     run_single(
-        &kind,
+        &cfg,
         &plant,
         &SineReference::paper(),
         &RunSpec::default(),
         Some(&mut |s: &Sample| {
             if s.t_s > 4.0 {
-                let sp = s.diagnostics.s_p;
-                n += 1;
-                if sp == 0.0 {
-                    zero += 1;
-                } else {
-                    if last != 0.0 && sp.signum() != last {
-                        flips += 1;
-                    }
-                    last = sp.signum();
-                }
+                samples.push(*s);
             }
         }),
     )
     .unwrap();
-    (flips as f64 / 4.0, zero as f64 / n as f64) // 16 s = 4 reference periods
+    samples
+}
+
+/// Sign changes in a sequence, zeros skipped.
+fn sign_changes(values: impl IntoIterator<Item = f64>) -> usize {
+    let (mut changes, mut last) = (0usize, 0.0f64);
+    for v in values.into_iter().filter(|v| *v != 0.0) {
+        if last != 0.0 && v.signum() != last {
+            changes += 1;
+        }
+        last = v.signum();
+    }
+    changes
+}
+
+/// Sign changes of the proxy's sliding variable per reference period after the start-up.
+fn proxy_flips_per_period(cfg: ControllerConfig, plant: &str) -> f64 {
+    let samples = sine_samples_after_startup(cfg, plant);
+    sign_changes(samples.iter().map(|s| s.diagnostics.s_p)) as f64 / 4.0
 }
 
 #[test]
@@ -172,12 +180,12 @@ fn implicit_proxy_does_not_chatter() {
     // flips per 4 s period). The implicit solution sticks on S_p = 0 and leaves it only
     // when the coupling force exceeds the gain.
     for plant in ["ideal", "mismatch"] {
-        let (flips, _) = proxy_flips_per_period(ControllerConfig::AprcNdo(AprcGains::PAPER), plant);
+        let flips = proxy_flips_per_period(ControllerConfig::AprcNdo(AprcGains::PAPER), plant);
         assert!(
             flips <= 4.0,
             "APRC-NDO on {plant}: S_p changes sign {flips} times per period"
         );
-        let (flips, _) = proxy_flips_per_period(ControllerKind::Psmc.default_config(), plant);
+        let flips = proxy_flips_per_period(ControllerKind::Psmc.default_config(), plant);
         assert!(
             flips <= 4.0,
             "PSMC on {plant}: sigma changes sign {flips} times per period"
@@ -187,33 +195,14 @@ fn implicit_proxy_does_not_chatter() {
 
 /// Command turns (sign changes of its increments) per reference period after the start-up,
 /// and its total variation per second (Pa/s).
-fn command_activity(kind: ControllerConfig, plant: &str) -> (f64, f64) {
-    let plant = PlantConfig::preset(plant).unwrap();
-    let mut u = Vec::with_capacity(16_000);
-    run_single(
-        &kind,
-        &plant,
-        &SineReference::paper(),
-        &RunSpec::default(),
-        Some(&mut |s: &Sample| {
-            if s.t_s > 4.0 {
-                u.push(s.pressure_cmd_pa);
-            }
-        }),
-    )
-    .unwrap();
-    let (mut turns, mut last, mut variation) = (0usize, 0.0f64, 0.0);
-    for w in u.windows(2) {
-        let d = w[1] - w[0];
-        variation += d.abs();
-        if d != 0.0 {
-            if last != 0.0 && d.signum() != last {
-                turns += 1;
-            }
-            last = d.signum();
-        }
-    }
-    (turns as f64 / 4.0, variation / 16.0)
+fn command_activity(cfg: ControllerConfig, plant: &str) -> (f64, f64) {
+    let samples = sine_samples_after_startup(cfg, plant);
+    let steps: Vec<f64> = samples
+        .windows(2)
+        .map(|w| w[1].pressure_cmd_pa - w[0].pressure_cmd_pa)
+        .collect();
+    let variation: f64 = steps.iter().map(|d| d.abs()).sum();
+    (sign_changes(steps) as f64 / 4.0, variation / 16.0)
 }
 
 /// Regression: inverting eq. (1) exactly at every period, the command alternated between
@@ -239,22 +228,10 @@ fn command_does_not_ripple_between_damping_modes() {
 
 #[test]
 fn proxy_sticks_on_the_sliding_surface_most_of_the_time() {
-    let plant = PlantConfig::preset("mismatch").unwrap();
-    let (mut zero, mut n) = (0usize, 0usize);
-    run_single(
-        &ControllerConfig::AprcNdo(AprcGains::PAPER),
-        &plant,
-        &SineReference::paper(),
-        &RunSpec::default(),
-        Some(&mut |s: &Sample| {
-            if s.t_s > 2.0 {
-                n += 1;
-                zero += usize::from(s.diagnostics.s_p == 0.0);
-            }
-        }),
-    )
-    .unwrap();
-    let frac = zero as f64 / n as f64;
+    let samples =
+        sine_samples_after_startup(ControllerConfig::AprcNdo(AprcGains::PAPER), "mismatch");
+    let zero = samples.iter().filter(|s| s.diagnostics.s_p == 0.0).count();
+    let frac = zero as f64 / samples.len() as f64;
     assert!(
         frac > 0.8,
         "S_p exactly zero in only {:.1} % of the samples",

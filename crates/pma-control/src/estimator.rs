@@ -60,6 +60,11 @@ impl KinematicObserver {
         self.a += l[2] * e;
     }
 
+    /// `(position, velocity, acceleration)`.
+    pub fn state(&self) -> (f64, f64, f64) {
+        (self.x, self.v, self.a)
+    }
+
     /// Filtered position (m).
     pub fn position(&self) -> f64 {
         self.x

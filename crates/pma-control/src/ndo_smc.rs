@@ -74,11 +74,7 @@ impl Controller for NdoSmc {
 
     fn update(&mut self, r: &RefSample, m: &Measurement, dt: f64) -> ControlOutput {
         self.observer.update(m.position_m, dt);
-        let (x, v, a) = (
-            self.observer.position(),
-            self.observer.velocity(),
-            self.observer.acceleration(),
-        );
+        let (x, v, a) = self.observer.state();
         let tau_hat = self
             .ndo
             .update(&self.model, x, v, a, self.cmd.u_prev, self.cmd.mode, dt);
