@@ -44,7 +44,7 @@ fn plant_period(c: &mut Criterion) {
             b.iter(|| {
                 k += 1;
                 // Alternate the command so the damping mode and the valve both work.
-                let p = if k % 2 == 0 { 0.70e5 } else { 0.72e5 };
+                let p = if k.is_multiple_of(2) { 0.70e5 } else { 0.72e5 };
                 bench.apply(black_box(p), 1e-3);
                 black_box(bench.measure())
             })

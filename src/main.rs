@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 
 mod paper;
 mod simulate;
+use pma_exo::viz;
 
 #[derive(Parser)]
 #[command(
@@ -45,6 +46,12 @@ enum Command {
         /// Print one JSON object instead of the summary.
         #[arg(long)]
         json: bool,
+        /// Rerun: off, spawn, connect, connect=URL or save=PATH.rrd.
+        #[arg(long, default_value = "off")]
+        rerun: pma_viz::Sink,
+        /// Log to Rerun at this rate (Hz) instead of every control period.
+        #[arg(long)]
+        rerun_hz: Option<f64>,
     },
     /// One controller on the single-muscle bench.
     Single {
@@ -69,6 +76,12 @@ enum Command {
         /// Print one JSON object instead of a summary line.
         #[arg(long)]
         json: bool,
+        /// Rerun: off, spawn, connect, connect=URL or save=PATH.rrd.
+        #[arg(long, default_value = "off")]
+        rerun: pma_viz::Sink,
+        /// Log to Rerun at this rate (Hz) instead of every control period.
+        #[arg(long)]
+        rerun_hz: Option<f64>,
     },
     /// Rerun the paper's experiments in simulation: results.json, report.md, plots.
     Paper {
@@ -141,7 +154,11 @@ fn main() {
     if let Err(e) = run(cli) {
         // One line: the error and its causes.
         let chain: Vec<String> = e.chain().map(|c| c.to_string()).collect();
-        eprintln!("error: {}", chain.join(": "));
+        let line = chain.join(": ");
+        eprintln!(
+            "error: {}",
+            line.split_whitespace().collect::<Vec<_>>().join(" ")
+        );
         std::process::exit(1);
     }
 }
@@ -152,6 +169,8 @@ fn run(cli: Cli) -> Result<()> {
         duration: None,
         csv: None,
         json: false,
+        rerun: pma_viz::Sink::Off,
+        rerun_hz: None,
     });
     match command {
         Command::Simulate {
@@ -159,7 +178,9 @@ fn run(cli: Cli) -> Result<()> {
             duration,
             csv,
             json,
-        } => simulate::run(&scenario, duration, csv.as_deref(), json),
+            rerun,
+            rerun_hz,
+        } => simulate::run(&scenario, duration, csv.as_deref(), json, &rerun, rerun_hz),
         Command::Single {
             controller,
             reference,
@@ -168,6 +189,8 @@ fn run(cli: Cli) -> Result<()> {
             gains,
             csv,
             json,
+            rerun,
+            rerun_hz,
         } => single(
             controller,
             reference,
@@ -176,6 +199,7 @@ fn run(cli: Cli) -> Result<()> {
             gains.as_deref(),
             csv.as_deref(),
             json,
+            (&rerun, rerun_hz),
         ),
         Command::Paper { out } => paper::run(&out),
         Command::TuneLeg {
@@ -259,6 +283,7 @@ fn reference_of(name: RefName) -> (&'static str, Box<dyn Reference>) {
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 fn single(
     kind: ControllerKind,
     reference: RefName,
@@ -267,6 +292,7 @@ fn single(
     gains: Option<&Path>,
     csv: Option<&Path>,
     json: bool,
+    (sink, rerun_hz): (&pma_viz::Sink, Option<f64>),
 ) -> Result<()> {
     check_duration(duration)?;
     let plant_cfg = load_plant(plant)?;
@@ -276,14 +302,48 @@ fn single(
         duration_s: duration,
         ..RunSpec::default()
     };
+    let mut viz = viz::open(sink, "pma-exo single", spec.period_s, rerun_hz)?;
+    if let Some(v) = viz.as_mut() {
+        let meta = format!(
+            "# single muscle\n\ncontroller `{kind}`, reference `{ref_name}`, plant `{}`\n\n```toml\n{}```\n",
+            plant_cfg.name,
+            config.to_toml_string()
+        );
+        viz::bench_layout(v, &meta)?;
+    }
     let mut samples: Vec<Sample> = Vec::with_capacity(if csv.is_some() { spec.steps() } else { 0 });
-    let mut record = |s: &Sample| samples.push(*s);
-    let observe: Option<&mut dyn FnMut(&Sample)> = if csv.is_some() {
+    let (mut step, mut scalars, mut viz_error) = (0i64, [0.0; 11], None);
+    let mut record = |s: &Sample| {
+        step += 1;
+        if csv.is_some() {
+            samples.push(*s);
+        }
+        if let Some(v) = viz.as_mut() {
+            viz::bench_scalars(s, &mut scalars);
+            let frame = pma_viz::Frame {
+                t_s: s.t_s,
+                step,
+                scalars: &scalars,
+                link_poses: &[],
+                muscle_lines: &[],
+            };
+            if let Err(e) = v.push(&frame) {
+                viz_error.get_or_insert(e);
+            }
+        }
+    };
+    let observe: Option<&mut dyn FnMut(&Sample)> = if csv.is_some() || sink != &pma_viz::Sink::Off {
         Some(&mut record)
     } else {
         None
     };
     let res = run_single(&config, &plant_cfg, r.as_ref(), &spec, observe)?;
+    if let Some(e) = viz_error {
+        return Err(e.into());
+    }
+    if let Some(v) = viz {
+        v.finish()?;
+    }
     if let Some(path) = csv {
         write_csv(path, &samples)?;
     }

@@ -5,7 +5,14 @@ use std::io::{IsTerminal, Write};
 use std::path::Path;
 
 /// Runs a scenario (embedded name or `.toml` path) and prints a summary or JSON.
-pub fn run(scenario: &str, duration: Option<f64>, csv: Option<&Path>, json: bool) -> Result<()> {
+pub fn run(
+    scenario: &str,
+    duration: Option<f64>,
+    csv: Option<&Path>,
+    json: bool,
+    sink: &pma_viz::Sink,
+    rerun_hz: Option<f64>,
+) -> Result<()> {
     let loaded = Scenario::load(scenario)?;
     let duration = duration.unwrap_or(loaded.scenario.duration_s);
     if !(duration.is_finite() && duration > 0.0) {
@@ -13,9 +20,34 @@ pub fn run(scenario: &str, duration: Option<f64>, csv: Option<&Path>, json: bool
     }
     let mut sim = LegSim::new(&loaded)?;
     let steps = (duration / loaded.scenario.period_s).round() as usize;
+    let mut viz = pma_exo::viz::open(sink, "pma-exo simulate", loaded.scenario.period_s, rerun_hz)?;
+    if let Some(v) = viz.as_mut() {
+        let sc = &loaded.scenario;
+        let meta = format!(
+            "# {}\n\n{}\n\ngait `{}` at a {} s stride; co-contraction {} bar; APRC-NDO gains:\n\n```\n{:#?}\n```\n",
+            sc.name,
+            sc.description,
+            sc.gait.speed,
+            sc.gait.stride_period_s,
+            sc.control.cocontraction_pa / 1e5,
+            sc.control.gains
+        );
+        pma_exo::viz::leg_layout(v, &sim, &meta)?;
+    }
     let mut samples: Vec<LegSample> = Vec::with_capacity(if csv.is_some() { steps } else { 0 });
-    let mut record = |s: &LegSample| samples.push(*s);
-    let observe: Option<&mut dyn FnMut(&LegSample)> = if csv.is_some() {
+    let (mut step, mut scalars, mut viz_error) = (0i64, [0.0; pma_exo::viz::LEG_SCALARS], None);
+    let mut record = |sim: &LegSim, s: &LegSample| {
+        step += 1;
+        if csv.is_some() {
+            samples.push(*s);
+        }
+        if let Some(v) = viz.as_mut() {
+            if let Err(e) = pma_exo::viz::push_leg(v, sim, s, step, &mut scalars) {
+                viz_error.get_or_insert(e);
+            }
+        }
+    };
+    let observe: Option<pma_leg::sim::Observer> = if csv.is_some() || sink != &pma_viz::Sink::Off {
         Some(&mut record)
     } else {
         None
@@ -32,6 +64,12 @@ pub fn run(scenario: &str, duration: Option<f64>, csv: Option<&Path>, json: bool
     };
     let progress: Option<&mut dyn FnMut(f64)> = if show_progress { Some(&mut bar) } else { None };
     let report = sim.run(duration, observe, progress)?;
+    if let Some(e) = viz_error {
+        return Err(e);
+    }
+    if let Some(v) = viz {
+        v.finish()?;
+    }
     if show_progress {
         eprintln!("\r[{}] 100 %", "=".repeat(40));
     }

@@ -207,3 +207,62 @@ fn simulate_bad_input_gives_one_line_errors() {
     assert_one_line_error(&["simulate", "gait_jogging"], "gait_jogging");
     assert_one_line_error(&["simulate", "--duration", "-2"], "duration");
 }
+
+#[test]
+fn rerun_save_writes_an_rrd_recording_for_both_commands() {
+    let dir = std::env::temp_dir().join(format!("pma-exo-rrd-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (args, file) in [
+        (vec!["simulate", "--duration", "0.5"], "leg.rrd"),
+        (vec!["single", "--duration", "0.5"], "bench.rrd"),
+    ] {
+        let path = dir.join(file);
+        let save = format!("save={}", path.display());
+        let mut a = args.clone();
+        a.extend(["--rerun", save.as_str(), "--rerun-hz", "100"]);
+        let out = pma_exo(&a);
+        assert!(
+            out.status.success(),
+            "{a:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(&bytes[..4], b"RRF2", "{file} is not an .rrd recording");
+        assert!(bytes.len() > 1000, "{file}: {} bytes", bytes.len());
+    }
+}
+
+#[test]
+fn rerun_failures_are_one_line_errors_not_hangs() {
+    assert_one_line_error(
+        &[
+            "simulate",
+            "--duration",
+            "0.2",
+            "--rerun",
+            "connect=rerun+http://127.0.0.1:1/proxy",
+        ],
+        "127.0.0.1:1",
+    );
+    assert_one_line_error(&["simulate", "--rerun", "viewer"], "viewer");
+    assert_one_line_error(
+        &[
+            "simulate",
+            "--duration",
+            "0.2",
+            "--rerun",
+            "save=/tmp/x.rrd",
+            "--rerun-hz",
+            "0",
+        ],
+        "rerun-hz",
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args(["simulate", "--duration", "0.2", "--rerun", "spawn"])
+        .env("PATH", "/nonexistent")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("rerun-sdk==0.36.3"), "{err}");
+}

@@ -89,11 +89,55 @@ impl LegInertia {
     }
 }
 
+/// A visual shape of a link from the URDF, in the link's frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum VisualShape {
+    /// Cylinder along the link's Z axis.
+    Cylinder {
+        /// Centre (m).
+        center: [f64; 3],
+        /// Radius (m).
+        radius: f64,
+        /// Length (m).
+        length: f64,
+    },
+    /// Box.
+    Box {
+        /// Centre (m).
+        center: [f64; 3],
+        /// Edge lengths (m).
+        size: [f64; 3],
+    },
+}
+
+fn visuals_of(link: &urdf_rs::Link) -> Vec<VisualShape> {
+    link.visual
+        .iter()
+        .filter_map(|v| {
+            let c = v.origin.xyz;
+            let center = [c[0], c[1], c[2]];
+            match &v.geometry {
+                urdf_rs::Geometry::Cylinder { radius, length } => Some(VisualShape::Cylinder {
+                    center,
+                    radius: *radius,
+                    length: *length,
+                }),
+                urdf_rs::Geometry::Box { size } => Some(VisualShape::Box {
+                    center,
+                    size: [size[0], size[1], size[2]],
+                }),
+                _ => None,
+            }
+        })
+        .collect()
+}
+
 /// The leg: a rapier world with the multibody, its two joints and the gravity along -Z.
 pub struct Leg {
     world: PhysicsWorld,
     joints: [JointRef; 2],
     bodies: Vec<(String, RigidBodyHandle)>,
+    visuals: Vec<Vec<VisualShape>>,
     inertia: LegInertia,
     substeps: u32,
 }
@@ -166,6 +210,11 @@ impl Leg {
             .iter()
             .map(|l| raw.links[l.urdf_link_index].name.clone())
             .collect();
+        let visuals: Vec<Vec<VisualShape>> = robot
+            .links
+            .iter()
+            .map(|l| visuals_of(&raw.links[l.urdf_link_index]))
+            .collect();
 
         let mut world = PhysicsWorld {
             gravity: Vector::new(0.0, 0.0, -G as Real),
@@ -225,6 +274,7 @@ impl Leg {
             world,
             joints: [refs[0], refs[1]],
             bodies,
+            visuals,
             inertia,
             substeps,
         };
@@ -332,16 +382,27 @@ impl Leg {
         self.inertia.energy(self.angles(), self.velocities())
     }
 
-    /// World pose of every link: name, translation (m) and rotation quaternion `[x, y, z, w]`.
-    pub fn link_poses(&self) -> Vec<(String, [f64; 3], [f64; 4])> {
-        self.bodies
-            .iter()
-            .filter_map(|(n, h)| {
-                let p = self.world.bodies.get(*h)?.position();
-                let t = p.translation;
-                let r = p.rotation;
-                Some((
-                    n.clone(),
+    /// Names of the links, in the order of [`Leg::link_pose`] and [`Leg::visuals`].
+    pub fn link_names(&self) -> impl Iterator<Item = &str> {
+        self.bodies.iter().map(|(n, _)| n.as_str())
+    }
+
+    /// The URDF's visual shapes of link `i`.
+    pub fn visuals(&self, i: usize) -> &[VisualShape] {
+        self.visuals.get(i).map_or(&[], |v| v.as_slice())
+    }
+
+    /// World pose of link `i`: translation (m) and quaternion `[x, y, z, w]`.
+    pub fn link_pose(&self, i: usize) -> ([f64; 3], [f64; 4]) {
+        match self
+            .bodies
+            .get(i)
+            .and_then(|(_, h)| self.world.bodies.get(*h))
+        {
+            Some(rb) => {
+                let p = rb.position();
+                let (t, r) = (p.translation, p.rotation);
+                (
                     [f64::from(t.x), f64::from(t.y), f64::from(t.z)],
                     [
                         f64::from(r.x),
@@ -349,7 +410,30 @@ impl Leg {
                         f64::from(r.z),
                         f64::from(r.w),
                     ],
-                ))
+                )
+            }
+            None => ([f64::NAN; 3], [0.0, 0.0, 0.0, 1.0]),
+        }
+    }
+
+    /// A point given in link `name`'s frame, in world coordinates (m).
+    pub fn point_in_world(&self, name: &str, local: [f64; 3]) -> Option<[f64; 3]> {
+        let (_, h) = self.bodies.iter().find(|(n, _)| n == name)?;
+        let rb = self.world.bodies.get(*h)?;
+        let p = rb.position().transform_point(Vector::new(
+            local[0] as Real,
+            local[1] as Real,
+            local[2] as Real,
+        ));
+        Some([f64::from(p.x), f64::from(p.y), f64::from(p.z)])
+    }
+
+    /// World pose of every link: name, translation (m) and rotation quaternion `[x, y, z, w]`.
+    pub fn link_poses(&self) -> Vec<(String, [f64; 3], [f64; 4])> {
+        (0..self.bodies.len())
+            .map(|i| {
+                let (t, q) = self.link_pose(i);
+                (self.bodies[i].0.clone(), t, q)
             })
             .collect()
     }

@@ -12,5 +12,5 @@ pub mod tune;
 
 pub use config::{LoadedScenario, MuscleGeometry, Scenario, Side};
 pub use error::LegError;
-pub use leg::{Leg, LegInertia};
+pub use leg::{Leg, LegInertia, VisualShape};
 pub use sim::{LegReport, LegSample, LegSim, MuscleActuator};

@@ -81,6 +81,9 @@ impl CoContraction {
     }
 }
 
+/// Called after every period of [`LegSim::run`] with the simulation and its sample.
+pub type Observer<'a> = &'a mut dyn FnMut(&LegSim, &LegSample);
+
 /// One logged period of the leg.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LegSample {
@@ -394,6 +397,25 @@ impl LegSim {
         &self.leg
     }
 
+    /// Each muscle as a segment from its anchor to its joint's pulley, in world
+    /// coordinates (m), for drawing.
+    pub fn muscle_segments(&self) -> [([f64; 3], [f64; 3]); 4] {
+        std::array::from_fn(|i| {
+            let Some(m) = self.muscles.get(i) else {
+                return ([f64::NAN; 3], [f64::NAN; 3]);
+            };
+            let g = &m.geometry;
+            let anchor = self.leg.point_in_world(&g.body_link, g.anchor_m);
+            // The pulley sits on the joint axis: the origin of the joint's child link.
+            let child = if m.joint == 0 { "thigh" } else { "shank" };
+            let pulley = self.leg.point_in_world(child, [0.0, g.anchor_m[1], 0.0]);
+            (
+                anchor.unwrap_or([f64::NAN; 3]),
+                pulley.unwrap_or([f64::NAN; 3]),
+            )
+        })
+    }
+
     /// The muscles.
     pub fn muscles(&self) -> &[MuscleActuator] {
         &self.muscles
@@ -534,7 +556,7 @@ impl LegSim {
     pub fn run(
         &mut self,
         duration_s: f64,
-        mut observe: Option<&mut dyn FnMut(&LegSample)>,
+        mut observe: Option<Observer>,
         mut progress: Option<&mut dyn FnMut(f64)>,
     ) -> Result<LegReport, LegError> {
         crate::error::finite_positive("duration_s", duration_s)?;
@@ -544,9 +566,9 @@ impl LegSim {
         for k in 0..steps {
             let s = self.step();
             if let Some(f) = observe.as_mut() {
-                f(&s);
+                f(self, &s);
             }
-            if k % every == 0 {
+            if k.is_multiple_of(every) {
                 if let Some(p) = progress.as_mut() {
                     p(k as f64 / steps as f64);
                 }

@@ -16,6 +16,8 @@ pub trait Plant {
     fn pressure(&self) -> f64;
     /// Plant time (s).
     fn time(&self) -> f64;
+    /// Muscle force (N).
+    fn force(&self) -> f64;
 }
 
 /// One muscle holding a hanging load (the paper's Fig. 3 rig):
@@ -137,6 +139,11 @@ impl Plant for MuscleBench {
 
     fn time(&self) -> f64 {
         self.t
+    }
+
+    fn force(&self) -> f64 {
+        self.muscle
+            .force(self.valve.pressure(), self.x, self.v, self.valve.mode())
     }
 }
 

@@ -41,7 +41,7 @@ fn run_recorded(
     let mut k = 0usize;
     let mut observe = |s: &Sample| {
         on_sample(s);
-        if k % DECIMATE == 0 {
+        if k.is_multiple_of(DECIMATE) {
             series.t_s.push(s.t_s);
             series.reference_m.push(s.reference_m);
             series.position_m.push(s.position_m);

@@ -64,6 +64,8 @@ pub struct Sample {
     pub pressure_cmd_pa: f64,
     /// True pressure after the period (Pa).
     pub pressure_pa: f64,
+    /// Muscle force after the period (N).
+    pub force_n: f64,
     /// Controller states.
     pub diagnostics: Diagnostics,
 }
@@ -129,6 +131,7 @@ pub fn run_loop(
                 measured_m: meas.position_m,
                 pressure_cmd_pa: u,
                 pressure_pa: plant.pressure(),
+                force_n: plant.force(),
                 diagnostics: out.diagnostics,
             });
         }

@@ -1,0 +1,416 @@
+//! Rerun logging of pma-exo runs. The only crate that depends on `rerun`; it knows nothing
+//! of the simulation: callers register scalar series, link shapes and muscle lines, then
+//! push plain [`Frame`]s, so the bench, the leg and later the rig share one layer.
+//!
+//! Scalars are buffered column-wise and sent in chunks of [`CHUNK_LEN`] samples (bounded
+//! memory, one `send_columns` per series and chunk); 3D poses are logged per frame. A
+//! `--rerun-hz` below the control rate decimates frames before anything is buffered.
+//!
+//! The matching viewer: `pip install rerun-sdk==0.36.3`.
+#![warn(missing_docs)]
+
+use rerun::{RecordingStream, RecordingStreamBuilder, TimeColumn};
+use std::path::PathBuf;
+use std::str::FromStr;
+use thiserror::Error;
+
+pub use rerun::sink::MemorySinkStorage;
+
+/// Version of the `rerun` crate (and of the viewer to install).
+pub const RERUN_VERSION: &str = "0.36.3";
+
+/// Samples per scalar chunk sent to Rerun.
+pub const CHUNK_LEN: usize = 256;
+
+/// Default viewer address of `connect`.
+pub const DEFAULT_URL: &str = "rerun+http://127.0.0.1:9876/proxy";
+
+/// Where a run's recording goes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Sink {
+    /// No logging.
+    Off,
+    /// Start a viewer (`rerun` on `PATH`).
+    Spawn,
+    /// Stream to a running viewer (default URL if `None`).
+    Connect(Option<String>),
+    /// Write a `.rrd` file.
+    Save(PathBuf),
+}
+
+/// Visualisation errors.
+#[derive(Debug, Error)]
+pub enum VizError {
+    /// `--rerun` could not be parsed.
+    #[error(
+        "unknown --rerun mode `{0}` (expected off, spawn, connect, connect=URL or save=PATH.rrd)"
+    )]
+    BadMode(String),
+    /// The viewer could not be started.
+    #[error("cannot spawn the Rerun viewer ({0}); install it with `pip install rerun-sdk=={RERUN_VERSION}`")]
+    Spawn(String),
+    /// No viewer listens at the address.
+    #[error("no Rerun viewer reachable at {url} ({reason}); start one with `rerun` or use --rerun save=PATH.rrd")]
+    Connect {
+        /// Address.
+        url: String,
+        /// Why.
+        reason: String,
+    },
+    /// Any other Rerun error.
+    #[error("rerun: {0}")]
+    Rerun(String),
+}
+
+impl FromStr for Sink {
+    type Err = VizError;
+    fn from_str(s: &str) -> Result<Self, VizError> {
+        match s {
+            "off" => Ok(Sink::Off),
+            "spawn" => Ok(Sink::Spawn),
+            "connect" => Ok(Sink::Connect(None)),
+            _ => {
+                if let Some(url) = s.strip_prefix("connect=").filter(|u| !u.is_empty()) {
+                    Ok(Sink::Connect(Some(url.to_owned())))
+                } else if let Some(p) = s.strip_prefix("save=").filter(|p| !p.is_empty()) {
+                    Ok(Sink::Save(PathBuf::from(p)))
+                } else {
+                    Err(VizError::BadMode(s.to_owned()))
+                }
+            }
+        }
+    }
+}
+
+fn rr<E: std::fmt::Display>(e: E) -> VizError {
+    VizError::Rerun(e.to_string())
+}
+
+/// `host:port` of a viewer URL such as `rerun+http://127.0.0.1:9876/proxy`.
+fn host_port(url: &str) -> Option<String> {
+    let rest = url.split("://").nth(1)?;
+    let hp = rest.split('/').next()?;
+    Some(if hp.contains(':') {
+        hp.to_owned()
+    } else {
+        format!("{hp}:9876")
+    })
+}
+
+/// Fails fast (1 s) when nothing listens at the viewer's address, instead of buffering
+/// a whole run for a viewer that is not there.
+fn check_reachable(url: &str) -> Result<(), VizError> {
+    use std::net::ToSocketAddrs;
+    let err = |reason: String| VizError::Connect {
+        url: url.to_owned(),
+        reason,
+    };
+    let hp = host_port(url).ok_or_else(|| err("cannot read host:port from it".into()))?;
+    let addr = hp
+        .to_socket_addrs()
+        .map_err(|e| err(e.to_string()))?
+        .next()
+        .ok_or_else(|| err("no address".into()))?;
+    std::net::TcpStream::connect_timeout(&addr, std::time::Duration::from_secs(1))
+        .map(|_| ())
+        .map_err(|e| err(e.to_string()))
+}
+
+/// A link's drawable shape, in the link's frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Shape {
+    /// Cylinder along the link's Z axis.
+    Cylinder {
+        /// Centre (m).
+        center: [f32; 3],
+        /// Radius (m).
+        radius: f32,
+        /// Length (m).
+        length: f32,
+    },
+    /// Box.
+    Box {
+        /// Centre (m).
+        center: [f32; 3],
+        /// Half sizes (m).
+        half_size: [f32; 3],
+    },
+}
+
+#[derive(Debug)]
+struct Series {
+    path: String,
+    t: Vec<f64>,
+    step: Vec<i64>,
+    v: Vec<f64>,
+}
+
+/// One logged instant: values in registration order.
+#[derive(Debug, Clone, Copy)]
+pub struct Frame<'a> {
+    /// Simulated time (s), timeline `sim_time`.
+    pub t_s: f64,
+    /// Control period index, timeline `step`.
+    pub step: i64,
+    /// One value per registered series.
+    pub scalars: &'a [f64],
+    /// One pose per registered link: translation (m) and quaternion `[x, y, z, w]`.
+    pub link_poses: &'a [([f64; 3], [f64; 4])],
+    /// One segment per registered muscle line: end points (m) and pressure (Pa).
+    pub muscle_lines: &'a [([f64; 3], [f64; 3], f64)],
+}
+
+/// A recording stream with the registered layout.
+pub struct Viz {
+    rec: RecordingStream,
+    series: Vec<Series>,
+    links: Vec<String>,
+    muscles: Vec<String>,
+    pressure_max_pa: f64,
+    every: i64,
+}
+
+impl Viz {
+    /// Opens `sink` (`None` for [`Sink::Off`]). `rate_hz` decimates frames pushed at
+    /// `period_s`; `None` logs every one.
+    pub fn open(
+        sink: &Sink,
+        app: &'static str,
+        period_s: f64,
+        rate_hz: Option<f64>,
+    ) -> Result<Option<Self>, VizError> {
+        let builder = RecordingStreamBuilder::new(app);
+        let rec = match sink {
+            Sink::Off => return Ok(None),
+            Sink::Spawn => builder
+                .spawn()
+                .map_err(|e| VizError::Spawn(e.to_string()))?,
+            Sink::Connect(url) => {
+                let url = url.clone().unwrap_or_else(|| DEFAULT_URL.to_owned());
+                check_reachable(&url)?;
+                builder.connect_grpc_opts(url).map_err(rr)?
+            }
+            Sink::Save(path) => builder.save(path).map_err(rr)?,
+        };
+        Ok(Some(Self::with_stream(rec, period_s, rate_hz)?))
+    }
+
+    /// An in-memory recording (tests): the stream and its storage.
+    pub fn memory(
+        app: &'static str,
+        period_s: f64,
+        rate_hz: Option<f64>,
+    ) -> Result<(Self, MemorySinkStorage), VizError> {
+        let (rec, storage) = RecordingStreamBuilder::new(app).memory().map_err(rr)?;
+        Ok((Self::with_stream(rec, period_s, rate_hz)?, storage))
+    }
+
+    fn with_stream(
+        rec: RecordingStream,
+        period_s: f64,
+        rate_hz: Option<f64>,
+    ) -> Result<Self, VizError> {
+        let every = match rate_hz {
+            None => 1,
+            Some(hz) if hz.is_finite() && hz > 0.0 => {
+                ((1.0 / (hz * period_s)).round() as i64).max(1)
+            }
+            Some(hz) => {
+                return Err(VizError::Rerun(format!(
+                    "--rerun-hz must be > 0 (got {hz})"
+                )))
+            }
+        };
+        rec.log_static("world", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP())
+            .map_err(rr)?;
+        Ok(Self {
+            rec,
+            series: Vec::new(),
+            links: Vec::new(),
+            muscles: Vec::new(),
+            pressure_max_pa: 6.0e5,
+            every,
+        })
+    }
+
+    /// Periods between logged frames.
+    pub fn decimation(&self) -> i64 {
+        self.every
+    }
+
+    /// Static text (scenario, controller, gains) at `path`.
+    pub fn document(&self, path: &str, markdown: &str) -> Result<(), VizError> {
+        self.rec
+            .log_static(path, &rerun::TextDocument::from_markdown(markdown))
+            .map_err(rr)
+    }
+
+    /// Registers a scalar series at `path` with its legend `name` (units in it) and colour.
+    pub fn series(&mut self, path: &str, name: &str, rgb: [u8; 3]) -> Result<(), VizError> {
+        self.rec
+            .log_static(
+                path,
+                &rerun::SeriesLines::new()
+                    .with_names([name])
+                    .with_colors([rerun::Color::from_rgb(rgb[0], rgb[1], rgb[2])]),
+            )
+            .map_err(rr)?;
+        self.series.push(Series {
+            path: path.to_owned(),
+            t: Vec::with_capacity(CHUNK_LEN),
+            step: Vec::with_capacity(CHUNK_LEN),
+            v: Vec::with_capacity(CHUNK_LEN),
+        });
+        Ok(())
+    }
+
+    /// Registers a link at `world/<name>` with its shapes (in the link frame).
+    pub fn link(&mut self, name: &str, shapes: &[Shape], rgb: [u8; 3]) -> Result<(), VizError> {
+        let path = format!("world/{name}");
+        let color = rerun::Color::from_rgb(rgb[0], rgb[1], rgb[2]);
+        for (k, s) in shapes.iter().enumerate() {
+            let p = format!("{path}/geometry_{k}");
+            match *s {
+                Shape::Cylinder {
+                    center,
+                    radius,
+                    length,
+                } => self.rec.log_static(
+                    p,
+                    &rerun::Cylinders3D::from_lengths_and_radii([length], [radius])
+                        .with_centers([center])
+                        .with_colors([color]),
+                ),
+                Shape::Box { center, half_size } => self.rec.log_static(
+                    p,
+                    &rerun::Boxes3D::from_centers_and_half_sizes([center], [half_size])
+                        .with_colors([color])
+                        .with_fill_mode(rerun::FillMode::Solid),
+                ),
+            }
+            .map_err(rr)?;
+        }
+        self.links.push(path);
+        Ok(())
+    }
+
+    /// Registers a muscle drawn at `world/muscles/<name>`; `pressure_max_pa` scales colour.
+    pub fn muscle(&mut self, name: &str, pressure_max_pa: f64) {
+        self.muscles.push(format!("world/muscles/{name}"));
+        self.pressure_max_pa = pressure_max_pa;
+    }
+
+    /// Logs a frame if it falls on the decimation grid. Allocation-free for scalars
+    /// between chunk sends.
+    pub fn push(&mut self, f: &Frame) -> Result<(), VizError> {
+        if f.step % self.every != 0 {
+            return Ok(());
+        }
+        for (s, v) in self.series.iter_mut().zip(f.scalars) {
+            s.t.push(f.t_s);
+            s.step.push(f.step);
+            s.v.push(*v);
+        }
+        if self.series.first().is_some_and(|s| s.v.len() >= CHUNK_LEN) {
+            self.flush_series()?;
+        }
+        if self.links.is_empty() && self.muscles.is_empty() {
+            return Ok(());
+        }
+        self.rec.set_duration_secs("sim_time", f.t_s);
+        self.rec.set_time_sequence("step", f.step);
+        for (path, (t, q)) in self.links.iter().zip(f.link_poses) {
+            let tf = rerun::Transform3D::from_translation_rotation(
+                [t[0] as f32, t[1] as f32, t[2] as f32],
+                rerun::Quaternion::from_xyzw([q[0] as f32, q[1] as f32, q[2] as f32, q[3] as f32]),
+            );
+            self.rec.log(path.as_str(), &tf).map_err(rr)?;
+        }
+        for (path, (a, b, p)) in self.muscles.iter().zip(f.muscle_lines) {
+            let level = (p / self.pressure_max_pa).clamp(0.0, 1.0);
+            // Blue (vented) to red (full pressure).
+            let color =
+                rerun::Color::from_rgb((255.0 * level) as u8, 60, (255.0 * (1.0 - level)) as u8);
+            let strip = [
+                [a[0] as f32, a[1] as f32, a[2] as f32],
+                [b[0] as f32, b[1] as f32, b[2] as f32],
+            ];
+            self.rec
+                .log(
+                    path.as_str(),
+                    &rerun::LineStrips3D::new([strip])
+                        .with_colors([color])
+                        .with_radii([0.012f32]),
+                )
+                .map_err(rr)?;
+        }
+        Ok(())
+    }
+
+    fn flush_series(&mut self) -> Result<(), VizError> {
+        for s in &mut self.series {
+            if s.v.is_empty() {
+                continue;
+            }
+            let times = [
+                TimeColumn::new_duration_secs("sim_time", s.t.iter().copied()),
+                TimeColumn::new_sequence("step", s.step.iter().copied()),
+            ];
+            let cols = rerun::Scalars::new(s.v.iter().copied())
+                .columns_of_unit_batches()
+                .map_err(rr)?;
+            self.rec
+                .send_columns(s.path.as_str(), times, cols)
+                .map_err(rr)?;
+            s.t.clear();
+            s.step.clear();
+            s.v.clear();
+        }
+        Ok(())
+    }
+
+    /// Sends what is buffered and waits for the sink.
+    pub fn finish(mut self) -> Result<(), VizError> {
+        self.flush_series()?;
+        self.rec.flush_blocking().map_err(rr)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn modes_parse() {
+        assert_eq!("off".parse::<Sink>().unwrap(), Sink::Off);
+        assert_eq!("spawn".parse::<Sink>().unwrap(), Sink::Spawn);
+        assert_eq!("connect".parse::<Sink>().unwrap(), Sink::Connect(None));
+        assert_eq!(
+            "connect=rerun+http://10.0.0.1:9876/proxy"
+                .parse::<Sink>()
+                .unwrap(),
+            Sink::Connect(Some("rerun+http://10.0.0.1:9876/proxy".into()))
+        );
+        assert_eq!(
+            "save=/tmp/x.rrd".parse::<Sink>().unwrap(),
+            Sink::Save("/tmp/x.rrd".into())
+        );
+        assert!("save=".parse::<Sink>().is_err() && "viewer".parse::<Sink>().is_err());
+        assert_eq!(host_port(DEFAULT_URL).as_deref(), Some("127.0.0.1:9876"));
+    }
+
+    #[test]
+    fn connecting_to_no_viewer_fails_fast() {
+        let t = std::time::Instant::now();
+        let e = Viz::open(
+            &Sink::Connect(Some("rerun+http://127.0.0.1:1/proxy".into())),
+            "t",
+            1e-3,
+            None,
+        )
+        .err()
+        .expect("no viewer on port 1");
+        assert!(e.to_string().contains("127.0.0.1:1"), "{e}");
+        assert!(t.elapsed().as_secs_f64() < 5.0);
+    }
+}

@@ -1,0 +1,3 @@
+//! Library part of the `pma-exo` package: the glue between the simulations and the Rerun
+//! layer, shared by the binary and the integration tests.
+pub mod viz;

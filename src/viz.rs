@@ -1,0 +1,205 @@
+//! Glue between the runs and `pma-viz`: the layout (entity paths, legends, colours) of the
+//! bench and of the leg, and the mapping of their samples onto frames.
+use anyhow::Result;
+use pma_leg::{LegSample, LegSim, VisualShape};
+use pma_sim::Sample;
+use pma_viz::{Frame, Shape, Sink, Viz};
+
+/// Per-muscle series, in this order, under `muscles/<name>/`.
+pub const MUSCLE_SERIES: [(&str, &str); 10] = [
+    ("pressure_cmd_pa", "pressure command (Pa)"),
+    ("pressure_pa", "pressure (Pa)"),
+    ("length_ref_m", "contraction reference (m)"),
+    ("length_m", "contraction (m)"),
+    ("proxy_m", "proxy position (m)"),
+    ("s_p", "S_p (m/s)"),
+    ("s_q", "S_q (m/s)"),
+    ("gain_hat", "adaptive gain"),
+    ("disturbance_hat", "disturbance estimate (m/s^2)"),
+    ("force_n", "force (N)"),
+];
+
+/// Per-joint series under `joints/<name>/`.
+pub const JOINT_SERIES: [(&str, &str); 3] = [
+    ("reference_deg", "reference (deg)"),
+    ("angle_deg", "angle (deg)"),
+    ("error_deg", "error (deg)"),
+];
+
+const PALETTE: [[u8; 3]; 10] = [
+    [31, 119, 180],
+    [255, 127, 14],
+    [44, 160, 44],
+    [214, 39, 40],
+    [148, 103, 189],
+    [140, 86, 75],
+    [227, 119, 194],
+    [127, 127, 127],
+    [188, 189, 34],
+    [23, 190, 207],
+];
+
+fn muscle_series(viz: &mut Viz, name: &str) -> Result<()> {
+    for (k, (leaf, legend)) in MUSCLE_SERIES.iter().enumerate() {
+        viz.series(
+            &format!("muscles/{name}/{leaf}"),
+            &format!("{name} {legend}"),
+            PALETTE[k],
+        )?;
+    }
+    Ok(())
+}
+
+/// Opens the sink for a run with period `period_s` (`None` when off).
+pub fn open(
+    sink: &Sink,
+    app: &'static str,
+    period_s: f64,
+    rate_hz: Option<f64>,
+) -> Result<Option<Viz>> {
+    Ok(Viz::open(sink, app, period_s, rate_hz)?)
+}
+
+/// The bench's layout: one muscle, its series and the reference.
+pub fn bench_layout(viz: &mut Viz, meta: &str) -> Result<()> {
+    viz.document("metadata", meta)?;
+    muscle_series(viz, "muscle")?;
+    viz.series("reference/x_d_m", "reference x_d (m)", [0, 0, 0])?;
+    Ok(())
+}
+
+/// A bench sample as a frame's scalars (order of [`bench_layout`]).
+pub fn bench_scalars(s: &Sample, out: &mut [f64; 11]) {
+    let d = &s.diagnostics;
+    *out = [
+        s.pressure_cmd_pa,
+        s.pressure_pa,
+        s.reference_m,
+        s.position_m,
+        d.proxy_position_m,
+        d.s_p,
+        d.s_q,
+        d.gain_hat,
+        d.disturbance_hat,
+        s.force_n,
+        s.reference_m,
+    ];
+}
+
+fn shape(v: &VisualShape) -> Shape {
+    let f = |a: [f64; 3]| [a[0] as f32, a[1] as f32, a[2] as f32];
+    match *v {
+        VisualShape::Cylinder {
+            center,
+            radius,
+            length,
+        } => Shape::Cylinder {
+            center: f(center),
+            radius: radius as f32,
+            length: length as f32,
+        },
+        VisualShape::Box { center, size } => Shape::Box {
+            center: f(center),
+            half_size: f(size.map(|x| 0.5 * x)),
+        },
+    }
+}
+
+/// The leg's layout: links with their URDF shapes, muscles, joint and muscle series.
+pub fn leg_layout(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<()> {
+    viz.document("metadata", meta)?;
+    let leg = sim.leg();
+    let names: Vec<String> = leg.link_names().map(str::to_owned).collect();
+    for (i, n) in names.iter().enumerate() {
+        let shapes: Vec<Shape> = leg.visuals(i).iter().map(shape).collect();
+        viz.link(
+            n,
+            &shapes,
+            if n == "pelvis" {
+                [150, 150, 165]
+            } else {
+                [217, 178, 140]
+            },
+        )?;
+    }
+    let p_max = sim.scenario().plant.valve.pressure_max_pa;
+    for m in sim.muscles() {
+        viz.muscle(&m.geometry.name, p_max);
+    }
+    for j in ["hip", "knee"] {
+        for (k, (leaf, legend)) in JOINT_SERIES.iter().enumerate() {
+            viz.series(
+                &format!("joints/{j}/{leaf}"),
+                &format!("{j} {legend}"),
+                PALETTE[k],
+            )?;
+        }
+    }
+    for m in sim.muscles() {
+        muscle_series(viz, &m.geometry.name)?;
+    }
+    Ok(())
+}
+
+/// Number of scalars of the leg layout.
+pub const LEG_SCALARS: usize = 2 * JOINT_SERIES.len() + 4 * MUSCLE_SERIES.len();
+
+/// A leg sample as the leg layout's scalars.
+pub fn leg_scalars(s: &LegSample, out: &mut [f64; LEG_SCALARS]) {
+    let mut k = 0;
+    for j in 0..2 {
+        let (r, a) = (s.reference_rad[j].to_degrees(), s.angle_rad[j].to_degrees());
+        for v in [r, a, r - a] {
+            out[k] = v;
+            k += 1;
+        }
+    }
+    for i in 0..4 {
+        let d = &s.diagnostics[i];
+        for v in [
+            s.pressure_cmd_pa[i],
+            s.pressure_pa[i],
+            s.length_ref_m[i],
+            s.length_m[i],
+            d.proxy_position_m,
+            d.s_p,
+            d.s_q,
+            d.gain_hat,
+            d.disturbance_hat,
+            s.force_n[i],
+        ] {
+            out[k] = v;
+            k += 1;
+        }
+    }
+}
+
+/// Logs one leg period (layout of [`leg_layout`]).
+pub fn push_leg(
+    viz: &mut Viz,
+    sim: &LegSim,
+    s: &LegSample,
+    step: i64,
+    scalars: &mut [f64; LEG_SCALARS],
+) -> Result<()> {
+    if step % viz.decimation() != 0 {
+        return Ok(());
+    }
+    leg_scalars(s, scalars);
+    let poses = [
+        sim.leg().link_pose(0),
+        sim.leg().link_pose(1),
+        sim.leg().link_pose(2),
+    ];
+    let seg = sim.muscle_segments();
+    let lines: [([f64; 3], [f64; 3], f64); 4] =
+        std::array::from_fn(|i| (seg[i].0, seg[i].1, s.pressure_pa[i]));
+    viz.push(&Frame {
+        t_s: s.t_s,
+        step,
+        scalars: scalars.as_slice(),
+        link_poses: &poses,
+        muscle_lines: &lines,
+    })?;
+    Ok(())
+}

@@ -1,0 +1,142 @@
+//! The Rerun layer: what a recording holds, decoded back in Rust from an in-memory sink.
+use pma_exo::viz::{self, LEG_SCALARS, MUSCLE_SERIES};
+use pma_leg::{LegSample, LegSim, Scenario};
+use pma_viz::Viz;
+use rerun::log::{Chunk, LogMsg};
+use std::collections::BTreeMap;
+
+/// Per entity path: (sim_time values, scalar values) of every logged `Scalars` row.
+type Series = BTreeMap<String, (Vec<f64>, Vec<f64>)>;
+
+fn decode(storage: &pma_viz::MemorySinkStorage) -> (Series, BTreeMap<String, usize>) {
+    let scalar = rerun::Scalars::descriptor_scalars().component;
+    let mut series = Series::new();
+    let mut rows = BTreeMap::new();
+    for msg in storage.take() {
+        let LogMsg::ArrowMsg(_, arrow) = msg else {
+            continue;
+        };
+        let chunk = Chunk::from_arrow_msg(&arrow).expect("chunk");
+        let path = chunk.entity_path().to_string();
+        *rows.entry(path.clone()).or_insert(0) += chunk.num_rows();
+        if chunk.is_static() {
+            continue;
+        }
+        let Some(times) = chunk.timelines().get(&"sim_time".into()) else {
+            continue;
+        };
+        let t: Vec<f64> = times
+            .times_raw()
+            .iter()
+            .map(|ns| *ns as f64 * 1e-9)
+            .collect();
+        let values: Vec<f64> = chunk
+            .iter_slices::<f64>(scalar)
+            .flat_map(|s| s.to_vec())
+            .collect();
+        if values.is_empty() {
+            continue;
+        }
+        let e = series.entry(path).or_default();
+        e.0.extend(t);
+        e.1.extend(values);
+    }
+    (series, rows)
+}
+
+fn logged_leg_run(
+    duration_s: f64,
+    rate_hz: Option<f64>,
+) -> (
+    Vec<LegSample>,
+    pma_leg::LegReport,
+    Series,
+    BTreeMap<String, usize>,
+    i64,
+) {
+    let loaded = Scenario::load("gait_training").unwrap();
+    let mut sim = LegSim::new(&loaded).unwrap();
+    let (mut v, storage) = Viz::memory("test", loaded.scenario.period_s, rate_hz).unwrap();
+    viz::leg_layout(&mut v, &sim, "# test").unwrap();
+    let every = v.decimation();
+    let mut samples = Vec::new();
+    let (mut step, mut scalars) = (0i64, [0.0; LEG_SCALARS]);
+    let mut observe = |sim: &LegSim, s: &LegSample| {
+        step += 1;
+        samples.push(*s);
+        viz::push_leg(&mut v, sim, s, step, &mut scalars).unwrap();
+    };
+    let report = sim.run(duration_s, Some(&mut observe), None).unwrap();
+    v.finish().unwrap();
+    let (series, rows) = decode(&storage);
+    (samples, report, series, rows, every)
+}
+
+#[test]
+fn leg_recording_has_every_path_and_the_simulation_values() {
+    let (samples, _, series, rows, _) = logged_leg_run(0.4, None);
+    assert_eq!(samples.len(), 400);
+    for j in ["hip", "knee"] {
+        for leaf in ["reference_deg", "angle_deg", "error_deg"] {
+            let (t, v) = &series[&format!("/joints/{j}/{leaf}")];
+            assert_eq!(v.len(), 400, "{j}/{leaf}");
+            assert!((t[0] - 0.001).abs() < 1e-9 && (t[399] - 0.4).abs() < 1e-9);
+        }
+    }
+    for m in ["hip_flexor", "hip_extensor", "knee_flexor", "knee_extensor"] {
+        for (leaf, _) in MUSCLE_SERIES {
+            assert_eq!(
+                series[&format!("/muscles/{m}/{leaf}")].1.len(),
+                400,
+                "{m}/{leaf}"
+            );
+        }
+        assert_eq!(rows[&format!("/world/muscles/{m}")], 400, "{m} line");
+    }
+    for link in ["pelvis", "thigh", "shank"] {
+        assert!(
+            rows[&format!("/world/{link}")] >= 400,
+            "{link} poses: {rows:?}"
+        );
+        assert!(
+            rows.contains_key(&format!("/world/{link}/geometry_0")),
+            "{link} shape"
+        );
+    }
+    assert!(rows.contains_key("/metadata") && rows.contains_key("/world"));
+    // The logged angles are the simulation's own values.
+    let hip = &series["/joints/hip/angle_deg"].1;
+    let knee_p = &series["/muscles/knee_flexor/pressure_pa"].1;
+    for (k, s) in samples.iter().enumerate() {
+        assert_eq!(hip[k], s.angle_rad[0].to_degrees());
+        assert_eq!(knee_p[k], s.pressure_pa[2]);
+    }
+}
+
+#[test]
+fn rerun_hz_decimates_the_recording() {
+    let (_, _, series, rows, every) = logged_leg_run(0.4, Some(100.0));
+    assert_eq!(every, 10);
+    assert_eq!(series["/joints/knee/angle_deg"].1.len(), 40);
+    assert_eq!(rows["/world/muscles/hip_flexor"], 40);
+}
+
+#[test]
+fn recorded_error_gives_the_reported_rms() {
+    let (_, report, series, _, _) = logged_leg_run(4.8, None);
+    for j in ["hip", "knee"] {
+        let (t, e) = &series[&format!("/joints/{j}/error_deg")];
+        let after: Vec<f64> = t
+            .iter()
+            .zip(e)
+            .filter(|(t, _)| **t > 1.6 + 1e-9)
+            .map(|(_, e)| *e)
+            .collect();
+        let rms = (after.iter().map(|e| e * e).sum::<f64>() / after.len() as f64).sqrt();
+        let reported = report.joints[j].rms_deg;
+        assert!(
+            (rms - reported).abs() <= 0.01 * reported,
+            "{j}: logged {rms} vs reported {reported}"
+        );
+    }
+}
