@@ -37,6 +37,29 @@ fn leg(c: &mut Criterion) {
             black_box(sim.step())
         })
     });
+    for (label, rate) in [
+        ("closed_loop_rerun_save_full_rate", None),
+        ("closed_loop_rerun_save_100hz", Some(100.0)),
+    ] {
+        let path = std::env::temp_dir().join(format!("pma-exo-bench-{label}.rrd"));
+        let sink = pma_viz::Sink::Save(path.clone());
+        let mut sim = LegSim::new(&loaded).expect("sim");
+        let mut viz = pma_exo::viz::open(&sink, "bench", sc.period_s, rate)
+            .expect("viz")
+            .expect("on");
+        pma_exo::viz::leg_layout(&mut viz, &sim, "bench").expect("layout");
+        let (mut step, mut scalars) = (0i64, [0.0; pma_exo::viz::LEG_SCALARS]);
+        group.bench_function(label, |b| {
+            b.iter(|| {
+                step += 1;
+                let s = sim.step();
+                pma_exo::viz::push_leg(&mut viz, &sim, &s, step, &mut scalars).expect("log");
+                black_box(s)
+            })
+        });
+        drop(viz);
+        let _ = std::fs::remove_file(path);
+    }
     group.finish();
 }
 
