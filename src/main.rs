@@ -30,6 +30,17 @@ enum RefName {
     Chirp,
 }
 
+/// Where a run's state goes in Rerun (shared by every command that runs a control loop).
+#[derive(clap::Args)]
+struct RerunArgs {
+    /// Rerun: off, spawn, connect, connect=URL or save=PATH.rrd.
+    #[arg(long = "rerun", default_value = "off")]
+    sink: pma_viz::Sink,
+    /// Log to Rerun at this rate (Hz) instead of every control period.
+    #[arg(long)]
+    rerun_hz: Option<f64>,
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Gait training on the exoskeleton leg (rapier), four muscles under APRC-NDO.
@@ -46,12 +57,8 @@ enum Command {
         /// Print one JSON object instead of the summary.
         #[arg(long)]
         json: bool,
-        /// Rerun: off, spawn, connect, connect=URL or save=PATH.rrd.
-        #[arg(long, default_value = "off")]
-        rerun: pma_viz::Sink,
-        /// Log to Rerun at this rate (Hz) instead of every control period.
-        #[arg(long)]
-        rerun_hz: Option<f64>,
+        #[command(flatten)]
+        rerun: RerunArgs,
     },
     /// One controller on the single-muscle bench.
     Single {
@@ -76,12 +83,8 @@ enum Command {
         /// Print one JSON object instead of a summary line.
         #[arg(long)]
         json: bool,
-        /// Rerun: off, spawn, connect, connect=URL or save=PATH.rrd.
-        #[arg(long, default_value = "off")]
-        rerun: pma_viz::Sink,
-        /// Log to Rerun at this rate (Hz) instead of every control period.
-        #[arg(long)]
-        rerun_hz: Option<f64>,
+        #[command(flatten)]
+        rerun: RerunArgs,
     },
     /// Rerun the paper's experiments in simulation: results.json, report.md, plots.
     Paper {
@@ -169,8 +172,10 @@ fn run(cli: Cli) -> Result<()> {
         duration: None,
         csv: None,
         json: false,
-        rerun: pma_viz::Sink::Off,
-        rerun_hz: None,
+        rerun: RerunArgs {
+            sink: pma_viz::Sink::Off,
+            rerun_hz: None,
+        },
     });
     match command {
         Command::Simulate {
@@ -179,8 +184,14 @@ fn run(cli: Cli) -> Result<()> {
             csv,
             json,
             rerun,
-            rerun_hz,
-        } => simulate::run(&scenario, duration, csv.as_deref(), json, &rerun, rerun_hz),
+        } => simulate::run(
+            &scenario,
+            duration,
+            csv.as_deref(),
+            json,
+            &rerun.sink,
+            rerun.rerun_hz,
+        ),
         Command::Single {
             controller,
             reference,
@@ -190,7 +201,6 @@ fn run(cli: Cli) -> Result<()> {
             csv,
             json,
             rerun,
-            rerun_hz,
         } => single(
             controller,
             reference,
@@ -199,7 +209,7 @@ fn run(cli: Cli) -> Result<()> {
             gains.as_deref(),
             csv.as_deref(),
             json,
-            (&rerun, rerun_hz),
+            (&rerun.sink, rerun.rerun_hz),
         ),
         Command::Paper { out } => paper::run(&out),
         Command::TuneLeg {
