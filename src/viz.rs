@@ -124,7 +124,7 @@ pub fn leg_layout(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<()> {
     }
     let p_max = sim.scenario().plant.valve.pressure_max_pa;
     for m in sim.muscles() {
-        viz.muscle(&m.geometry.name, p_max);
+        viz.muscle(&m.geometry.name, p_max)?;
     }
     for j in ["hip", "knee"] {
         for (k, (leaf, legend)) in JOINT_SERIES.iter().enumerate() {

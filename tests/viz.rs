@@ -6,22 +6,25 @@ use rerun::log::{Chunk, LogMsg};
 use std::collections::BTreeMap;
 
 /// Per entity path: (sim_time values, scalar values) of every logged `Scalars` row.
+/// The second map counts temporal rows per entity path (static-only paths count 0).
 type Series = BTreeMap<String, (Vec<f64>, Vec<f64>)>;
 
-fn decode(storage: &pma_viz::MemorySinkStorage) -> (Series, BTreeMap<String, usize>) {
+fn decode(msgs: &[LogMsg]) -> (Series, BTreeMap<String, usize>) {
     let scalar = rerun::Scalars::descriptor_scalars().component;
     let mut series = Series::new();
     let mut rows = BTreeMap::new();
-    for msg in storage.take() {
+    for msg in msgs {
         let LogMsg::ArrowMsg(_, arrow) = msg else {
             continue;
         };
-        let chunk = Chunk::from_arrow_msg(&arrow).expect("chunk");
+        let chunk = Chunk::from_arrow_msg(arrow).expect("chunk");
         let path = chunk.entity_path().to_string();
-        *rows.entry(path.clone()).or_insert(0) += chunk.num_rows();
+        // Static rows (shapes, legends, the muscles' radius) are present but not counted.
+        let counted = rows.entry(path.clone()).or_insert(0);
         if chunk.is_static() {
             continue;
         }
+        *counted += chunk.num_rows();
         let Some(times) = chunk.timelines().get(&"sim_time".into()) else {
             continue;
         };
@@ -44,37 +47,77 @@ fn decode(storage: &pma_viz::MemorySinkStorage) -> (Series, BTreeMap<String, usi
     (series, rows)
 }
 
-fn logged_leg_run(
-    duration_s: f64,
-    rate_hz: Option<f64>,
-) -> (
-    Vec<LegSample>,
-    pma_leg::LegReport,
-    Series,
-    BTreeMap<String, usize>,
-    i64,
-) {
+/// Every logged translation of the link at `path`, in order.
+fn logged_translations(storage_msgs: &[LogMsg], path: &str) -> Vec<[f32; 3]> {
+    let translation = rerun::Transform3D::descriptor_translation().component;
+    let mut out = Vec::new();
+    for msg in storage_msgs {
+        let LogMsg::ArrowMsg(_, arrow) = msg else {
+            continue;
+        };
+        let chunk = Chunk::from_arrow_msg(arrow).expect("chunk");
+        if chunk.is_static() || chunk.entity_path().to_string() != path {
+            continue;
+        }
+        out.extend(
+            chunk
+                .iter_slices::<[f32; 3]>(translation)
+                .flat_map(|s| s.to_vec()),
+        );
+    }
+    out
+}
+
+/// A logged leg run: the simulation's own record beside the decoded recording.
+struct LoggedRun {
+    samples: Vec<LegSample>,
+    shank_translations: Vec<[f64; 3]>,
+    report: pma_leg::LegReport,
+    series: Series,
+    rows: BTreeMap<String, usize>,
+    msgs: Vec<LogMsg>,
+    every: i64,
+}
+
+fn logged_leg_run(duration_s: f64, rate_hz: Option<f64>) -> LoggedRun {
     let loaded = Scenario::load("gait_training").unwrap();
     let mut sim = LegSim::new(&loaded).unwrap();
     let (mut v, storage) = Viz::memory("test", loaded.scenario.period_s, rate_hz).unwrap();
     viz::leg_layout(&mut v, &sim, "# test").unwrap();
     let every = v.decimation();
-    let mut samples = Vec::new();
+    let (mut samples, mut shank_translations) = (Vec::new(), Vec::new());
     let (mut step, mut scalars) = (0i64, [0.0; LEG_SCALARS]);
     let mut observe = |sim: &LegSim, s: &LegSample| {
         step += 1;
         samples.push(*s);
+        shank_translations.push(sim.leg().link_pose(2).0);
         viz::push_leg(&mut v, sim, s, step, &mut scalars).unwrap();
     };
     let report = sim.run(duration_s, Some(&mut observe), None).unwrap();
     v.finish().unwrap();
-    let (series, rows) = decode(&storage);
-    (samples, report, series, rows, every)
+    let msgs = storage.take();
+    let (series, rows) = decode(&msgs);
+    LoggedRun {
+        samples,
+        shank_translations,
+        report,
+        series,
+        rows,
+        msgs,
+        every,
+    }
 }
 
 #[test]
 fn leg_recording_has_every_path_and_the_simulation_values() {
-    let (samples, _, series, rows, _) = logged_leg_run(0.4, None);
+    let LoggedRun {
+        samples,
+        shank_translations,
+        series,
+        rows,
+        msgs,
+        ..
+    } = logged_leg_run(0.4, None);
     assert_eq!(samples.len(), 400);
     for j in ["hip", "knee"] {
         for leaf in ["reference_deg", "angle_deg", "error_deg"] {
@@ -94,10 +137,7 @@ fn leg_recording_has_every_path_and_the_simulation_values() {
         assert_eq!(rows[&format!("/world/muscles/{m}")], 400, "{m} line");
     }
     for link in ["pelvis", "thigh", "shank"] {
-        assert!(
-            rows[&format!("/world/{link}")] >= 400,
-            "{link} poses: {rows:?}"
-        );
+        assert_eq!(rows[&format!("/world/{link}")], 400, "{link} poses");
         assert!(
             rows.contains_key(&format!("/world/{link}/geometry_0")),
             "{link} shape"
@@ -111,11 +151,22 @@ fn leg_recording_has_every_path_and_the_simulation_values() {
         assert_eq!(hip[k], s.angle_rad[0].to_degrees());
         assert_eq!(knee_p[k], s.pressure_pa[2]);
     }
+    // So are the link poses (sent as f32 columns).
+    let logged = logged_translations(&msgs, "/world/shank");
+    assert_eq!(logged.len(), 400);
+    for (l, t) in logged.iter().zip(&shank_translations) {
+        assert_eq!(*l, t.map(|x| x as f32));
+    }
 }
 
 #[test]
 fn rerun_hz_decimates_the_recording() {
-    let (_, _, series, rows, every) = logged_leg_run(0.4, Some(100.0));
+    let LoggedRun {
+        series,
+        rows,
+        every,
+        ..
+    } = logged_leg_run(0.4, Some(100.0));
     assert_eq!(every, 10);
     assert_eq!(series["/joints/knee/angle_deg"].1.len(), 40);
     assert_eq!(rows["/world/muscles/hip_flexor"], 40);
@@ -123,7 +174,7 @@ fn rerun_hz_decimates_the_recording() {
 
 #[test]
 fn recorded_error_gives_the_reported_rms() {
-    let (_, report, series, _, _) = logged_leg_run(4.8, None);
+    let LoggedRun { report, series, .. } = logged_leg_run(4.8, None);
     for j in ["hip", "knee"] {
         let (t, e) = &series[&format!("/joints/{j}/error_deg")];
         let after: Vec<f64> = t

@@ -2,9 +2,10 @@
 //! of the simulation: callers register scalar series, link shapes and muscle lines, then
 //! push plain [`Frame`]s, so the bench, the leg and later the rig share one layer.
 //!
-//! Scalars are buffered column-wise and sent in chunks of [`CHUNK_LEN`] samples (bounded
-//! memory, one `send_columns` per series and chunk); 3D poses are logged per frame. A
-//! `--rerun-hz` below the control rate decimates frames before anything is buffered.
+//! Every frame (scalars, link poses, muscle lines) is buffered column-wise and sent in
+//! chunks of [`CHUNK_LEN`] frames (bounded memory, one `send_columns` per entity and
+//! chunk). A `--rerun-hz` below the control rate decimates frames before anything is
+//! buffered.
 //!
 //! The matching viewer: `pip install rerun-sdk==0.36.3`.
 #![warn(missing_docs)]
@@ -137,13 +138,24 @@ pub enum Shape {
     },
 }
 
+/// Buffered columns of one registered entity, sent every [`CHUNK_LEN`] frames.
 #[derive(Debug)]
-struct Series {
+struct Columns<T> {
     path: String,
-    t: Vec<f64>,
-    step: Vec<i64>,
-    v: Vec<f64>,
+    rows: Vec<T>,
 }
+
+impl<T> Columns<T> {
+    fn new(path: String) -> Self {
+        Self {
+            path,
+            rows: Vec::with_capacity(CHUNK_LEN),
+        }
+    }
+}
+
+/// A muscle line's row: end points and colour.
+type LineRow = ([[f32; 3]; 2], rerun::Color);
 
 /// One logged instant: values in registration order.
 #[derive(Debug, Clone, Copy)]
@@ -161,13 +173,32 @@ pub struct Frame<'a> {
 }
 
 /// A recording stream with the registered layout.
+///
+/// Everything per frame (scalars, link poses, muscle lines) is buffered column-wise and
+/// sent with `send_columns` once [`CHUNK_LEN`] frames are buffered: a row-wise `log` per
+/// entity and frame cost more than the simulation step itself.
 pub struct Viz {
     rec: RecordingStream,
-    series: Vec<Series>,
-    links: Vec<String>,
-    muscles: Vec<String>,
+    t_s: Vec<f64>,
+    steps: Vec<i64>,
+    series: Vec<Columns<f64>>,
+    links: Vec<Columns<([f32; 3], [f32; 4])>>,
+    muscles: Vec<Columns<LineRow>>,
     pressure_max_pa: f64,
     every: i64,
+}
+
+/// Radius of the drawn muscles (m).
+const MUSCLE_RADIUS_M: f32 = 0.012;
+
+fn f32x<const N: usize>(a: &[f64; N]) -> [f32; N] {
+    a.map(|x| x as f32)
+}
+
+/// Blue (vented) to red (full pressure).
+fn pressure_color(pressure_pa: f64, pressure_max_pa: f64) -> rerun::Color {
+    let level = (pressure_pa / pressure_max_pa).clamp(0.0, 1.0);
+    rerun::Color::from_rgb((255.0 * level) as u8, 60, (255.0 * (1.0 - level)) as u8)
 }
 
 impl Viz {
@@ -225,6 +256,8 @@ impl Viz {
             .map_err(rr)?;
         Ok(Self {
             rec,
+            t_s: Vec::with_capacity(CHUNK_LEN),
+            steps: Vec::with_capacity(CHUNK_LEN),
             series: Vec::new(),
             links: Vec::new(),
             muscles: Vec::new(),
@@ -255,12 +288,7 @@ impl Viz {
                     .with_colors([rerun::Color::from_rgb(rgb[0], rgb[1], rgb[2])]),
             )
             .map_err(rr)?;
-        self.series.push(Series {
-            path: path.to_owned(),
-            t: Vec::with_capacity(CHUNK_LEN),
-            step: Vec::with_capacity(CHUNK_LEN),
-            v: Vec::with_capacity(CHUNK_LEN),
-        });
+        self.series.push(Columns::new(path.to_owned()));
         Ok(())
     }
 
@@ -290,88 +318,106 @@ impl Viz {
             }
             .map_err(rr)?;
         }
-        self.links.push(path);
+        self.links.push(Columns::new(path));
         Ok(())
     }
 
     /// Registers a muscle drawn at `world/muscles/<name>`; `pressure_max_pa` scales colour.
-    pub fn muscle(&mut self, name: &str, pressure_max_pa: f64) {
-        self.muscles.push(format!("world/muscles/{name}"));
+    pub fn muscle(&mut self, name: &str, pressure_max_pa: f64) -> Result<(), VizError> {
+        let path = format!("world/muscles/{name}");
+        // The radius never changes: logged once, static, instead of once per frame.
+        self.rec
+            .log_static(
+                path.as_str(),
+                &rerun::LineStrips3D::update_fields().with_radii([MUSCLE_RADIUS_M]),
+            )
+            .map_err(rr)?;
+        self.muscles.push(Columns::new(path));
         self.pressure_max_pa = pressure_max_pa;
+        Ok(())
     }
 
-    /// Logs a frame if it falls on the decimation grid. Allocation-free for scalars
-    /// between chunk sends.
+    /// Buffers a frame if it falls on the decimation grid; sends the buffers when they
+    /// hold [`CHUNK_LEN`] frames. Allocation-free between sends.
     pub fn push(&mut self, f: &Frame) -> Result<(), VizError> {
         if f.step % self.every != 0 {
             return Ok(());
         }
+        self.t_s.push(f.t_s);
+        self.steps.push(f.step);
         for (s, v) in self.series.iter_mut().zip(f.scalars) {
-            s.t.push(f.t_s);
-            s.step.push(f.step);
-            s.v.push(*v);
+            s.rows.push(*v);
         }
-        if self.series.first().is_some_and(|s| s.v.len() >= CHUNK_LEN) {
-            self.flush_series()?;
+        for (l, (t, q)) in self.links.iter_mut().zip(f.link_poses) {
+            l.rows.push((f32x(t), f32x(q)));
         }
-        if self.links.is_empty() && self.muscles.is_empty() {
-            return Ok(());
+        for (m, (a, b, p)) in self.muscles.iter_mut().zip(f.muscle_lines) {
+            m.rows
+                .push(([f32x(a), f32x(b)], pressure_color(*p, self.pressure_max_pa)));
         }
-        self.rec.set_duration_secs("sim_time", f.t_s);
-        self.rec.set_time_sequence("step", f.step);
-        for (path, (t, q)) in self.links.iter().zip(f.link_poses) {
-            let tf = rerun::Transform3D::from_translation_rotation(
-                [t[0] as f32, t[1] as f32, t[2] as f32],
-                rerun::Quaternion::from_xyzw([q[0] as f32, q[1] as f32, q[2] as f32, q[3] as f32]),
-            );
-            self.rec.log(path.as_str(), &tf).map_err(rr)?;
-        }
-        for (path, (a, b, p)) in self.muscles.iter().zip(f.muscle_lines) {
-            let level = (p / self.pressure_max_pa).clamp(0.0, 1.0);
-            // Blue (vented) to red (full pressure).
-            let color =
-                rerun::Color::from_rgb((255.0 * level) as u8, 60, (255.0 * (1.0 - level)) as u8);
-            let strip = [
-                [a[0] as f32, a[1] as f32, a[2] as f32],
-                [b[0] as f32, b[1] as f32, b[2] as f32],
-            ];
-            self.rec
-                .log(
-                    path.as_str(),
-                    &rerun::LineStrips3D::new([strip])
-                        .with_colors([color])
-                        .with_radii([0.012f32]),
-                )
-                .map_err(rr)?;
+        if self.t_s.len() >= CHUNK_LEN {
+            self.flush()?;
         }
         Ok(())
     }
 
-    fn flush_series(&mut self) -> Result<(), VizError> {
-        for s in &mut self.series {
-            if s.v.is_empty() {
-                continue;
-            }
-            let times = [
-                TimeColumn::new_duration_secs("sim_time", s.t.iter().copied()),
-                TimeColumn::new_sequence("step", s.step.iter().copied()),
-            ];
-            let cols = rerun::Scalars::new(s.v.iter().copied())
+    fn time_columns(&self) -> [TimeColumn; 2] {
+        [
+            TimeColumn::new_duration_secs("sim_time", self.t_s.iter().copied()),
+            TimeColumn::new_sequence("step", self.steps.iter().copied()),
+        ]
+    }
+
+    /// Sends every buffered frame, one `send_columns` per entity.
+    fn flush(&mut self) -> Result<(), VizError> {
+        if self.t_s.is_empty() {
+            return Ok(());
+        }
+        for s in &self.series {
+            let cols = rerun::Scalars::new(s.rows.iter().copied())
                 .columns_of_unit_batches()
                 .map_err(rr)?;
             self.rec
-                .send_columns(s.path.as_str(), times, cols)
+                .send_columns(s.path.as_str(), self.time_columns(), cols)
                 .map_err(rr)?;
-            s.t.clear();
-            s.step.clear();
-            s.v.clear();
+        }
+        for l in &self.links {
+            let cols = rerun::Transform3D::update_fields()
+                .with_many_translation(l.rows.iter().map(|r| r.0))
+                .with_many_quaternion(l.rows.iter().map(|r| rerun::Quaternion::from_xyzw(r.1)))
+                .columns_of_unit_batches()
+                .map_err(rr)?;
+            self.rec
+                .send_columns(l.path.as_str(), self.time_columns(), cols)
+                .map_err(rr)?;
+        }
+        for m in &self.muscles {
+            let cols = rerun::LineStrips3D::update_fields()
+                .with_strips(m.rows.iter().map(|r| r.0))
+                .with_colors(m.rows.iter().map(|r| r.1))
+                .columns_of_unit_batches()
+                .map_err(rr)?;
+            self.rec
+                .send_columns(m.path.as_str(), self.time_columns(), cols)
+                .map_err(rr)?;
+        }
+        self.t_s.clear();
+        self.steps.clear();
+        for s in &mut self.series {
+            s.rows.clear();
+        }
+        for l in &mut self.links {
+            l.rows.clear();
+        }
+        for m in &mut self.muscles {
+            m.rows.clear();
         }
         Ok(())
     }
 
     /// Sends what is buffered and waits for the sink.
     pub fn finish(mut self) -> Result<(), VizError> {
-        self.flush_series()?;
+        self.flush()?;
         self.rec.flush_blocking().map_err(rr)
     }
 }
