@@ -131,6 +131,9 @@ enum Command {
         /// Optimiser seed.
         #[arg(long, default_value_t = 2019)]
         seed: u64,
+        /// Budget on command activity: mean |du/dt| of the pressure command (bar/s).
+        #[arg(long, value_name = "BAR_PER_S", allow_negative_numbers = true)]
+        max_variation: Option<f64>,
         /// Write the gain file here (printed otherwise).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -226,14 +229,18 @@ fn run(cli: Cli) -> Result<()> {
             generations,
             duration,
             seed,
+            max_variation,
             out,
         } => tune(
             controller,
             &plant,
-            population,
-            generations,
-            duration,
-            seed,
+            &TuneSearch {
+                population,
+                generations,
+                duration,
+                seed,
+                max_variation,
+            },
             out.as_deref(),
         ),
     }
@@ -418,34 +425,66 @@ fn write_csv(path: &Path, samples: &[Sample]) -> Result<()> {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn tune(
-    kind: ControllerKind,
-    plant: &str,
+/// `tune`'s search settings, as given on the command line.
+struct TuneSearch {
     population: usize,
     generations: usize,
     duration: f64,
     seed: u64,
-    out: Option<&Path>,
-) -> Result<()> {
-    check_duration(duration)?;
-    if population < 2 {
-        bail!("--population must be at least 2 (got {population})");
+    max_variation: Option<f64>,
+}
+
+impl TuneSearch {
+    /// The command line that reproduces a tuning (written into the gain file).
+    fn command(&self, kind: ControllerKind, plant: &str) -> String {
+        let budget = self
+            .max_variation
+            .map_or(String::new(), |v| format!(" --max-variation {v}"));
+        format!(
+            "pma-exo tune --controller {kind} --plant {plant} --population {} --generations {} --duration {} --seed {}{budget}",
+            self.population, self.generations, self.duration, self.seed
+        )
+    }
+}
+
+fn tune(kind: ControllerKind, plant: &str, search: &TuneSearch, out: Option<&Path>) -> Result<()> {
+    check_duration(search.duration)?;
+    if search.population < 2 {
+        bail!(
+            "--population must be at least 2 (got {})",
+            search.population
+        );
+    }
+    if let Some(v) = search.max_variation {
+        if !(v.is_finite() && v > 0.0) {
+            bail!("--max-variation must be a finite number of bar/s > 0 (got {v})");
+        }
     }
     let plant_cfg = load_plant(plant)?;
     let opts = pma_sim::tune::FireflyOptions {
-        population,
-        generations,
-        seed,
+        population: search.population,
+        generations: search.generations,
+        seed: search.seed,
         ..Default::default()
     };
-    let Some(res) = pma_sim::tune::tune(kind, &plant_cfg, &opts, duration) else {
-        bail!("{kind} is not tuned here: APRC(-NDO) uses the paper's gains (pass --gains to change them)");
+    let objective = pma_sim::tune::Objective {
+        duration_s: search.duration,
+        max_variation_pa_per_s: search.max_variation.map(|v| v * 1e5),
     };
+    let Some(res) = pma_sim::tune::tune(kind, &plant_cfg, &opts, &objective) else {
+        bail!("{kind} has no search space here (pass --gains to change its gains)");
+    };
+    let (iae, var) = (res.score.iae_m, res.score.variation_pa_per_s / 1e5);
+    if !res.feasible {
+        bail!(
+            "{kind}: no gain set within the budget found after {} runs (best: {var:.2} bar/s, IAE {iae:.4e} m)",
+            res.evaluations
+        );
+    }
     let text = format!(
-        "# Tuned by `pma-exo tune --controller {kind} --plant {} --population {population} --generations {generations} --duration {duration} --seed {seed}`\n# ({} runs, sine IAE {:.4e} m)\n{}",
-        plant_cfg.name,
+        "# Tuned by `{}`\n# ({} runs, sine IAE {iae:.4e} m, command variation {var:.3} bar/s)\n{}",
+        search.command(kind, &plant_cfg.name),
         res.evaluations,
-        res.iae_m,
         res.config.to_toml_string()
     );
     match out {
@@ -455,8 +494,8 @@ fn tune(
         None => print!("{text}"),
     }
     eprintln!(
-        "{kind}: IAE {:.4e} m after {} runs",
-        res.iae_m, res.evaluations
+        "{kind}: IAE {iae:.4e} m, {var:.3} bar/s after {} runs",
+        res.evaluations
     );
     Ok(())
 }

@@ -33,6 +33,15 @@ pub fn run(out: &Path) -> Result<()> {
             r.controller, r.gains, r.iae_m, r.rte_percent, r.command_variation_bar_per_s
         );
     }
+    for t in &results.equal_activity {
+        let best = t.sine.iter().min_by(|a, b| a.iae_m.total_cmp(&b.iae_m));
+        if let Some(b) = best {
+            println!(
+                "  within {} bar/s: lowest sine IAE {} ({:.2e} m)",
+                t.budget_bar_per_s, b.controller, b.iae_m
+            );
+        }
+    }
     println!(
         "wrote {}/results.json, report.md and {} plots",
         out.display(),
@@ -113,7 +122,32 @@ pub fn report(r: &PaperResults) -> String {
         );
     }
     let _ = writeln!(md, "\n![load_step](load_step.png)");
+    equal_activity_section(&mut md, r);
     md
+}
+
+fn equal_activity_section(md: &mut String, r: &PaperResults) {
+    let _ = writeln!(
+        md,
+        "\n## Not in the paper: equal command activity\n\n\
+         Table II and the chirp again, every controller tuned by the same firefly search \
+         (1525 runs, best of seeds 1-3) for the sine IAE *within a budget* on the mean |du/dt| \
+         of the command (`pma-exo tune --max-variation`). The unconstrained tuning above \
+         ends on the search box's bounds. `aprc` uses APRC-NDO's gains with the observer off. \
+         Protocol: `models/gains/equal-activity/README.md`.\n"
+    );
+    for t in &r.equal_activity {
+        let _ = writeln!(
+            md,
+            "### Within {} bar/s: sine (tuning reference)\n",
+            t.budget_bar_per_s
+        );
+        comparison_table(md, &t.sine);
+        let _ = writeln!(md, "\n### Within {} bar/s: chirp\n", t.budget_bar_per_s);
+        comparison_table(md, &t.chirp);
+        let _ = writeln!(md);
+    }
+    let _ = writeln!(md, "![equal_activity](equal_activity.png)");
 }
 
 fn register_font() -> Result<()> {

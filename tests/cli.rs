@@ -139,6 +139,45 @@ fn bad_input_gives_one_line_errors() {
     );
     let f = write("plant.toml", "name = \"x\"\n");
     assert_one_line_error(&["single", "--plant", &f], "plant.toml");
+    assert_one_line_error(
+        &["tune", "--controller", "pid", "--max-variation", "-1"],
+        "max-variation",
+    );
+}
+
+#[test]
+fn tune_keeps_the_activity_budget_or_says_it_cannot() {
+    let small = [
+        "tune",
+        "--controller",
+        "pid",
+        "--population",
+        "4",
+        "--generations",
+        "3",
+        "--duration",
+        "4",
+    ];
+    let out = pma_exo(&[&small[..], &["--max-variation", "3"]].concat());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    let variation: f64 = text
+        .split("command variation ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no variation in the header: {text}"));
+    assert!(variation <= 3.0, "{text}");
+    assert!(text.contains("--max-variation 3"), "{text}");
+    // The sine needs about 1 bar/s of pressure change: 0.01 cannot be met.
+    assert_one_line_error(
+        &[&small[..], &["--max-variation", "0.01"]].concat(),
+        "budget",
+    );
 }
 
 #[test]
@@ -152,7 +191,14 @@ fn paper_writes_results_report_and_plots() {
     );
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap();
-    for key in ["table2", "chirp", "mp_sweep", "amplitudes", "load_step"] {
+    for key in [
+        "table2",
+        "chirp",
+        "mp_sweep",
+        "amplitudes",
+        "load_step",
+        "equal_activity",
+    ] {
         assert!(v[key].as_array().is_some_and(|a| !a.is_empty()), "{key}");
         let png = std::fs::read(dir.join(format!("{key}.png"))).unwrap();
         assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{key}.png");

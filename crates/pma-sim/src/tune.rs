@@ -1,8 +1,9 @@
 //! Gain tuning with the firefly algorithm (Yang 2009), the family of the switch-mode
 //! firefly algorithm the paper used. Every controller is tuned with the same optimiser,
 //! the same budget and the same objective: the IAE of eq. (52) on the paper's 0.25 Hz
-//! sine. The search runs in the unit cube, mapped to each gain's range (logarithmically
-//! for gains spanning decades), so that one step size suits every gain.
+//! sine, optionally under a budget on command activity (see [`Objective`]). The search
+//! runs in the unit cube, mapped to each gain's range (logarithmically for gains spanning
+//! decades), so that one step size suits every gain.
 
 use crate::{run_single, PlantConfig, RunSpec};
 use pma_control::{
@@ -251,16 +252,64 @@ pub fn firefly(
     (pos[best].clone(), cost[best], evals)
 }
 
-/// IAE (m) of a gain set on the paper's sine over `duration_s`; a run that fails or
-/// goes non-finite scores 1 m.
-pub fn sine_iae(config: &ControllerConfig, plant: &PlantConfig, duration_s: f64) -> f64 {
+/// What [`tune`] minimises: the IAE of eq. (52) on the paper's sine over `duration_s`,
+/// optionally subject to a budget on command activity.
+///
+/// Without a budget, a plant without noise or valve lag rewards ever higher gains: the
+/// unconstrained optimum sits on the search box's bounds and costs 8-27 bar/s of command
+/// variation, so the ranking it gives says more about the box than about the
+/// controllers. With `max_variation_pa_per_s`, every controller gets the same budget
+/// (mean |du/dt| of the command), the usual equal-effort comparison.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Objective {
+    /// Simulated seconds per evaluation.
+    pub duration_s: f64,
+    /// Budget on the command's mean |du/dt| (Pa/s); `None` for none.
+    pub max_variation_pa_per_s: Option<f64>,
+}
+
+/// One evaluated gain set.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Score {
+    /// IAE on the sine (m); 1 m for a failed or non-finite run.
+    pub iae_m: f64,
+    /// Mean |du/dt| of the command (Pa/s).
+    pub variation_pa_per_s: f64,
+}
+
+impl Score {
+    /// Within the objective's budget.
+    pub fn feasible(&self, objective: &Objective) -> bool {
+        objective
+            .max_variation_pa_per_s
+            .is_none_or(|v| self.variation_pa_per_s <= v)
+    }
+
+    /// The value minimised: the IAE when feasible; otherwise 1 m (worse than any
+    /// feasible run) plus the budget overshoot, so the search still descends towards it.
+    pub fn cost(&self, objective: &Objective) -> f64 {
+        match objective.max_variation_pa_per_s {
+            Some(v) if !self.feasible(objective) => 1.0 + self.variation_pa_per_s / v,
+            _ => self.iae_m,
+        }
+    }
+}
+
+/// Scores a gain set on the paper's sine.
+pub fn sine_score(config: &ControllerConfig, plant: &PlantConfig, duration_s: f64) -> Score {
     let spec = RunSpec {
         duration_s,
         ..RunSpec::default()
     };
     match run_single(config, plant, &SineReference::paper(), &spec, None) {
-        Ok(r) if r.finite && r.stats.iae_m.is_finite() => r.stats.iae_m,
-        _ => 1.0,
+        Ok(r) if r.finite && r.stats.iae_m.is_finite() => Score {
+            iae_m: r.stats.iae_m,
+            variation_pa_per_s: r.command_variation_pa_per_s,
+        },
+        _ => Score {
+            iae_m: 1.0,
+            variation_pa_per_s: f64::INFINITY,
+        },
     }
 }
 
@@ -269,26 +318,34 @@ pub fn sine_iae(config: &ControllerConfig, plant: &PlantConfig, duration_s: f64)
 pub struct TuneResult {
     /// Best gains.
     pub config: ControllerConfig,
-    /// Their IAE on the sine (m).
-    pub iae_m: f64,
+    /// Their score on the sine.
+    pub score: Score,
+    /// Whether they keep the budget (always without one).
+    pub feasible: bool,
     /// Runs spent.
     pub evaluations: usize,
 }
 
-/// Tunes a baseline on `plant` with the sine objective; `None` for APRC(-NDO).
+/// Tunes `kind` on `plant` for `objective`; `None` for a controller without a search
+/// space.
 pub fn tune(
     kind: ControllerKind,
     plant: &PlantConfig,
     opts: &FireflyOptions,
-    duration_s: f64,
+    objective: &Objective,
 ) -> Option<TuneResult> {
     let dims = search_space(kind)?.len();
-    let (u, iae, evaluations) = firefly(dims, opts, |u| {
-        config_at(kind, u).map_or(1.0, |c| sine_iae(&c, plant, duration_s))
+    let (u, _, evaluations) = firefly(dims, opts, |u| {
+        config_at(kind, u).map_or(f64::INFINITY, |c| {
+            sine_score(&c, plant, objective.duration_s).cost(objective)
+        })
     });
+    let config = config_at(kind, &u)?;
+    let score = sine_score(&config, plant, objective.duration_s);
     Some(TuneResult {
-        config: config_at(kind, &u)?,
-        iae_m: iae,
+        config,
+        score,
+        feasible: score.feasible(objective),
         evaluations,
     })
 }

@@ -10,6 +10,110 @@ pub type Plot = (&'static str, String, Vec<Series>);
 /// APRC-NDO tuned with the same optimiser and budget as the baselines.
 const APRC_NDO_TUNED: &str = include_str!("../../../../models/gains/aprc-ndo-tuned.toml");
 
+/// One gain file of the equal-activity comparison.
+macro_rules! activity_gains {
+    ($budget:literal, $name:literal) => {
+        (
+            $name,
+            include_str!(concat!(
+                "../../../../models/gains/equal-activity/",
+                $budget,
+                "/",
+                $name,
+                ".toml"
+            )),
+        )
+    };
+}
+
+/// A budget of the equal-activity comparison: bar/s and the five controllers' gain files.
+type ActivityBudget = (f64, [(&'static str, &'static str); 5]);
+
+/// The equal-activity comparison (`models/gains/equal-activity/README.md`): every
+/// controller tuned under the same budget on command activity.
+const EQUAL_ACTIVITY: [ActivityBudget; 3] = [
+    (
+        1.5,
+        [
+            activity_gains!("1.5", "aprc-ndo"),
+            activity_gains!("1.5", "ndo-smc"),
+            activity_gains!("1.5", "psmc"),
+            activity_gains!("1.5", "sta"),
+            activity_gains!("1.5", "pid"),
+        ],
+    ),
+    (
+        3.0,
+        [
+            activity_gains!("3", "aprc-ndo"),
+            activity_gains!("3", "ndo-smc"),
+            activity_gains!("3", "psmc"),
+            activity_gains!("3", "sta"),
+            activity_gains!("3", "pid"),
+        ],
+    ),
+    (
+        6.0,
+        [
+            activity_gains!("6", "aprc-ndo"),
+            activity_gains!("6", "ndo-smc"),
+            activity_gains!("6", "psmc"),
+            activity_gains!("6", "sta"),
+            activity_gains!("6", "pid"),
+        ],
+    ),
+];
+
+/// One budget of the equal-activity comparison.
+#[derive(Debug, Serialize)]
+pub struct ActivityTable {
+    /// Budget on the mean |du/dt| of the command during tuning (bar/s).
+    pub budget_bar_per_s: f64,
+    /// The sine (the tuning reference).
+    pub sine: Vec<ComparisonRow>,
+    /// The chirp, same gains.
+    pub chirp: Vec<ComparisonRow>,
+}
+
+/// The entries of one budget: APRC-NDO, its ablation with the same gains, the baselines.
+pub fn activity_entries(budget: &ActivityBudget) -> Result<Vec<Entry>, SimError> {
+    let label = format!("{} bar/s", budget.0);
+    let mut v = Vec::with_capacity(6);
+    for (name, text) in budget.1 {
+        let cfg = ControllerConfig::from_toml_str(text)?;
+        if let ControllerConfig::AprcNdo(g) = cfg {
+            v.push((name.to_owned(), label.clone(), cfg));
+            v.push(("aprc".to_owned(), label.clone(), ControllerConfig::Aprc(g)));
+        } else {
+            v.push((name.to_owned(), label.clone(), cfg));
+        }
+    }
+    Ok(v)
+}
+
+/// Runs the equal-activity comparison; the plot is the sine at the middle budget.
+pub fn equal_activity(
+    plant: &PlantConfig,
+    spec: &RunSpec,
+) -> Result<(Vec<ActivityTable>, Vec<Series>), SimError> {
+    let mut tables = Vec::with_capacity(EQUAL_ACTIVITY.len());
+    let mut plotted = Vec::new();
+    for (k, budget) in EQUAL_ACTIVITY.iter().enumerate() {
+        let e = activity_entries(budget)?;
+        let (sine, s_sine) = super::comparison(&e, plant, &SineReference::paper(), spec)?;
+        let (chirp, _) = super::comparison(&e, plant, &super::chirp(), spec)?;
+        if k == 1 {
+            plotted = s_sine;
+        }
+        tables.push(ActivityTable {
+            budget_bar_per_s: budget.0,
+            sine,
+            chirp,
+        });
+    }
+    Ok((tables, plotted))
+}
+
 /// Fixed adaptive gain of the `m_p` sweep: about what the adaptive law (10) reaches after
 /// 20 s of the sine on the `mismatch` plant with the paper's gains.
 pub const MP_SWEEP_GAIN: f64 = 1.0;
@@ -31,6 +135,9 @@ pub struct PaperResults {
     pub amplitudes: Vec<AmplitudeRow>,
     /// Fig. 8: load steps.
     pub load_step: Vec<LoadStepRow>,
+    /// Table II and the chirp again, every controller tuned under the same budget on
+    /// command activity (not in the paper; see [`ActivityTable`]).
+    pub equal_activity: Vec<ActivityTable>,
 }
 
 /// The controllers of Table II: APRC-NDO and its ablation with the paper's gains and
@@ -88,6 +195,7 @@ pub fn compute(plant: &PlantConfig, spec: &RunSpec) -> Result<(PaperResults, Vec
     let paper_cfg = ControllerConfig::AprcNdo(AprcGains::PAPER);
     let (amplitudes, s_amp) = super::amplitudes(&paper_cfg, plant, spec)?;
     let (load_step, s_load) = super::load_step(&paper_cfg, plant, spec)?;
+    let (equal_activity, s_activity) = equal_activity(plant, spec)?;
     let plots = vec![
         (
             "table2",
@@ -114,6 +222,14 @@ pub fn compute(plant: &PlantConfig, spec: &RunSpec) -> Result<(PaperResults, Vec
             "APRC-NDO (paper gains), load added at 10 s".to_owned(),
             s_load,
         ),
+        (
+            "equal_activity",
+            format!(
+                "Sine 0.25 Hz, {} plant, every controller tuned within {} bar/s",
+                plant.name, EQUAL_ACTIVITY[1].0
+            ),
+            s_activity,
+        ),
     ];
     Ok((
         PaperResults {
@@ -124,6 +240,7 @@ pub fn compute(plant: &PlantConfig, spec: &RunSpec) -> Result<(PaperResults, Vec
             mp_sweep,
             amplitudes,
             load_step,
+            equal_activity,
         },
         plots,
     ))
