@@ -176,6 +176,10 @@ impl Leg {
     ) -> Result<Self, LegError> {
         let options = UrdfLoaderOptions {
             make_roots_fixed: true,
+            // Nothing touches the leg (fixed pelvis, no ground) and self-contacts are off,
+            // so colliders would only cost broad- and narrow-phase work (~10 % of a step).
+            // Mass properties come from the URDF's <inertial> tags, not from colliders.
+            create_colliders_from_collision_shapes: false,
             // A resting leg must still react to the muscles' torques at once.
             rigid_body_blueprint: RigidBodyBuilder::dynamic().can_sleep(false),
             ..Default::default()
