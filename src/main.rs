@@ -68,7 +68,7 @@ enum Command {
         /// Reference trajectory.
         #[arg(long, value_enum, default_value = "sine")]
         reference: RefName,
-        /// Plant preset (ideal, mismatch, realistic) or a plant .toml file.
+        /// Plant preset (ideal, mismatch, realistic, realistic_known_lag) or a plant .toml file.
         #[arg(long, default_value = "ideal")]
         plant: String,
         /// Simulated seconds.

@@ -203,7 +203,15 @@ impl Controller for AprcNdo {
         self.observer.update(m.position_m, dt);
         let (x, v, a) = self.observer.state();
         let tau_hat = match self.ndo.as_mut() {
-            Some(n) => n.update(&self.model, x, v, a, self.cmd.u_prev, self.cmd.mode, dt),
+            Some(n) => n.update(
+                &self.model,
+                x,
+                v,
+                a,
+                self.cmd.pressure_hat,
+                self.cmd.mode,
+                dt,
+            ),
             None => 0.0,
         };
         self.int_ref_object += dt * (r.position_m - x);
@@ -216,7 +224,9 @@ impl Controller for AprcNdo {
             + g.c2_per_s2 * (r.position_m - x)
             + u_l
             - tau_hat;
-        let u = self.cmd.invert(&self.limits, &self.model, x, v, accel);
+        let u = self
+            .cmd
+            .invert(&self.limits, &self.model, (x, v), accel, dt);
         let s_q = r.velocity_m_s - v
             + g.c1_per_s * (r.position_m - x)
             + g.c2_per_s2 * self.int_ref_object;

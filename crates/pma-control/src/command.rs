@@ -7,6 +7,9 @@ use pma_model::DampingMode;
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct CommandState {
     pub u_prev: f64,
+    /// The pressure per the nominal valve (equal to `u_prev` without valve lag): what the
+    /// disturbance observer takes as the input, and what the damping mode follows.
+    pub pressure_hat: f64,
     pub mode: DampingMode,
     pub saturation: Saturation,
 }
@@ -21,6 +24,7 @@ impl CommandState {
             .map_or(limits.min_pa, |p| limits.clamp(p).0);
         Self {
             u_prev: u,
+            pressure_hat: u,
             mode: DampingMode::Inflation,
             saturation: Saturation::None,
         }
@@ -43,17 +47,22 @@ impl CommandState {
     /// direction reversal is only taken when the current mode misses the required pressure
     /// by more than [`NominalModel::mode_switch_band`]; below that the pressure is held and
     /// the feedback absorbs the small acceleration error.
+    ///
+    /// With a nominal valve lag the result is the *pressure* wanted at the end of the
+    /// period, and the command is the one that takes the nominal valve there (see
+    /// [`CommandState::apply_through_valve`]).
     pub fn invert(
         &mut self,
         limits: &CommandLimits,
         model: &NominalModel,
-        x: f64,
-        v: f64,
+        state: (f64, f64),
         accel: f64,
+        dt: f64,
     ) -> f64 {
+        let (x, v) = state;
         let solve = |mode| (accel - model.drift(x, v, mode)) / model.safe_input_gain(x, v, mode);
-        let consistent =
-            |mode, u: f64| u == self.u_prev || self.mode.after_change(u - self.u_prev) == mode;
+        let p_prev = self.pressure_hat;
+        let consistent = |mode, u: f64| u == p_prev || self.mode.after_change(u - p_prev) == mode;
         let current = self.mode;
         let other = match current {
             DampingMode::Inflation => DampingMode::Deflation,
@@ -65,13 +74,31 @@ impl CommandState {
         } else {
             let u_other = solve(other);
             let band = model.mode_switch_band((u_other - u_current).abs());
-            if (u_current - self.u_prev).abs() > band && consistent(other, u_other) {
+            if (u_current - p_prev).abs() > band && consistent(other, u_other) {
                 u_other
             } else {
-                self.u_prev
+                p_prev
             }
         };
-        self.apply(limits, raw)
+        self.apply_through_valve(limits, raw, model.valve_alpha(dt))
+    }
+
+    /// Commands the pressure `wanted` through a nominal valve that covers the fraction
+    /// `alpha` of the way per period: `u = p + (wanted - p) / alpha`, clamped, and the
+    /// nominal pressure advanced with the clamped command (so a clamp never winds it up).
+    /// `alpha = 1` is [`CommandState::apply`].
+    pub fn apply_through_valve(&mut self, limits: &CommandLimits, wanted: f64, alpha: f64) -> f64 {
+        if alpha >= 1.0 {
+            return self.apply(limits, wanted);
+        }
+        let p = self.pressure_hat;
+        let (u, sat) = limits.clamp(p + (wanted - p) / alpha);
+        let p_next = p + alpha * (u - p);
+        self.saturation = sat;
+        self.mode = self.mode.after_change(p_next - p);
+        self.u_prev = u;
+        self.pressure_hat = p_next;
+        u
     }
 
     /// Clamps the raw command, records saturation and damping mode, returns the command.
@@ -80,6 +107,71 @@ impl CommandState {
         self.saturation = sat;
         self.mode = self.mode.after_change(u - self.u_prev);
         self.u_prev = u;
+        self.pressure_hat = u;
         u
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn limits() -> CommandLimits {
+        CommandLimits {
+            min_pa: 0.0,
+            max_pa: 6e5,
+        }
+    }
+
+    #[test]
+    fn the_nominal_valve_reaches_the_wanted_pressure_in_one_period() {
+        let model = NominalModel {
+            valve_time_constant_s: 0.020,
+            ..NominalModel::paper()
+        };
+        let alpha = model.valve_alpha(1e-3);
+        assert!((alpha - (1.0 - (-0.05f64).exp())).abs() < 1e-15);
+        let mut c = CommandState::at_rest(&model, &limits(), 0.0);
+        let p0 = c.pressure_hat;
+        let u = c.apply_through_valve(&limits(), p0 + 1000.0, alpha);
+        // The command overshoots by 1/alpha so the lagged pressure lands on the target.
+        assert!((u - (p0 + 1000.0 / alpha)).abs() < 1e-6);
+        assert!((c.pressure_hat - (p0 + 1000.0)).abs() < 1e-9);
+        assert_eq!(c.saturation, Saturation::None);
+        assert_eq!(c.mode, DampingMode::Inflation);
+    }
+
+    #[test]
+    fn a_clamped_command_advances_the_nominal_pressure_only_as_far_as_the_valve_goes() {
+        let model = NominalModel {
+            valve_time_constant_s: 0.020,
+            ..NominalModel::paper()
+        };
+        let alpha = model.valve_alpha(1e-3);
+        let mut c = CommandState::at_rest(&model, &limits(), 0.0);
+        let p0 = c.pressure_hat;
+        let u = c.apply_through_valve(&limits(), 5.9e5, alpha);
+        assert_eq!(u, 6e5);
+        assert_ne!(c.saturation, Saturation::None);
+        assert!((c.pressure_hat - (p0 + alpha * (6e5 - p0))).abs() < 1e-9);
+        // Falling: the mode follows the pressure, not the command.
+        let p1 = c.pressure_hat;
+        c.apply_through_valve(&limits(), p1 - 10.0, alpha);
+        assert_eq!(c.mode, DampingMode::Deflation);
+    }
+
+    #[test]
+    fn without_lag_the_valve_inversion_is_the_plain_clamp() {
+        let model = NominalModel::paper();
+        assert_eq!(model.valve_alpha(1e-3), 1.0);
+        let mut a = CommandState::at_rest(&model, &limits(), 0.01);
+        let mut b = a;
+        for wanted in [1e5, 2.5e5, -3.0, 7e5, 3e5] {
+            assert_eq!(
+                a.apply_through_valve(&limits(), wanted, 1.0),
+                b.apply(&limits(), wanted)
+            );
+            assert_eq!(a.pressure_hat, b.u_prev);
+        }
     }
 }

@@ -75,9 +75,15 @@ impl Controller for NdoSmc {
     fn update(&mut self, r: &RefSample, m: &Measurement, dt: f64) -> ControlOutput {
         self.observer.update(m.position_m, dt);
         let (x, v, a) = self.observer.state();
-        let tau_hat = self
-            .ndo
-            .update(&self.model, x, v, a, self.cmd.u_prev, self.cmd.mode, dt);
+        let tau_hat = self.ndo.update(
+            &self.model,
+            x,
+            v,
+            a,
+            self.cmd.pressure_hat,
+            self.cmd.mode,
+            dt,
+        );
         let g = &self.gains;
         let e = r.position_m - x;
         if !self.cmd.saturation.blocks(e) {
@@ -89,7 +95,9 @@ impl Controller for NdoSmc {
             - tau_hat
             + g.k_per_s * s
             + g.eta_m_s2 * sat;
-        let u = self.cmd.invert(&self.limits, &self.model, x, v, accel);
+        let u = self
+            .cmd
+            .invert(&self.limits, &self.model, (x, v), accel, dt);
         ControlOutput {
             pressure_cmd_pa: u,
             diagnostics: Diagnostics {

@@ -17,6 +17,9 @@ pub struct NominalModel {
     pub mode_switch_deadband_pa: f64,
     /// Fraction of the inflation/deflation hysteresis width that the band spans.
     pub mode_switch_fraction: f64,
+    /// Time constant (s) of the first-order valve lag the controller compensates; `0`
+    /// (the paper) takes the pressure to equal the command. See [`NominalModel::valve_alpha`].
+    pub valve_time_constant_s: f64,
 }
 
 /// Default [`NominalModel::mode_switch_deadband_pa`] (Pa).
@@ -33,6 +36,18 @@ impl NominalModel {
             load_force_n: 2.0 * GRAVITY_M_S2,
             mode_switch_deadband_pa: DEFAULT_MODE_SWITCH_DEADBAND_PA,
             mode_switch_fraction: DEFAULT_MODE_SWITCH_FRACTION,
+            valve_time_constant_s: 0.0,
+        }
+    }
+
+    /// Fraction of the way from the pressure to a command held for `dt` that the nominal
+    /// valve covers, `1 - exp(-dt / tau)` (the exact solution of the first-order lag);
+    /// `1` without lag.
+    pub fn valve_alpha(&self, dt: f64) -> f64 {
+        if self.valve_time_constant_s > 0.0 {
+            -(-dt / self.valve_time_constant_s).exp_m1()
+        } else {
+            1.0
         }
     }
 

@@ -71,7 +71,9 @@ impl Controller for SuperTwisting {
         let s = (r.velocity_m_s - v) + g.c1_per_s * e;
         let twist = g.k1 * s.abs().sqrt() * s.signum();
         let accel = r.acceleration_m_s2 + g.c1_per_s * (r.velocity_m_s - v) + twist + self.w;
-        let u = self.cmd.invert(&self.limits, &self.model, x, v, accel);
+        let u = self
+            .cmd
+            .invert(&self.limits, &self.model, (x, v), accel, dt);
         let push = s.signum();
         if !self.cmd.saturation.blocks(push) {
             self.w += dt * g.k2 * push;

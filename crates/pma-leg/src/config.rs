@@ -199,6 +199,10 @@ pub struct ControlSettings {
     pub cocontraction_max_m: f64,
     /// Time constant of the common-mode pressure filter (s).
     pub cocontraction_filter_s: f64,
+    /// Valve lag the controllers compensate (s), `NominalModel::valve_time_constant_s`;
+    /// 0 (the default, the paper) takes each pressure to equal its command.
+    #[serde(default)]
+    pub nominal_valve_time_constant_s: f64,
 }
 
 /// A gait-training scenario (`models/scenarios/*.toml`).
@@ -301,6 +305,10 @@ impl Scenario {
         finite_positive(
             "control.cocontraction_filter_s",
             self.control.cocontraction_filter_s,
+        )?;
+        finite_non_negative(
+            "control.nominal_valve_time_constant_s",
+            self.control.nominal_valve_time_constant_s,
         )?;
         pma_control::ControllerConfig::AprcNdo(self.control.gains).validate()?;
         Ok(())

@@ -271,6 +271,7 @@ impl LegSim {
             let model = NominalModel {
                 mass_kg: sc.control.nominal_inertia_fraction * joint_inertia[m.joint] / (r * r),
                 load_force_n: load,
+                valve_time_constant_s: sc.control.nominal_valve_time_constant_s,
                 ..NominalModel::paper()
             };
             controllers.push(AprcNdo::new(sc.control.gains, model, limits, true));

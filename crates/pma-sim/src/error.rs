@@ -16,7 +16,7 @@ pub enum SimError {
     #[error(transparent)]
     Controller(#[from] pma_control::ConfigError),
     /// No preset of that name.
-    #[error("unknown plant `{0}` (expected one of: ideal, mismatch, realistic, or a .toml file)")]
+    #[error("unknown plant `{0}` (expected one of: ideal, mismatch, realistic, realistic_known_lag, or a .toml file)")]
     UnknownPlant(String),
     /// A plant file could not be parsed.
     #[error("plant file `{file}`: {message}")]

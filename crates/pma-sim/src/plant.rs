@@ -4,9 +4,9 @@ use pma_model::{LoadProfile, MuscleParams, SensorParams, ValveParams};
 use serde::{Deserialize, Serialize};
 
 /// Names of the embedded plant presets (`models/plants/<name>.toml`).
-pub const PRESET_NAMES: [&str; 3] = ["ideal", "mismatch", "realistic"];
+pub const PRESET_NAMES: [&str; 4] = ["ideal", "mismatch", "realistic", "realistic_known_lag"];
 
-const PRESETS: [(&str, &str); 3] = [
+const PRESETS: [(&str, &str); 4] = [
     ("ideal", include_str!("../../../models/plants/ideal.toml")),
     (
         "mismatch",
@@ -15,6 +15,10 @@ const PRESETS: [(&str, &str); 3] = [
     (
         "realistic",
         include_str!("../../../models/plants/realistic.toml"),
+    ),
+    (
+        "realistic_known_lag",
+        include_str!("../../../models/plants/realistic_known_lag.toml"),
     ),
 ];
 
@@ -83,6 +87,10 @@ pub struct NominalSpec {
     /// See [`NominalModel::mode_switch_fraction`].
     #[serde(default = "default_fraction")]
     pub mode_switch_fraction: f64,
+    /// Valve lag the controllers compensate (s), [`NominalModel::valve_time_constant_s`];
+    /// 0 (the default, the paper) takes the pressure to equal the command.
+    #[serde(default)]
+    pub valve_time_constant_s: f64,
 }
 
 fn default_deadband() -> f64 {
@@ -162,6 +170,14 @@ impl PlantConfig {
         LoadProfile::constant(self.nominal.mass_kg)
             .validate()
             .map_err(wrap)?;
+        let tau = self.nominal.valve_time_constant_s;
+        if !(tau.is_finite() && tau >= 0.0) {
+            return Err(SimError::InvalidRun {
+                name: "nominal.valve_time_constant_s",
+                value: tau,
+                expected: "must be a finite number of seconds >= 0",
+            });
+        }
         if self.substeps_per_period == 0 {
             return Err(SimError::InvalidRun {
                 name: "substeps_per_period",
@@ -185,6 +201,7 @@ impl PlantConfig {
             load_force_n: self.nominal.mass_kg * pma_model::GRAVITY_M_S2,
             mode_switch_deadband_pa: self.nominal.mode_switch_deadband_pa,
             mode_switch_fraction: self.nominal.mode_switch_fraction,
+            valve_time_constant_s: self.nominal.valve_time_constant_s,
         }
     }
 }
