@@ -139,6 +139,14 @@ fn bad_input_gives_one_line_errors() {
     );
     let f = write("plant.toml", "name = \"x\"\n");
     assert_one_line_error(&["single", "--plant", &f], "plant.toml");
+    let f = write(
+        "lag.toml",
+        &include_str!("../models/plants/realistic_known_lag.toml").replace(
+            "valve_time_constant_s = 0.020\n\n[muscle]",
+            "valve_time_constant_s = -0.020\n\n[muscle]",
+        ),
+    );
+    assert_one_line_error(&["single", "--plant", &f], "valve_time_constant_s");
     assert_one_line_error(
         &["tune", "--controller", "pid", "--max-variation", "-1"],
         "max-variation",

@@ -223,6 +223,16 @@ fn bad_scenarios_and_urdfs_are_named_in_one_line() {
     );
     one_line(&e);
     assert!(e.contains("cadence"), "{e}");
+    // A negative valve lag in the controllers' model.
+    let e = load_err(
+        &scenario_text().replace(
+            "[control]",
+            "[control]\nnominal_valve_time_constant_s = -0.02",
+        ),
+        &[],
+    );
+    one_line(&e);
+    assert!(e.contains("nominal_valve_time_constant_s"), "{e}");
     // Unknown link in a muscle.
     let muscles = include_str!("../models/muscles.toml").replacen(
         "body_link = \"thigh\"",
