@@ -358,9 +358,7 @@ fn single(
     if let Some(e) = viz_error {
         return Err(e.into());
     }
-    if let Some(v) = viz {
-        v.finish()?;
-    }
+    pma_exo::viz::finish(viz)?;
     if let Some(path) = csv {
         write_csv(path, &samples)?;
     }

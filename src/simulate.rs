@@ -67,9 +67,7 @@ pub fn run(
     if let Some(e) = viz_error {
         return Err(e);
     }
-    if let Some(v) = viz {
-        v.finish()?;
-    }
+    pma_exo::viz::finish(viz)?;
     if show_progress {
         eprintln!("\r[{}] 100 %", "=".repeat(40));
     }

@@ -60,6 +60,19 @@ pub fn open(
     Ok(Viz::open(sink, app, period_s, rate_hz)?)
 }
 
+/// Ends a run's recording. A viewer too slow to take the end of it is a warning, not a
+/// failure: the run and its metrics are complete.
+pub fn finish(viz: Option<Viz>) -> Result<()> {
+    match viz.map(Viz::finish) {
+        Some(Err(e @ pma_viz::VizError::FlushTimeout { .. })) => {
+            eprintln!("warning: {e}");
+            Ok(())
+        }
+        Some(Err(e)) => Err(e.into()),
+        _ => Ok(()),
+    }
+}
+
 /// The bench's layout: one muscle, its series and the reference.
 pub fn bench_layout(viz: &mut Viz, meta: &str) -> Result<()> {
     viz.document("metadata", meta)?;

@@ -320,3 +320,37 @@ fn rerun_failures_are_one_line_errors_not_hangs() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("rerun-sdk==0.36.3"), "{err}");
 }
+
+/// Regression: a viewer that accepts the connection and then never reads used to hold the
+/// process at exit without limit (the gRPC client flushes forever when dropped).
+#[test]
+fn a_stuck_viewer_is_a_warning_after_the_flush_timeout_not_a_hang() {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    // Accepts and holds every connection, reads nothing.
+    std::thread::spawn(move || {
+        let mut held = Vec::new();
+        for c in listener.incoming() {
+            held.push(c);
+        }
+    });
+    let t = std::time::Instant::now();
+    let out = pma_exo(&[
+        "single",
+        "--duration",
+        "1",
+        "--json",
+        "--rerun",
+        &format!("connect=rerun+http://127.0.0.1:{port}/proxy"),
+    ]);
+    let waited = t.elapsed().as_secs_f64();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("did not take the end of the recording"),
+        "{err}"
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["rte_percent"].as_f64().is_some());
+    assert!(waited < 10.0 + 20.0, "held {waited} s");
+}

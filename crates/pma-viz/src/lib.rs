@@ -58,10 +58,20 @@ pub enum VizError {
         /// Why.
         reason: String,
     },
+    /// A viewer did not take the end of the recording in time (the run itself finished).
+    #[error("the Rerun viewer did not take the end of the recording within {seconds} s; it may be incomplete")]
+    FlushTimeout {
+        /// The wait (s).
+        seconds: u64,
+    },
     /// Any other Rerun error.
     #[error("rerun: {0}")]
     Rerun(String),
 }
+
+/// How long [`Viz::finish`] waits for a viewer (`spawn`, `connect`) to take what is left;
+/// a file or memory sink is always waited for.
+pub const VIEWER_FLUSH_TIMEOUT_S: u64 = 10;
 
 impl FromStr for Sink {
     type Err = VizError;
@@ -186,6 +196,8 @@ pub struct Viz {
     muscles: Vec<Columns<LineRow>>,
     pressure_max_pa: f64,
     every: i64,
+    /// `None`: wait for the sink however long it takes (file, memory).
+    flush_timeout: Option<std::time::Duration>,
 }
 
 /// Radius of the drawn muscles (m).
@@ -211,19 +223,25 @@ impl Viz {
         rate_hz: Option<f64>,
     ) -> Result<Option<Self>, VizError> {
         let builder = RecordingStreamBuilder::new(app);
-        let rec = match sink {
+        let viewer_wait = Some(std::time::Duration::from_secs(VIEWER_FLUSH_TIMEOUT_S));
+        let (rec, flush_timeout) = match sink {
             Sink::Off => return Ok(None),
-            Sink::Spawn => builder
-                .spawn()
-                .map_err(|e| VizError::Spawn(e.to_string()))?,
+            Sink::Spawn => (
+                builder
+                    .spawn()
+                    .map_err(|e| VizError::Spawn(e.to_string()))?,
+                viewer_wait,
+            ),
             Sink::Connect(url) => {
                 let url = url.clone().unwrap_or_else(|| DEFAULT_URL.to_owned());
                 check_reachable(&url)?;
-                builder.connect_grpc_opts(url).map_err(rr)?
+                (builder.connect_grpc_opts(url).map_err(rr)?, viewer_wait)
             }
-            Sink::Save(path) => builder.save(path).map_err(rr)?,
+            Sink::Save(path) => (builder.save(path).map_err(rr)?, None),
         };
-        Ok(Some(Self::with_stream(rec, period_s, rate_hz)?))
+        let mut viz = Self::with_stream(rec, period_s, rate_hz)?;
+        viz.flush_timeout = flush_timeout;
+        Ok(Some(viz))
     }
 
     /// An in-memory recording (tests): the stream and its storage.
@@ -263,6 +281,7 @@ impl Viz {
             muscles: Vec::new(),
             pressure_max_pa: 6.0e5,
             every,
+            flush_timeout: None,
         })
     }
 
@@ -415,10 +434,26 @@ impl Viz {
         Ok(())
     }
 
-    /// Sends what is buffered and waits for the sink.
+    /// Sends what is buffered and waits for the sink: a file or memory sink until it has
+    /// everything, a viewer at most [`VIEWER_FLUSH_TIMEOUT_S`] (then
+    /// [`VizError::FlushTimeout`]), so that a slow viewer never holds the run.
     pub fn finish(mut self) -> Result<(), VizError> {
         self.flush()?;
-        self.rec.flush_blocking().map_err(rr)
+        match self.flush_timeout {
+            None => self.rec.flush_blocking().map_err(rr),
+            Some(t) => match self.rec.flush_with_timeout(t) {
+                Err(rerun::sink::SinkFlushError::Timeout) => {
+                    // Dropping the stream would wait for the viewer again, without limit
+                    // (the gRPC client flushes forever on drop): abandon it instead, its
+                    // thread ends with the process or when the viewer catches up.
+                    std::mem::forget(self.rec);
+                    Err(VizError::FlushTimeout {
+                        seconds: t.as_secs(),
+                    })
+                }
+                other => other.map_err(rr),
+            },
+        }
     }
 }
 
