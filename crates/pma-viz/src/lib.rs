@@ -387,56 +387,57 @@ impl Viz {
         ]
     }
 
-    /// Sends every buffered frame, one `send_columns` per entity.
+    /// Sends every buffered frame, one `send_columns` per entity, and empties the buffers.
     fn flush(&mut self) -> Result<(), VizError> {
         if self.t_s.is_empty() {
             return Ok(());
         }
-        for s in &self.series {
-            let cols = rerun::Scalars::new(s.rows.iter().copied())
-                .columns_of_unit_batches()
-                .map_err(rr)?;
-            self.rec
-                .send_columns(s.path.as_str(), self.time_columns(), cols)
-                .map_err(rr)?;
-        }
-        for l in &self.links {
-            let cols = rerun::Transform3D::update_fields()
-                .with_many_translation(l.rows.iter().map(|r| r.0))
-                .with_many_quaternion(l.rows.iter().map(|r| rerun::Quaternion::from_xyzw(r.1)))
-                .columns_of_unit_batches()
-                .map_err(rr)?;
-            self.rec
-                .send_columns(l.path.as_str(), self.time_columns(), cols)
-                .map_err(rr)?;
-        }
-        for m in &self.muscles {
-            let cols = rerun::LineStrips3D::update_fields()
-                .with_strips(m.rows.iter().map(|r| r.0))
-                .with_colors(m.rows.iter().map(|r| r.1))
-                .columns_of_unit_batches()
-                .map_err(rr)?;
-            self.rec
-                .send_columns(m.path.as_str(), self.time_columns(), cols)
-                .map_err(rr)?;
-        }
-        self.t_s.clear();
-        self.steps.clear();
+        let times = self.time_columns();
+        let send = |path: &str, cols: Vec<rerun::SerializedComponentColumn>| {
+            self.rec.send_columns(path, times.clone(), cols).map_err(rr)
+        };
         for s in &mut self.series {
-            s.rows.clear();
+            send(
+                &s.path,
+                rerun::Scalars::new(s.rows.drain(..))
+                    .columns_of_unit_batches()
+                    .map_err(rr)?
+                    .collect(),
+            )?;
         }
         for l in &mut self.links {
+            send(
+                &l.path,
+                rerun::Transform3D::update_fields()
+                    .with_many_translation(l.rows.iter().map(|r| r.0))
+                    .with_many_quaternion(l.rows.iter().map(|r| rerun::Quaternion::from_xyzw(r.1)))
+                    .columns_of_unit_batches()
+                    .map_err(rr)?
+                    .collect(),
+            )?;
             l.rows.clear();
         }
         for m in &mut self.muscles {
+            send(
+                &m.path,
+                rerun::LineStrips3D::update_fields()
+                    .with_strips(m.rows.iter().map(|r| r.0))
+                    .with_colors(m.rows.iter().map(|r| r.1))
+                    .columns_of_unit_batches()
+                    .map_err(rr)?
+                    .collect(),
+            )?;
             m.rows.clear();
         }
+        self.t_s.clear();
+        self.steps.clear();
         Ok(())
     }
 
     /// Sends what is buffered and waits for the sink: a file or memory sink until it has
     /// everything, a viewer at most [`VIEWER_FLUSH_TIMEOUT_S`] (then
-    /// [`VizError::FlushTimeout`]), so that a slow viewer never holds the run.
+    /// [`VizError::FlushTimeout`], and the stream is abandoned rather than dropped), so
+    /// that a stuck viewer never holds the run.
     pub fn finish(mut self) -> Result<(), VizError> {
         self.flush()?;
         match self.flush_timeout {

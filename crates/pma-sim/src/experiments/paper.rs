@@ -10,14 +10,26 @@ pub type Plot = (&'static str, String, Vec<Series>);
 /// APRC-NDO tuned with the same optimiser and budget as the baselines.
 const APRC_NDO_TUNED: &str = include_str!("../../../../models/gains/aprc-ndo-tuned.toml");
 
-/// One gain file of the equal-activity comparison.
-macro_rules! activity_gains {
-    ($budget:literal, $name:literal) => {
+/// One budget of the equal-activity comparison: its five gain files, embedded.
+macro_rules! activity_budget {
+    ($bar_per_s:literal, $dir:literal) => {
+        (
+            $bar_per_s,
+            [
+                activity_budget!(@file $dir, "aprc-ndo"),
+                activity_budget!(@file $dir, "ndo-smc"),
+                activity_budget!(@file $dir, "psmc"),
+                activity_budget!(@file $dir, "sta"),
+                activity_budget!(@file $dir, "pid"),
+            ],
+        )
+    };
+    (@file $dir:literal, $name:literal) => {
         (
             $name,
             include_str!(concat!(
                 "../../../../models/gains/equal-activity/",
-                $budget,
+                $dir,
                 "/",
                 $name,
                 ".toml"
@@ -32,36 +44,9 @@ type ActivityBudget = (f64, [(&'static str, &'static str); 5]);
 /// The equal-activity comparison (`models/gains/equal-activity/README.md`): every
 /// controller tuned under the same budget on command activity.
 const EQUAL_ACTIVITY: [ActivityBudget; 3] = [
-    (
-        1.5,
-        [
-            activity_gains!("1.5", "aprc-ndo"),
-            activity_gains!("1.5", "ndo-smc"),
-            activity_gains!("1.5", "psmc"),
-            activity_gains!("1.5", "sta"),
-            activity_gains!("1.5", "pid"),
-        ],
-    ),
-    (
-        3.0,
-        [
-            activity_gains!("3", "aprc-ndo"),
-            activity_gains!("3", "ndo-smc"),
-            activity_gains!("3", "psmc"),
-            activity_gains!("3", "sta"),
-            activity_gains!("3", "pid"),
-        ],
-    ),
-    (
-        6.0,
-        [
-            activity_gains!("6", "aprc-ndo"),
-            activity_gains!("6", "ndo-smc"),
-            activity_gains!("6", "psmc"),
-            activity_gains!("6", "sta"),
-            activity_gains!("6", "pid"),
-        ],
-    ),
+    activity_budget!(1.5, "1.5"),
+    activity_budget!(3.0, "3"),
+    activity_budget!(6.0, "6"),
 ];
 
 /// One budget of the equal-activity comparison.
