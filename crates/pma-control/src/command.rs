@@ -123,13 +123,18 @@ mod tests {
         }
     }
 
-    #[test]
-    fn the_nominal_valve_reaches_the_wanted_pressure_in_one_period() {
+    /// The paper's model with a 20 ms valve, and its `alpha` at 1 kHz.
+    fn lagged() -> (NominalModel, f64) {
         let model = NominalModel {
             valve_time_constant_s: 0.020,
             ..NominalModel::paper()
         };
-        let alpha = model.valve_alpha(1e-3);
+        (model, model.valve_alpha(1e-3))
+    }
+
+    #[test]
+    fn the_nominal_valve_reaches_the_wanted_pressure_in_one_period() {
+        let (model, alpha) = lagged();
         assert!((alpha - (1.0 - (-0.05f64).exp())).abs() < 1e-15);
         let mut c = CommandState::at_rest(&model, &limits(), 0.0);
         let p0 = c.pressure_hat;
@@ -143,11 +148,7 @@ mod tests {
 
     #[test]
     fn a_clamped_command_advances_the_nominal_pressure_only_as_far_as_the_valve_goes() {
-        let model = NominalModel {
-            valve_time_constant_s: 0.020,
-            ..NominalModel::paper()
-        };
-        let alpha = model.valve_alpha(1e-3);
+        let (model, alpha) = lagged();
         let mut c = CommandState::at_rest(&model, &limits(), 0.0);
         let p0 = c.pressure_hat;
         let u = c.apply_through_valve(&limits(), 5.9e5, alpha);
