@@ -4,7 +4,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use pma_control::{
     build_controller, CommandLimits, ControllerKind, Measurement, Reference, SineReference,
 };
-use pma_sim::{run_single, MuscleBench, Plant, PlantConfig, RunSpec};
+use pma_sim::{run_single, MuscleBench, PlantConfig, RunSpec};
 use std::hint::black_box;
 
 fn controller_update(c: &mut Criterion) {
@@ -70,7 +70,7 @@ fn closed_loop(c: &mut Criterion) {
                     &cfg,
                     &SineReference::paper(),
                     &RunSpec::default(),
-                    None,
+                    &mut (),
                 )
                 .expect("run")
                 .stats

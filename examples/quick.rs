@@ -11,7 +11,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for plant in PRESET_NAMES {
             let cfg = PlantConfig::preset(plant)?;
             for kind in ControllerKind::ALL {
-                let res = run_single(&kind.default_config(), &cfg, r, &RunSpec::default(), None)?;
+                let res = run_single(
+                    &kind.default_config(),
+                    &cfg,
+                    r,
+                    &RunSpec::default(),
+                    &mut (),
+                )?;
                 println!(
                     "{rname:6} {plant:10} {:9} MAE {:9.3e} IAE {:9.3e} RTE {:7.3} % rtf {:8.0}",
                     kind.as_str(),

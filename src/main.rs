@@ -2,11 +2,12 @@
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 use pma_control::{ChirpReference, ControllerConfig, ControllerKind, Reference, SineReference};
-use pma_sim::{run_single, PlantConfig, RunSpec, Sample};
+use pma_sim::{run_single, PlantConfig, RunSpec, Sample, Samples};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 mod paper;
+mod rig;
 mod simulate;
 use pma_exo::viz;
 
@@ -32,13 +33,13 @@ enum RefName {
 
 /// Where a run's state goes in Rerun (shared by every command that runs a control loop).
 #[derive(clap::Args)]
-struct RerunArgs {
+pub(crate) struct RerunArgs {
     /// Rerun: off, spawn, connect, connect=URL or save=PATH.rrd.
     #[arg(long = "rerun", default_value = "off")]
-    sink: pma_viz::Sink,
+    pub(crate) sink: pma_viz::Sink,
     /// Log to Rerun at this rate (Hz) instead of every control period.
     #[arg(long)]
-    rerun_hz: Option<f64>,
+    pub(crate) rerun_hz: Option<f64>,
 }
 
 #[derive(Subcommand)]
@@ -111,6 +112,11 @@ enum Command {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+    /// The hardware backend: one muscle on a DAQ rig (or the virtual rig).
+    Rig {
+        #[command(subcommand)]
+        command: rig::RigCommand,
+    },
     /// Tune a baseline's gains with the firefly algorithm on the sine (IAE objective).
     Tune {
         /// psmc, ndo-smc, sta or pid.
@@ -157,19 +163,22 @@ fn main() {
             std::process::exit(2);
         }
     };
-    if let Err(e) = run(cli) {
-        // One line: the error and its causes.
-        let chain: Vec<String> = e.chain().map(|c| c.to_string()).collect();
-        let line = chain.join(": ");
-        eprintln!(
-            "error: {}",
-            line.split_whitespace().collect::<Vec<_>>().join(" ")
-        );
-        std::process::exit(1);
+    match run(cli) {
+        Ok(code) => std::process::exit(code),
+        Err(e) => {
+            // One line: the error and its causes.
+            let chain: Vec<String> = e.chain().map(|c| c.to_string()).collect();
+            let line = chain.join(": ");
+            eprintln!(
+                "error: {}",
+                line.split_whitespace().collect::<Vec<_>>().join(" ")
+            );
+            std::process::exit(1);
+        }
     }
 }
 
-fn run(cli: Cli) -> Result<()> {
+fn run(cli: Cli) -> Result<i32> {
     let command = cli.command.unwrap_or(Command::Simulate {
         scenario: "gait_training".into(),
         duration: None,
@@ -181,6 +190,14 @@ fn run(cli: Cli) -> Result<()> {
         },
     });
     match command {
+        Command::Rig { command } => rig::run(command),
+        other => run_command(other).map(|()| 0),
+    }
+}
+
+fn run_command(command: Command) -> Result<()> {
+    match command {
+        Command::Rig { command } => rig::run(command).map(|_| ()),
         Command::Simulate {
             scenario,
             duration,
@@ -248,16 +265,10 @@ fn run(cli: Cli) -> Result<()> {
 
 /// A preset name or a path to a plant TOML file.
 pub(crate) fn load_plant(name: &str) -> Result<PlantConfig> {
-    if name.ends_with(".toml") {
-        let text = std::fs::read_to_string(name)
-            .with_context(|| format!("cannot read plant file `{name}`"))?;
-        Ok(PlantConfig::from_toml_str(&text, name)?)
-    } else {
-        Ok(PlantConfig::preset(name)?)
-    }
+    Ok(PlantConfig::load(name)?)
 }
 
-fn load_gains(kind: ControllerKind, path: Option<&Path>) -> Result<ControllerConfig> {
+pub(crate) fn load_gains(kind: ControllerKind, path: Option<&Path>) -> Result<ControllerConfig> {
     let Some(path) = path else {
         return Ok(kind.default_config());
     };
@@ -330,7 +341,7 @@ fn single(
     }
     let mut samples: Vec<Sample> = Vec::with_capacity(if csv.is_some() { spec.steps() } else { 0 });
     let (mut step, mut scalars, mut viz_error) = (0i64, [0.0; 11], None);
-    let mut record = |s: &Sample| {
+    let record = |s: &Sample| {
         step += 1;
         if csv.is_some() {
             samples.push(*s);
@@ -349,12 +360,7 @@ fn single(
             }
         }
     };
-    let observe: Option<&mut dyn FnMut(&Sample)> = if csv.is_some() || sink != &pma_viz::Sink::Off {
-        Some(&mut record)
-    } else {
-        None
-    };
-    let res = run_single(&config, &plant_cfg, r.as_ref(), &spec, observe)?;
+    let res = run_single(&config, &plant_cfg, r.as_ref(), &spec, &mut Samples(record))?;
     if let Some(e) = viz_error {
         return Err(e.into());
     }

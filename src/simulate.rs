@@ -1,6 +1,7 @@
 //! `pma-exo simulate`: the gait-training simulation of the exoskeleton leg.
 use anyhow::{bail, Context, Result};
-use pma_leg::{LegReport, LegSample, LegSim, Scenario};
+use pma_leg::{LegOutput, LegPlant, LegReport, LegSample, LegSim, Scenario};
+use pma_loop::{FnRecorder, Period};
 use std::io::{IsTerminal, Write};
 use std::path::Path;
 
@@ -36,34 +37,31 @@ pub fn run(
     }
     let mut samples: Vec<LegSample> = Vec::with_capacity(if csv.is_some() { steps } else { 0 });
     let (mut step, mut scalars, mut viz_error) = (0i64, [0.0; pma_exo::viz::LEG_SCALARS], None);
-    let mut record = |sim: &LegSim, s: &LegSample| {
+    let show_progress = duration > 5.0 && std::io::stderr().is_terminal();
+    let every = (steps / 100).max(1);
+    let mut record = FnRecorder(|p: &Period<'_, LegPlant, LegOutput>| {
         step += 1;
+        let s = LegSample::of(p);
         if csv.is_some() {
-            samples.push(*s);
+            samples.push(s);
         }
         if let Some(v) = viz.as_mut() {
-            if let Err(e) = pma_exo::viz::push_leg(v, sim, s, step, &mut scalars) {
+            if let Err(e) = pma_exo::viz::push_leg(v, p.backend, &s, step, &mut scalars) {
                 viz_error.get_or_insert(e);
             }
         }
-    };
-    let observe: Option<pma_leg::sim::Observer> = if csv.is_some() || sink != &pma_viz::Sink::Off {
-        Some(&mut record)
-    } else {
-        None
-    };
-    let show_progress = duration > 5.0 && std::io::stderr().is_terminal();
-    let mut bar = |f: f64| {
-        let done = (f * 40.0).round() as usize;
-        eprint!(
-            "\r[{}{}] {:3.0} %",
-            "=".repeat(done),
-            " ".repeat(40 - done.min(40)),
-            f * 100.0
-        );
-    };
-    let progress: Option<&mut dyn FnMut(f64)> = if show_progress { Some(&mut bar) } else { None };
-    let report = sim.run(duration, observe, progress)?;
+        if show_progress && (step as usize).is_multiple_of(every) {
+            let f = step as f64 / steps as f64;
+            let done = (f * 40.0).round() as usize;
+            eprint!(
+                "\r[{}{}] {:3.0} %",
+                "=".repeat(done),
+                " ".repeat(40 - done.min(40)),
+                f * 100.0
+            );
+        }
+    });
+    let report = sim.run(duration, &mut record)?;
     if let Some(e) = viz_error {
         return Err(e);
     }

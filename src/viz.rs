@@ -1,7 +1,7 @@
 //! Glue between the runs and `pma-viz`: the layout (entity paths, legends, colours) of the
 //! bench and of the leg, and the mapping of their samples onto frames.
 use anyhow::Result;
-use pma_leg::{LegSample, LegSim, VisualShape};
+use pma_leg::{LegPlant, LegSample, LegSim, VisualShape};
 use pma_sim::Sample;
 use pma_viz::{Frame, Shape, Sink, Viz};
 
@@ -190,7 +190,7 @@ pub fn leg_scalars(s: &LegSample, out: &mut [f64; LEG_SCALARS]) {
 /// Logs one leg period (layout of [`leg_layout`]).
 pub fn push_leg(
     viz: &mut Viz,
-    sim: &LegSim,
+    plant: &LegPlant,
     s: &LegSample,
     step: i64,
     scalars: &mut [f64; LEG_SCALARS],
@@ -200,11 +200,11 @@ pub fn push_leg(
     }
     leg_scalars(s, scalars);
     let poses = [
-        sim.leg().link_pose(0),
-        sim.leg().link_pose(1),
-        sim.leg().link_pose(2),
+        plant.leg().link_pose(0),
+        plant.leg().link_pose(1),
+        plant.leg().link_pose(2),
     ];
-    let seg = sim.muscle_segments();
+    let seg = plant.muscle_segments();
     let lines: [([f64; 3], [f64; 3], f64); 4] =
         std::array::from_fn(|i| (seg[i].0, seg[i].1, s.pressure_pa[i]));
     viz.push(&Frame {

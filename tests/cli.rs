@@ -60,7 +60,7 @@ fn single_prints_the_metrics_as_json() {
             duration_s: 2.0,
             ..Default::default()
         },
-        None,
+        &mut (),
     )
     .unwrap();
     assert_eq!(v["iae_m"].as_f64().unwrap(), lib.stats.iae_m);

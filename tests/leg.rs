@@ -1,12 +1,13 @@
 //! The exoskeleton leg through the public API: gait tracking, co-contraction over a long
 //! run, energy and static equilibrium against hand calculations, bad input.
 use pma_leg::config::EMBEDDED_URDF;
-use pma_leg::{LegReport, LegSim, Scenario, Side};
+use pma_leg::{LegOutput, LegPlant, LegReport, LegSample, LegSim, Scenario, Side};
+use pma_loop::{FnRecorder, Period};
 
 fn run(name: &str, duration_s: f64) -> LegReport {
     let loaded = Scenario::load(name).expect("scenario");
     let mut sim = LegSim::new(&loaded).expect("sim");
-    sim.run(duration_s, None, None).expect("run")
+    sim.run(duration_s, &mut ()).expect("run")
 }
 
 const TEN_STRIDES_S: f64 = 16.0;
@@ -100,13 +101,13 @@ fn passive_leg_with_vented_muscles_conserves_energy() {
 /// `p_mean`, from eq. (1) at rest: F = (f0 - k0 x) + (f1 - k1 x) p on each side and
 /// r (F_flexor - F_extensor) + gravity = 0.
 fn hand_pressures(
-    f: &pma_leg::sim::MuscleActuator,
-    e: &pma_leg::sim::MuscleActuator,
+    f: &pma_leg::MuscleActuator,
+    e: &pma_leg::MuscleActuator,
     q: f64,
     gravity_nm: f64,
     p_mean: f64,
 ) -> (f64, f64) {
-    let coeff = |m: &pma_leg::sim::MuscleActuator| {
+    let coeff = |m: &pma_leg::MuscleActuator| {
         let x = m.geometry.contraction(q);
         let p = &m.params;
         (
@@ -130,13 +131,13 @@ fn static_pose_is_held_at_the_hand_computed_equilibrium_pressures() {
     let mut last = Vec::new();
     // 20 s: the co-contraction loop and the slow pole of the sliding surface (c2/c1 ~ 1/s)
     // settle in ~10 s; the last second is averaged.
-    let settle = 20_000;
-    for k in 0..settle + 1000 {
-        let s = sim.step();
-        if k >= settle {
-            last.push(s);
+    let settle_s = 20.0;
+    let mut keep = FnRecorder(|p: &Period<'_, LegPlant, LegOutput>| {
+        if p.t_s > settle_s {
+            last.push(LegSample::of(p));
         }
-    }
+    });
+    sim.run(settle_s + 1.0, &mut keep).unwrap();
     let n = last.len() as f64;
     let mean_p = |i: usize| last.iter().map(|s| s.pressure_pa[i]).sum::<f64>() / n;
     let q = [
@@ -243,6 +244,16 @@ fn bad_scenarios_and_urdfs_are_named_in_one_line() {
     let e = load_err(&text, &[("muscles.toml", &muscles)]);
     one_line(&e);
     assert!(e.contains("femur") && e.contains("hip_flexor"), "{e}");
+    // Regression (first-hour defect 8): a duplicated muscle name was silently merged.
+    let muscles = include_str!("../models/muscles.toml").replacen(
+        "name = \"knee_flexor\"",
+        "name = \"hip_flexor\"",
+        1,
+    );
+    let text = format!("muscle_geometry = \"muscles.toml\"\n{}", scenario_text());
+    let e = load_err(&text, &[("muscles.toml", &muscles)]);
+    one_line(&e);
+    assert!(e.contains("hip_flexor") && e.contains("twice"), "{e}");
     // Malformed XML.
     let text = format!("urdf = \"leg.urdf\"\n{}", scenario_text());
     let e = load_err(

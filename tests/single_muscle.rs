@@ -3,7 +3,7 @@ use pma_control::{
     AprcGains, ChirpReference, ControllerConfig, ControllerKind, Reference, SineReference,
 };
 use pma_model::GRAVITY_M_S2;
-use pma_sim::{run_single, MuscleBench, Plant, PlantConfig, RunSpec, Sample, PRESET_NAMES};
+use pma_sim::{run_single, MuscleBench, PlantConfig, RunSpec, Sample, Samples, PRESET_NAMES};
 
 fn sine_run(kind_cfg: &ControllerConfig, plant: &str) -> pma_sim::RunResult {
     let plant = PlantConfig::preset(plant).expect("preset");
@@ -12,7 +12,7 @@ fn sine_run(kind_cfg: &ControllerConfig, plant: &str) -> pma_sim::RunResult {
         &plant,
         &SineReference::paper(),
         &RunSpec::default(),
-        None,
+        &mut (),
     )
     .expect("run")
 }
@@ -89,7 +89,7 @@ fn a_known_valve_lag_is_compensated() {
         &plant,
         &SineReference::paper(),
         &RunSpec::default(),
-        Some(&mut |s: &Sample| {
+        &mut Samples(|s: &Sample| {
             if !(0.0..=plant.valve.pressure_max_pa).contains(&s.pressure_cmd_pa) {
                 out_of_range += 1;
             }
@@ -163,7 +163,7 @@ fn closed_loop_converges_under_plant_step_refinement() {
             &p,
             &SineReference::paper(),
             &RunSpec::default(),
-            Some(&mut |s: &Sample| xs.push(s.position_m)),
+            &mut Samples(|s: &Sample| xs.push(s.position_m)),
         )
         .unwrap();
         xs
@@ -184,7 +184,7 @@ fn sine_samples_after_startup(cfg: ControllerConfig, plant: &str) -> Vec<Sample>
         &plant,
         &SineReference::paper(),
         &RunSpec::default(),
-        Some(&mut |s: &Sample| {
+        &mut Samples(|s: &Sample| {
             if s.t_s > 4.0 {
                 samples.push(*s);
             }
@@ -290,7 +290,7 @@ fn every_controller_runs_on_every_plant_without_nan() {
                     &cfg,
                     r,
                     &RunSpec::default(),
-                    Some(&mut |s: &Sample| {
+                    &mut Samples(|s: &Sample| {
                         let d = s.diagnostics;
                         let states = [
                             d.proxy_position_m,
@@ -360,7 +360,7 @@ fn a_plant_in_equilibrium_stays_there_under_the_controller() {
             duration_s: 5.0,
             ..RunSpec::default()
         },
-        None,
+        &mut (),
     )
     .unwrap();
     assert!(r.stats.mae_m < 1e-9, "MAE {}", r.stats.mae_m);

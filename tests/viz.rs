@@ -1,6 +1,7 @@
 //! The Rerun layer: what a recording holds, decoded back in Rust from an in-memory sink.
 use pma_exo::viz::{self, LEG_SCALARS, MUSCLE_SERIES};
-use pma_leg::{LegSample, LegSim, Scenario};
+use pma_leg::{LegOutput, LegPlant, LegSample, LegSim, Scenario};
+use pma_loop::{FnRecorder, Period};
 use pma_viz::Viz;
 use rerun::log::{Chunk, LogMsg};
 use std::collections::BTreeMap;
@@ -87,13 +88,14 @@ fn logged_leg_run(duration_s: f64, rate_hz: Option<f64>) -> LoggedRun {
     let every = v.decimation();
     let (mut samples, mut shank_translations) = (Vec::new(), Vec::new());
     let (mut step, mut scalars) = (0i64, [0.0; LEG_SCALARS]);
-    let mut observe = |sim: &LegSim, s: &LegSample| {
+    let mut observe = FnRecorder(|p: &Period<'_, LegPlant, LegOutput>| {
         step += 1;
-        samples.push(*s);
-        shank_translations.push(sim.leg().link_pose(2).0);
-        viz::push_leg(&mut v, sim, s, step, &mut scalars).unwrap();
-    };
-    let report = sim.run(duration_s, Some(&mut observe), None).unwrap();
+        let s = LegSample::of(p);
+        samples.push(s);
+        shank_translations.push(p.backend.leg().link_pose(2).0);
+        viz::push_leg(&mut v, p.backend, &s, step, &mut scalars).unwrap();
+    });
+    let report = sim.run(duration_s, &mut observe).unwrap();
     v.finish().unwrap();
     let msgs = storage.take();
     let (series, rows) = decode(&msgs);

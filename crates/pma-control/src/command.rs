@@ -12,6 +12,10 @@ pub(crate) struct CommandState {
     pub pressure_hat: f64,
     pub mode: DampingMode,
     pub saturation: Saturation,
+    /// The state before the last command, to redo it with what was actually applied.
+    before: (f64, f64, DampingMode),
+    /// The nominal valve's fraction per period used by the last command.
+    alpha: f64,
 }
 
 impl CommandState {
@@ -27,7 +31,34 @@ impl CommandState {
             pressure_hat: u,
             mode: DampingMode::Inflation,
             saturation: Saturation::None,
+            before: (u, u, DampingMode::Inflation),
+            alpha: 1.0,
         }
+    }
+
+    /// The actuator got `applied` instead of the last command (a supervisor clamped or
+    /// rate-limited it): the last command is redone with it, and the difference counts as
+    /// a saturation in its direction, so that integrators and adaptive gains do not wind
+    /// up against a limit they cannot see. Nothing changes when `applied` is the command.
+    pub fn applied(&mut self, applied: f64) {
+        if applied.to_bits() == self.u_prev.to_bits() {
+            return;
+        }
+        let applied = if applied.is_nan() { 0.0 } else { applied };
+        let (_, p_before, mode_before) = self.before;
+        let p_next = if self.alpha >= 1.0 {
+            applied
+        } else {
+            p_before + self.alpha * (applied - p_before)
+        };
+        self.saturation = if applied < self.u_prev {
+            Saturation::High
+        } else {
+            Saturation::Low
+        };
+        self.mode = mode_before.after_change(p_next - p_before);
+        self.u_prev = applied;
+        self.pressure_hat = p_next;
     }
 
     /// Inverts the nominal model for a desired acceleration: the pressure `u` with
@@ -91,6 +122,8 @@ impl CommandState {
         if alpha >= 1.0 {
             return self.apply(limits, wanted);
         }
+        self.before = (self.u_prev, self.pressure_hat, self.mode);
+        self.alpha = alpha;
         let p = self.pressure_hat;
         let (u, sat) = limits.clamp(p + (wanted - p) / alpha);
         let p_next = p + alpha * (u - p);
@@ -103,6 +136,8 @@ impl CommandState {
 
     /// Clamps the raw command, records saturation and damping mode, returns the command.
     pub fn apply(&mut self, limits: &CommandLimits, raw: f64) -> f64 {
+        self.before = (self.u_prev, self.pressure_hat, self.mode);
+        self.alpha = 1.0;
         let (u, sat) = limits.clamp(raw);
         self.saturation = sat;
         self.mode = self.mode.after_change(u - self.u_prev);
@@ -174,5 +209,27 @@ mod tests {
             );
             assert_eq!(a.pressure_hat, b.u_prev);
         }
+    }
+
+    #[test]
+    fn a_command_the_supervisor_limited_is_remembered_as_applied() {
+        let model = NominalModel::paper();
+        let mut c = CommandState::at_rest(&model, &limits(), 0.01);
+        let before = c;
+        let u = c.apply(&limits(), before.u_prev + 2.0e5);
+        assert_eq!(c.saturation, Saturation::None);
+        // The valve got only half of the step: the state is as if that had been commanded,
+        // and the cut counts as a saturation upwards.
+        let applied = before.u_prev + 1.0e5;
+        c.applied(applied);
+        assert_eq!(c.u_prev, applied);
+        assert_eq!(c.pressure_hat, applied);
+        assert_eq!(c.saturation, Saturation::High);
+        // Nothing changes when the valve got the command itself.
+        let mut d = CommandState::at_rest(&model, &limits(), 0.01);
+        let u2 = d.apply(&limits(), u);
+        let snapshot = (d.u_prev, d.pressure_hat, d.saturation);
+        d.applied(u2);
+        assert_eq!(snapshot, (d.u_prev, d.pressure_hat, d.saturation));
     }
 }

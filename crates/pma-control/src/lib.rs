@@ -172,4 +172,9 @@ pub trait Controller: Send {
         measurement: &Measurement,
         dt_s: f64,
     ) -> ControlOutput;
+    /// The actuator got `applied_pa` for the last command (after a safety supervisor's
+    /// clamp or rate limit). A controller that remembers its command (for its observer,
+    /// its damping mode or its anti-windup) must remember this one instead; when it is
+    /// the command itself, nothing changes.
+    fn applied(&mut self, applied_pa: f64);
 }

@@ -72,6 +72,10 @@ impl Controller for NdoSmc {
         self.cmd = CommandState::at_rest(&self.model, &self.limits, measurement.position_m);
     }
 
+    fn applied(&mut self, applied_pa: f64) {
+        self.cmd.applied(applied_pa);
+    }
+
     fn update(&mut self, r: &RefSample, m: &Measurement, dt: f64) -> ControlOutput {
         self.observer.update(m.position_m, dt);
         let (x, v, a) = self.observer.state();

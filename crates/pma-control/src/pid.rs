@@ -69,6 +69,10 @@ impl Controller for Pid {
         };
     }
 
+    fn applied(&mut self, applied_pa: f64) {
+        self.cmd.applied(applied_pa);
+    }
+
     fn update(&mut self, r: &RefSample, m: &Measurement, dt: f64) -> ControlOutput {
         self.observer.update(m.position_m, dt);
         let (x, v) = (self.observer.position(), self.observer.velocity());

@@ -62,7 +62,13 @@ pub struct MuscleGeometry {
 impl MuscleGeometry {
     /// Contraction (m) at joint angle `theta_rad`.
     pub fn contraction(&self, theta_rad: f64) -> f64 {
-        self.contraction_at_zero_m + self.side.sign() * self.pulley_radius_m * theta_rad
+        self.contraction_at_zero_m + self.moment_arm_m() * theta_rad
+    }
+
+    /// Signed moment arm (m): contraction per radian of flexion, `+r` for a flexor and
+    /// `-r` for an extensor.
+    pub fn moment_arm_m(&self) -> f64 {
+        self.side.sign() * self.pulley_radius_m
     }
 }
 
@@ -78,7 +84,13 @@ pub fn parse_muscles(text: &str, file: &str) -> Result<Vec<MuscleGeometry>, LegE
         file: file.to_owned(),
         message: one_line(&e.to_string()),
     })?;
-    for m in &f.muscles {
+    for (i, m) in f.muscles.iter().enumerate() {
+        if f.muscles[..i].iter().any(|o| o.name == m.name) {
+            return Err(LegError::Muscle {
+                muscle: m.name.clone(),
+                message: format!("appears twice in `{file}`: muscle names must be unique"),
+            });
+        }
         finite_positive(&format!("{}.pulley_radius_m", m.name), m.pulley_radius_m)?;
         if !m.contraction_at_zero_m.is_finite() || m.anchor_m.iter().any(|v| !v.is_finite()) {
             return Err(LegError::Muscle {

@@ -54,6 +54,9 @@ pub enum LegError {
     /// A gait parameter is invalid.
     #[error(transparent)]
     Gait(#[from] pma_sim::SimError),
+    /// The run's duration or period is invalid.
+    #[error(transparent)]
+    Settings(#[from] pma_loop::SettingsError),
 }
 
 pub(crate) fn one_line(s: &str) -> String {

@@ -375,7 +375,12 @@ impl Leg {
         }
     }
 
-    /// Physics step (s).
+    /// Physics substeps per period.
+    pub fn substeps(&self) -> u32 {
+        self.substeps
+    }
+
+    /// Length of one physics substep (s).
     pub fn substep_s(&self) -> f64 {
         f64::from(self.world.integration_parameters.dt)
     }

@@ -5,12 +5,18 @@
 #![warn(missing_docs)]
 
 pub mod config;
+pub mod control;
 mod error;
 pub mod leg;
+pub mod metrics;
+pub mod plant;
 pub mod sim;
 pub mod tune;
 
 pub use config::{LoadedScenario, MuscleGeometry, Scenario, Side};
+pub use control::{LegControllers, LegOutput};
 pub use error::LegError;
 pub use leg::{Leg, LegInertia, VisualShape};
-pub use sim::{LegReport, LegSample, LegSim, MuscleActuator};
+pub use metrics::{JointStats, LegMetrics, LegReport, MuscleStats};
+pub use plant::{LegPlant, LegState, MuscleActuator};
+pub use sim::{balanced_pressures, LegSample, LegSim};

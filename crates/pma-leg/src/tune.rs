@@ -17,7 +17,7 @@ pub fn objective(loaded: &LoadedScenario, gains: AprcGains, duration_s: f64) -> 
     l.scenario.control.gains = gains;
     let run = || -> Option<f64> {
         let mut sim = LegSim::new(&l).ok()?;
-        let r = sim.run(duration_s, None, None).ok()?;
+        let r = sim.run(duration_s, &mut ()).ok()?;
         let j = |n: &str| r.joints.get(n).map(|s| s.rms_deg);
         let v =
             j("hip")? + j("knee")? + VARIATION_WEIGHT_DEG_PER_BAR_S * r.command_variation_bar_per_s;

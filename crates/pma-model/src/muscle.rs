@@ -138,6 +138,16 @@ impl MuscleParams {
         }
         Some((load_n - self.f0_n + self.k0_n_per_m * x_m) / gain)
     }
+
+    /// Contraction (m) at which the muscle at pressure `pressure_pa` holds `load_n` at
+    /// rest: `F(P, x, 0) = load` solved for `x`; `None` if the stiffness vanishes.
+    pub fn static_contraction_for(&self, load_n: f64, pressure_pa: f64) -> Option<f64> {
+        let stiffness = self.stiffness(pressure_pa);
+        if stiffness.abs() < f64::EPSILON {
+            return None;
+        }
+        Some((self.contractile_force(pressure_pa) - load_n) / stiffness)
+    }
 }
 
 impl Default for MuscleParams {
@@ -158,6 +168,16 @@ mod tests {
         let p30 = m.static_pressure_for(w, 0.030).unwrap();
         assert!((0.25e5..0.35e5).contains(&p0), "p(0 mm) = {p0}");
         assert!((1.0e5..1.2e5).contains(&p30), "p(30 mm) = {p30}");
+    }
+
+    #[test]
+    fn static_contraction_inverts_static_pressure() {
+        let m = MuscleParams::TABLE_I;
+        for &x in &[-0.012, 0.0, 0.02] {
+            let p = m.static_pressure_for(20.0, x).unwrap();
+            let back = m.static_contraction_for(20.0, p).unwrap();
+            assert!((back - x).abs() < 1e-12, "{x} -> {p} Pa -> {back}");
+        }
     }
 
     #[test]

@@ -1,23 +1,20 @@
 use crate::{PlantConfig, SimError};
 use pma_control::Measurement;
+use pma_loop::{Backend, Started};
 use pma_model::{LoadProfile, MuscleParams, PositionSensor, Valve, GRAVITY_M_S2};
+use std::convert::Infallible;
 
-/// Anything the closed loop can drive: it takes a pressure command held for `dt` and
-/// returns sensor readings. Implemented by the single-muscle bench here; the leg and the
-/// rig implement the same contract.
-pub trait Plant {
-    /// Sensor reading at the current time.
-    fn measure(&mut self) -> Measurement;
-    /// Sends a pressure command and advances the plant by `dt_s` with it held.
-    fn apply(&mut self, pressure_cmd_pa: f64, dt_s: f64);
+/// The bench's true state at a reading: what the sensor does not tell the controller.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BenchState {
     /// True contraction (m).
-    fn position(&self) -> f64;
-    /// True pressure in the muscle (Pa).
-    fn pressure(&self) -> f64;
-    /// Plant time (s).
-    fn time(&self) -> f64;
+    pub position_m: f64,
+    /// True velocity (m/s).
+    pub velocity_m_s: f64,
+    /// Pressure in the muscle (Pa).
+    pub pressure_pa: f64,
     /// Muscle force (N).
-    fn force(&self) -> f64;
+    pub force_n: f64,
 }
 
 /// One muscle holding a hanging load (the paper's Fig. 3 rig):
@@ -63,6 +60,22 @@ impl MuscleBench {
             v: 0.0,
             t: 0.0,
         })
+    }
+
+    /// A bench at rest with the muscle vented: the load hangs where the unpressurised
+    /// muscle holds it (a rig before its valve goes live).
+    pub fn vented(cfg: &PlantConfig) -> Result<Self, SimError> {
+        let w = cfg.load.mass_at(0.0) * GRAVITY_M_S2;
+        let x0 = cfg
+            .true_muscle()
+            .static_contraction_for(w, 0.0)
+            .unwrap_or(0.0);
+        let mut bench = Self::at_rest(cfg, x0)?;
+        bench.valve = Valve::new(cfg.valve, 0.0).map_err(|source| SimError::Model {
+            plant: cfg.name.clone(),
+            source,
+        })?;
+        Ok(bench)
     }
 
     /// Overrides the substep count (for convergence studies).
@@ -114,36 +127,101 @@ impl MuscleBench {
     }
 }
 
-impl Plant for MuscleBench {
-    fn measure(&mut self) -> Measurement {
+impl MuscleBench {
+    /// Sensor reading at the current time (draws the sensor's noise).
+    pub fn measure(&mut self) -> Measurement {
         Measurement {
             position_m: self.sensor.measure(self.x),
         }
     }
 
-    fn apply(&mut self, pressure_cmd_pa: f64, dt_s: f64) {
+    /// Sends a pressure command and advances the bench by `dt_s` with it held (open-loop
+    /// use; the closed loop goes through [`Backend`]).
+    pub fn apply(&mut self, pressure_cmd_pa: f64, dt_s: f64) {
         self.valve.command(pressure_cmd_pa);
+        self.advance(dt_s);
+    }
+
+    /// Sends a pressure command to the valve (clamped to its range; NaN vents).
+    pub fn command(&mut self, pressure_cmd_pa: f64) {
+        self.valve.command(pressure_cmd_pa);
+    }
+
+    /// Advances the bench by `dt_s` with the current command held.
+    pub fn advance(&mut self, dt_s: f64) {
         let h = dt_s / f64::from(self.substeps);
         for _ in 0..self.substeps {
             self.substep(h);
         }
     }
 
-    fn position(&self) -> f64 {
+    /// True contraction (m).
+    pub fn position(&self) -> f64 {
         self.x
     }
 
-    fn pressure(&self) -> f64 {
+    /// True pressure in the muscle (Pa).
+    pub fn pressure(&self) -> f64 {
         self.valve.pressure()
     }
 
-    fn time(&self) -> f64 {
+    /// Bench time (s).
+    pub fn time(&self) -> f64 {
         self.t
     }
 
-    fn force(&self) -> f64 {
-        self.muscle
-            .force(self.valve.pressure(), self.x, self.v, self.valve.mode())
+    /// The true state.
+    pub fn state(&self) -> BenchState {
+        BenchState {
+            position_m: self.x,
+            velocity_m_s: self.v,
+            pressure_pa: self.valve.pressure(),
+            force_n: self.force(),
+        }
+    }
+}
+
+/// The bench in the closed loop: the valve takes the command at once (its own lag and
+/// dead time apply), `wait` integrates the period, nothing can fail.
+impl Backend for MuscleBench {
+    type Reading = Measurement;
+    type Command = f64;
+    type Truth = BenchState;
+    type Error = Infallible;
+
+    /// The valve holds the pressure that balances the load where the bench was put.
+    fn start(&mut self) -> Result<Started<Measurement, f64>, Infallible> {
+        let reading = self.measure();
+        let p0 = self.valve.pressure();
+        self.valve.command(p0);
+        Ok(Started {
+            t_s: self.t,
+            reading,
+            command: p0,
+        })
+    }
+
+    fn wait(&mut self, period_s: f64) -> Result<u32, Infallible> {
+        self.advance(period_s);
+        Ok(1)
+    }
+
+    fn read(&mut self) -> Result<Measurement, Infallible> {
+        Ok(self.measure())
+    }
+
+    fn write(&mut self, pressure_cmd_pa: &f64) -> Result<f64, Infallible> {
+        self.valve.command(*pressure_cmd_pa);
+        Ok(self.valve.params().clamp(*pressure_cmd_pa))
+    }
+
+    fn truth(&self) -> BenchState {
+        self.state()
+    }
+
+    /// Vents the muscle.
+    fn stop(&mut self) {
+        self.valve.command(0.0);
     }
 }
 

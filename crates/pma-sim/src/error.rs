@@ -18,6 +18,14 @@ pub enum SimError {
     /// No preset of that name.
     #[error("unknown plant `{0}` (expected one of: ideal, mismatch, realistic, realistic_known_lag, or a .toml file)")]
     UnknownPlant(String),
+    /// A file could not be read.
+    #[error("cannot read `{path}`: {message}")]
+    Io {
+        /// Path.
+        path: String,
+        /// OS message.
+        message: String,
+    },
     /// A plant file could not be parsed.
     #[error("plant file `{file}`: {message}")]
     Parse {
@@ -26,6 +34,9 @@ pub enum SimError {
         /// Parser message.
         message: String,
     },
+    /// The run's duration or period is invalid.
+    #[error(transparent)]
+    Settings(#[from] pma_loop::SettingsError),
     /// A run parameter is invalid.
     #[error("{name} = {value} is invalid: {expected}")]
     InvalidRun {

@@ -5,7 +5,7 @@
 //! describe exactly). Rows are plain serialisable structs; [`Series`] keep a decimated
 //! time series of each run for plotting.
 
-use crate::{run_single, PlantConfig, RunSpec, Sample, SimError};
+use crate::{run_single, PlantConfig, RunSpec, Sample, Samples, SimError};
 use pma_control::{AprcGains, ChirpReference, ControllerConfig, Reference, SineReference};
 use serde::Serialize;
 
@@ -48,7 +48,7 @@ fn run_recorded(
         }
         k += 1;
     };
-    let res = run_single(config, plant, reference, spec, Some(&mut observe))?;
+    let res = run_single(config, plant, reference, spec, &mut Samples(&mut observe))?;
     Ok((res, series))
 }
 
@@ -251,7 +251,7 @@ pub fn load_step(
         plant,
         &SineReference::paper(),
         spec,
-        Some(&mut |smp: &Sample| unloaded.push(smp.position_m)),
+        &mut Samples(|smp: &Sample| unloaded.push(smp.position_m)),
     )?;
     for extra in LOAD_STEPS_KG {
         let mut p = plant.clone();

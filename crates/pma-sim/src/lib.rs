@@ -8,7 +8,7 @@
 //! let plant = PlantConfig::preset("ideal").unwrap();
 //! let spec = RunSpec { duration_s: 2.0, ..RunSpec::default() };
 //! let res = run_single(&ControllerKind::AprcNdo.default_config(), &plant,
-//!                      &SineReference::paper(), &spec, None).unwrap();
+//!                      &SineReference::paper(), &spec, &mut ()).unwrap();
 //! assert!(res.stats.rte_percent < 1.0);
 //! ```
 #![warn(missing_docs)]
@@ -21,7 +21,7 @@ mod plant;
 mod run;
 pub mod tune;
 
-pub use bench::{MuscleBench, Plant};
+pub use bench::{BenchState, MuscleBench};
 pub use error::SimError;
 pub use plant::{MuscleScale, NominalSpec, PlantConfig, PRESET_NAMES};
-pub use run::{run_single, RunResult, RunSpec, Sample};
+pub use run::{run_single, RunResult, RunSpec, Sample, Samples};

@@ -141,6 +141,18 @@ impl PlantConfig {
         Self::from_toml_str(text, name)
     }
 
+    /// A preset name, or a path ending in `.toml`.
+    pub fn load(name_or_path: &str) -> Result<Self, SimError> {
+        if !name_or_path.ends_with(".toml") {
+            return Self::preset(name_or_path);
+        }
+        let text = std::fs::read_to_string(name_or_path).map_err(|e| SimError::Io {
+            path: name_or_path.to_owned(),
+            message: e.to_string(),
+        })?;
+        Self::from_toml_str(&text, name_or_path)
+    }
+
     /// Parses and validates a plant file; `file` names it in errors.
     pub fn from_toml_str(text: &str, file: &str) -> Result<Self, SimError> {
         let cfg: PlantConfig = toml::from_str(text).map_err(|e| SimError::Parse {

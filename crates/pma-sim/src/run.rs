@@ -1,9 +1,8 @@
-use crate::{MuscleBench, Plant, PlantConfig, SimError};
+use crate::{BenchState, MuscleBench, PlantConfig, SimError};
 use pma_control::{
-    build_controller, CommandLimits, Controller, ControllerConfig, Diagnostics, Metrics, Reference,
-    TrackingStats,
+    build_controller, CommandLimits, ControllerConfig, Diagnostics, Reference, TrackingStats,
 };
-use std::time::Instant;
+use pma_loop::{LoopSettings, MuscleStep, MuscleTask, Period, Recorder, Start, TrackingMetrics};
 
 /// Duration and period of a closed-loop run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -29,18 +28,10 @@ impl Default for RunSpec {
 }
 
 impl RunSpec {
-    /// Rejects non-finite or non-positive durations and periods.
-    pub fn validate(&self) -> Result<(), SimError> {
-        for (name, value) in [("duration_s", self.duration_s), ("period_s", self.period_s)] {
-            if !(value.is_finite() && value > 0.0) {
-                return Err(SimError::InvalidRun {
-                    name,
-                    value,
-                    expected: "must be a finite number > 0",
-                });
-            }
-        }
-        Ok(())
+    /// The loop settings: rejects non-finite or non-positive durations and periods, and
+    /// runs shorter than one period.
+    pub fn settings(&self) -> Result<LoopSettings<'static>, SimError> {
+        Ok(LoopSettings::new(self.period_s, self.duration_s)?)
     }
 
     /// Number of control periods.
@@ -49,7 +40,7 @@ impl RunSpec {
     }
 }
 
-/// One logged control period.
+/// One logged control period of the bench.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
     /// Time (s).
@@ -62,12 +53,54 @@ pub struct Sample {
     pub measured_m: f64,
     /// Command (Pa).
     pub pressure_cmd_pa: f64,
-    /// True pressure after the period (Pa).
+    /// True pressure at the reading (Pa).
     pub pressure_pa: f64,
-    /// Muscle force after the period (N).
+    /// Muscle force at the reading (N).
     pub force_n: f64,
     /// Controller states.
     pub diagnostics: Diagnostics,
+}
+
+impl Sample {
+    /// The bench's view of one loop period.
+    pub fn of(p: &Period<'_, MuscleBench, MuscleStep>) -> Self {
+        let s: &BenchState = p.truth;
+        Sample {
+            t_s: p.t_s,
+            reference_m: p.output.reference.position_m,
+            position_m: s.position_m,
+            measured_m: p.reading.position_m,
+            pressure_cmd_pa: p.output.control.pressure_cmd_pa,
+            pressure_pa: s.pressure_pa,
+            force_n: s.force_n,
+            diagnostics: p.output.control.diagnostics,
+        }
+    }
+}
+
+/// A recorder that hands every period to a closure as a [`Sample`].
+pub struct Samples<F>(pub F);
+
+impl<F: FnMut(&Sample)> Recorder<MuscleBench, MuscleStep> for Samples<F> {
+    fn record(&mut self, p: &Period<'_, MuscleBench, MuscleStep>) {
+        (self.0)(&Sample::of(p));
+    }
+}
+
+/// Tracking metrics on the bench's *true* position.
+struct BenchMetrics(TrackingMetrics);
+
+impl Recorder<MuscleBench, MuscleStep> for BenchMetrics {
+    fn start(&mut self, s: &Start<'_, MuscleBench>) {
+        self.0 = TrackingMetrics::new(*s.held);
+    }
+    fn record(&mut self, p: &Period<'_, MuscleBench, MuscleStep>) {
+        self.0.push(
+            p.output.reference.position_m,
+            p.truth.position_m,
+            p.output.control.pressure_cmd_pa,
+        );
+    }
 }
 
 /// Outcome of a run.
@@ -89,78 +122,47 @@ pub struct RunResult {
     pub finite: bool,
 }
 
-/// Runs `controller` against `plant` for `spec`, calling `observe` each period.
+/// Builds the controller and the bench (at rest on the reference's start) and runs them
+/// through the closed loop of `pma-loop`, `recorder` observing every period (`&mut ()`
+/// for none, [`Samples`] for a closure).
 ///
-/// Order in a period: the plant advances over `[t_{k-1}, t_k]` with the held command,
-/// the sensor is read at `t_k`, the controller computes the next command. The error
+/// Order in a period: the bench advances over `[t_{k-1}, t_k]` with the held command, the
+/// sensor is read at `t_k`, the controller computes the next command. The error
 /// `x_d(t_k) - x(t_k)` uses the true position.
-pub fn run_loop(
-    controller: &mut dyn Controller,
-    plant: &mut dyn Plant,
-    reference: &dyn Reference,
-    spec: &RunSpec,
-    mut observe: Option<&mut dyn FnMut(&Sample)>,
-) -> Result<RunResult, SimError> {
-    spec.validate()?;
-    let dt = spec.period_s;
-    let t0 = plant.time();
-    controller.reset(plant.measure(), reference.sample(t0));
-    let mut u = plant.pressure();
-    let mut metrics = Metrics::new();
-    let mut x_a: f64 = 0.0;
-    let mut finite = true;
-    let mut variation = 0.0;
-    let start = Instant::now();
-    for k in 1..=spec.steps() {
-        plant.apply(u, dt);
-        let t = t0 + k as f64 * dt;
-        let meas = plant.measure();
-        let r = reference.sample(t);
-        let out = controller.update(&r, &meas, dt);
-        variation += (out.pressure_cmd_pa - u).abs();
-        u = out.pressure_cmd_pa;
-        let x = plant.position();
-        finite &= x.is_finite() && u.is_finite();
-        metrics.push(r.position_m - x);
-        x_a = x_a.max(r.position_m.abs());
-        if let Some(f) = observe.as_mut() {
-            f(&Sample {
-                t_s: t,
-                reference_m: r.position_m,
-                position_m: x,
-                measured_m: meas.position_m,
-                pressure_cmd_pa: u,
-                pressure_pa: plant.pressure(),
-                force_n: plant.force(),
-                diagnostics: out.diagnostics,
-            });
-        }
-    }
-    let wall = start.elapsed().as_secs_f64();
-    let x_a = spec.x_a_m.unwrap_or(x_a);
-    Ok(RunResult {
-        controller: controller.name(),
-        stats: metrics.finish(x_a),
-        x_a_m: x_a,
-        command_variation_pa_per_s: variation / spec.duration_s,
-        real_time_factor: spec.duration_s / wall.max(1e-12),
-        finite,
-    })
-}
-
-/// Builds the controller and the bench (at rest on the reference's start) and runs them.
-pub fn run_single(
+pub fn run_single<R: Recorder<MuscleBench, MuscleStep>>(
     config: &ControllerConfig,
     plant: &PlantConfig,
     reference: &dyn Reference,
     spec: &RunSpec,
-    observe: Option<&mut dyn FnMut(&Sample)>,
+    recorder: &mut R,
 ) -> Result<RunResult, SimError> {
+    let settings = spec.settings()?;
     let limits = CommandLimits {
         min_pa: 0.0,
         max_pa: plant.valve.pressure_max_pa,
     };
-    let mut controller = build_controller(config, plant.nominal_model(), limits)?;
+    let controller = build_controller(config, plant.nominal_model(), limits)?;
+    let name = controller.name();
     let mut bench = MuscleBench::at_rest(plant, reference.sample(0.0).position_m)?;
-    run_loop(controller.as_mut(), &mut bench, reference, spec, observe)
+    let mut task = MuscleTask::new(controller, reference);
+    let mut metrics = BenchMetrics(TrackingMetrics::new(0.0));
+    let outcome = pma_loop::run(
+        &mut bench,
+        &mut task,
+        &mut (&mut metrics, recorder),
+        &settings,
+    );
+    let outcome = match outcome.into_result() {
+        Ok(o) => o,
+        Err(never) => match never {},
+    };
+    let summary = metrics.0.summary(spec.duration_s, spec.x_a_m);
+    Ok(RunResult {
+        controller: name,
+        stats: summary.stats,
+        x_a_m: summary.x_a_m,
+        command_variation_pa_per_s: summary.command_variation_pa_per_s,
+        real_time_factor: spec.duration_s / outcome.wall_s.max(1e-12),
+        finite: summary.finite,
+    })
 }

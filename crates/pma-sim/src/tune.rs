@@ -301,7 +301,7 @@ pub fn sine_score(config: &ControllerConfig, plant: &PlantConfig, duration_s: f6
         duration_s,
         ..RunSpec::default()
     };
-    match run_single(config, plant, &SineReference::paper(), &spec, None) {
+    match run_single(config, plant, &SineReference::paper(), &spec, &mut ()) {
         Ok(r) if r.finite && r.stats.iae_m.is_finite() => Score {
             iae_m: r.stats.iae_m,
             variation_pa_per_s: r.command_variation_pa_per_s,

@@ -1,0 +1,273 @@
+//! The leg's controller set as a [`Task`] of the closed loop: one muscle controller per
+//! muscle, a co-contraction regulator per joint, and the gait reference.
+use crate::config::{MuscleGeometry, Scenario};
+use crate::error::LegError;
+use crate::leg::LegInertia;
+use crate::plant::MuscleActuator;
+use pma_control::{
+    build_controller, CommandLimits, Controller, ControllerConfig, Diagnostics, Measurement,
+    NominalModel, RefSample,
+};
+use pma_loop::Task;
+use pma_model::{DampingMode, MuscleParams};
+use pma_sim::gait::{GaitReference, GaitSample, JointSample};
+
+/// Co-contraction regulation of one joint.
+///
+/// Length control of both muscles fixes the joint angle, not the sum of their pressures;
+/// with each muscle's observer treating its antagonist as a disturbance, the common mode
+/// integrates any inconsistency between the two length references. The regulator uses
+/// exactly that: it offsets both references by `delta / 2` (an interference the geometry
+/// cannot satisfy), proportional to the error of the filtered common-mode pressure, so
+/// the common mode follows its target instead of drifting.
+#[derive(Debug, Clone, Copy)]
+struct CoContraction {
+    target_pa: f64,
+    gain_m_per_pa: f64,
+    max_m: f64,
+    filter_s: f64,
+    filtered_pa: f64,
+}
+
+impl CoContraction {
+    fn update(&mut self, common_mode_pa: f64, dt: f64) -> f64 {
+        let a = 1.0 - (-dt / self.filter_s).exp();
+        self.filtered_pa += a * (common_mode_pa - self.filtered_pa);
+        (self.gain_m_per_pa * (self.target_pa - self.filtered_pa)).clamp(-self.max_m, self.max_m)
+    }
+}
+
+/// What one muscle's controller needs of its geometry.
+#[derive(Debug, Clone, Copy)]
+struct Lever {
+    joint: usize,
+    moment_arm_m: f64,
+    contraction_at_zero_m: f64,
+}
+
+impl Lever {
+    fn of(g: &MuscleGeometry, joint: usize) -> Self {
+        Self {
+            joint,
+            moment_arm_m: g.moment_arm_m(),
+            contraction_at_zero_m: g.contraction_at_zero_m,
+        }
+    }
+
+    fn contraction(&self, angle_rad: f64) -> f64 {
+        self.contraction_at_zero_m + self.moment_arm_m * angle_rad
+    }
+
+    /// The muscle's length reference for a joint reference, offset by `delta / 2`.
+    fn reference(&self, j: &JointSample, delta_m: f64) -> RefSample {
+        RefSample {
+            position_m: self.contraction_at_zero_m
+                + self.moment_arm_m * j.angle_rad
+                + 0.5 * delta_m,
+            velocity_m_s: self.moment_arm_m * j.velocity_rad_s,
+            acceleration_m_s2: self.moment_arm_m * j.acceleration_rad_s2,
+        }
+    }
+}
+
+/// One period of the leg's controllers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LegOutput {
+    /// Reference joint angles (rad), hip and knee.
+    pub reference_rad: [f64; 2],
+    /// Muscle length references (m).
+    pub length_ref_m: [f64; 4],
+    /// Pressure commands (Pa).
+    pub pressure_cmd_pa: [f64; 4],
+    /// Controller states.
+    pub diagnostics: [Diagnostics; 4],
+}
+
+/// The four muscle controllers, two co-contraction regulators and the gait reference.
+pub struct LegControllers {
+    levers: [Lever; 4],
+    controllers: Vec<Box<dyn Controller>>,
+    cocontraction: [CoContraction; 2],
+    regulator_at_rest: CoContraction,
+    gait: GaitReference,
+    hold: Option<[f64; 2]>,
+    commands: [f64; 4],
+}
+
+fn joint(g: &GaitSample, joint: usize) -> &JointSample {
+    if joint == 0 {
+        &g.hip
+    } else {
+        &g.knee
+    }
+}
+
+impl LegControllers {
+    /// One controller of `config` per muscle. Nominal model of each muscle: Table I, a
+    /// fraction of the standing leg's joint inertia seen through the pulley (see
+    /// `ControlSettings::nominal_inertia_fraction`), and the antagonist's pull at the
+    /// co-contraction target as its static load.
+    pub(crate) fn new(
+        sc: &Scenario,
+        muscles: &[MuscleActuator],
+        inertia: &LegInertia,
+        config: &ControllerConfig,
+    ) -> Result<Self, LegError> {
+        let limits = CommandLimits {
+            min_pa: 0.0,
+            max_pa: sc.plant.valve.pressure_max_pa,
+        };
+        let joint_inertia = [inertia.hip_inertia(), inertia.knee_inertia()];
+        let mut controllers = Vec::with_capacity(4);
+        let mut levers = Vec::with_capacity(4);
+        for m in muscles {
+            let r = m.geometry.pulley_radius_m;
+            let antagonist = muscles
+                .iter()
+                .find(|o| o.joint == m.joint && o.geometry.side != m.geometry.side)
+                .ok_or_else(|| LegError::Muscle {
+                    muscle: m.geometry.name.clone(),
+                    message: "has no antagonist on its joint".into(),
+                })?;
+            let load = MuscleParams::TABLE_I.force(
+                sc.control.cocontraction_pa,
+                antagonist.geometry.contraction_at_zero_m,
+                0.0,
+                DampingMode::Inflation,
+            );
+            let model = NominalModel {
+                mass_kg: sc.control.nominal_inertia_fraction * joint_inertia[m.joint] / (r * r),
+                load_force_n: load,
+                valve_time_constant_s: sc.control.nominal_valve_time_constant_s,
+                ..NominalModel::paper()
+            };
+            controllers.push(build_controller(config, model, limits)?);
+            levers.push(Lever::of(&m.geometry, m.joint));
+        }
+        let levers: [Lever; 4] = levers
+            .try_into()
+            .map_err(|v: Vec<Lever>| LegError::Invalid {
+                name: "number of muscles".into(),
+                value: v.len() as f64,
+                expected: "must be 4: a flexor and an extensor on hip and knee",
+            })?;
+        let regulator = CoContraction {
+            target_pa: sc.control.cocontraction_pa,
+            gain_m_per_pa: sc.control.cocontraction_gain_m_per_pa,
+            max_m: sc.control.cocontraction_max_m,
+            filter_s: sc.control.cocontraction_filter_s,
+            filtered_pa: sc.control.cocontraction_pa,
+        };
+        Ok(Self {
+            levers,
+            controllers,
+            cocontraction: [regulator; 2],
+            regulator_at_rest: regulator,
+            gait: GaitReference::normative(sc.gait.speed, sc.gait.stride_period_s, sc.gait.ramp_s)?,
+            hold: None,
+            commands: [0.0; 4],
+        })
+    }
+
+    /// Replaces the gait by a constant pose (rad): the reference for a static hold.
+    pub fn hold_pose(&mut self, angles: [f64; 2]) {
+        self.hold = Some(angles);
+    }
+
+    /// The joint references at `t_s`.
+    pub fn reference(&self, t_s: f64) -> GaitSample {
+        match self.hold {
+            Some(q) => GaitSample {
+                hip: JointSample {
+                    angle_rad: q[0],
+                    ..JointSample::default()
+                },
+                knee: JointSample {
+                    angle_rad: q[1],
+                    ..JointSample::default()
+                },
+            },
+            None => self.gait.sample(t_s),
+        }
+    }
+
+    /// Mean command of each joint's pair (the common mode the regulators act on).
+    fn common_mode_pa(&self) -> [f64; 2] {
+        let mut sum = [(0.0, 0u32); 2];
+        for (lever, u) in self.levers.iter().zip(self.commands) {
+            sum[lever.joint].0 += u;
+            sum[lever.joint].1 += 1;
+        }
+        sum.map(|(s, n)| s / f64::from(n.max(1)))
+    }
+}
+
+impl Task for LegControllers {
+    type Reading = [f64; 2];
+    type Command = [f64; 4];
+    type Output = LegOutput;
+
+    /// Resets every controller on the measured pose and the first reference and acts on
+    /// that reading at once (the leg's valves get their first command at `t_0`).
+    fn start(
+        &mut self,
+        t_s: f64,
+        angles: &[f64; 2],
+        resting: &[f64; 4],
+        period_s: f64,
+    ) -> Option<LegOutput> {
+        self.commands = *resting;
+        self.cocontraction = [self.regulator_at_rest; 2];
+        let g = self.reference(t_s);
+        for (lever, c) in self.levers.iter().zip(self.controllers.iter_mut()) {
+            let measured = Measurement {
+                position_m: lever.contraction(angles[lever.joint]),
+            };
+            c.reset(measured, lever.reference(joint(&g, lever.joint), 0.0));
+        }
+        Some(self.update(t_s, angles, period_s))
+    }
+
+    fn update(&mut self, t_s: f64, angles: &[f64; 2], dt_s: f64) -> LegOutput {
+        let g = self.reference(t_s);
+        let cm = self.common_mode_pa();
+        let delta = [
+            self.cocontraction[0].update(cm[0], dt_s),
+            self.cocontraction[1].update(cm[1], dt_s),
+        ];
+        let mut out = LegOutput {
+            reference_rad: [g.hip.angle_rad, g.knee.angle_rad],
+            length_ref_m: [0.0; 4],
+            pressure_cmd_pa: [0.0; 4],
+            diagnostics: [Diagnostics::NONE; 4],
+        };
+        for (i, (lever, c)) in self
+            .levers
+            .iter()
+            .zip(self.controllers.iter_mut())
+            .enumerate()
+        {
+            let r = lever.reference(joint(&g, lever.joint), delta[lever.joint]);
+            let measured = Measurement {
+                position_m: lever.contraction(angles[lever.joint]),
+            };
+            let o = c.update(&r, &measured, dt_s);
+            out.length_ref_m[i] = r.position_m;
+            out.pressure_cmd_pa[i] = o.pressure_cmd_pa;
+            out.diagnostics[i] = o.diagnostics;
+        }
+        self.commands = out.pressure_cmd_pa;
+        out
+    }
+
+    fn command(output: &LegOutput) -> [f64; 4] {
+        output.pressure_cmd_pa
+    }
+
+    fn applied(&mut self, written: &[f64; 4]) {
+        for (c, u) in self.controllers.iter_mut().zip(written) {
+            c.applied(*u);
+        }
+        self.commands = *written;
+    }
+}

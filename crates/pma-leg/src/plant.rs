@@ -1,0 +1,265 @@
+//! The leg as a [`Backend`] of the closed loop: rapier multibody, four muscles with their
+//! valves, two joint encoders.
+use crate::config::{MuscleGeometry, Scenario};
+use crate::error::LegError;
+use crate::leg::{Leg, JOINT_NAMES};
+use pma_loop::{Backend, Started};
+use pma_model::{MuscleParams, PositionSensor, Valve};
+
+/// A muscle on the leg: geometry, the true three-element model and its valve.
+#[derive(Debug, Clone)]
+pub struct MuscleActuator {
+    /// Geometry.
+    pub geometry: MuscleGeometry,
+    /// Joint index (0 hip, 1 knee).
+    pub joint: usize,
+    /// True muscle.
+    pub params: MuscleParams,
+    pub(crate) valve: Valve,
+}
+
+impl MuscleActuator {
+    /// Contraction (m) at joint angles `q`.
+    pub fn contraction(&self, q: [f64; 2]) -> f64 {
+        self.geometry.contraction(q[self.joint])
+    }
+
+    /// Contraction rate (m/s).
+    pub fn contraction_rate(&self, qd: [f64; 2]) -> f64 {
+        self.geometry.moment_arm_m() * qd[self.joint]
+    }
+
+    /// Eq. (1) force without the slack clamp (N): negative means slack.
+    pub fn force_unclamped(&self, q: [f64; 2], qd: [f64; 2]) -> f64 {
+        self.params.force_unclamped(
+            self.valve.pressure(),
+            self.contraction(q),
+            self.contraction_rate(qd),
+            self.valve.mode(),
+        )
+    }
+
+    /// Pulling force (N).
+    pub fn force(&self, q: [f64; 2], qd: [f64; 2]) -> f64 {
+        self.force_unclamped(q, qd).max(0.0)
+    }
+
+    /// Joint torque (N m, flexion positive).
+    pub fn torque(&self, q: [f64; 2], qd: [f64; 2]) -> f64 {
+        self.geometry.moment_arm_m() * self.force(q, qd)
+    }
+
+    /// Muscle pressure (Pa).
+    pub fn pressure(&self) -> f64 {
+        self.valve.pressure()
+    }
+}
+
+/// The leg's true state at a reading.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LegState {
+    /// Joint angles (rad), hip and knee.
+    pub angle_rad: [f64; 2],
+    /// Joint velocities (rad/s).
+    pub velocity_rad_s: [f64; 2],
+    /// Muscle pressures (Pa), muscle order of the geometry file.
+    pub pressure_pa: [f64; 4],
+    /// Muscle forces (N).
+    pub force_n: [f64; 4],
+    /// Muscle contractions (m).
+    pub length_m: [f64; 4],
+    /// Time each muscle spent slack during the last period (s).
+    pub slack_s: [f64; 4],
+}
+
+/// The leg in the closed loop: reads two encoder angles, takes four pressure commands.
+pub struct LegPlant {
+    leg: Leg,
+    muscles: Vec<MuscleActuator>,
+    encoders: [PositionSensor; 2],
+    period_s: f64,
+    periods: u64,
+    slack_s: [f64; 4],
+}
+
+impl LegPlant {
+    pub(crate) fn new(
+        leg: Leg,
+        muscles: Vec<MuscleActuator>,
+        scenario: &Scenario,
+    ) -> Result<Self, LegError> {
+        Ok(Self {
+            leg,
+            muscles,
+            encoders: [
+                PositionSensor::new(scenario.plant.encoder.sensor(0))?,
+                PositionSensor::new(scenario.plant.encoder.sensor(1))?,
+            ],
+            period_s: scenario.period_s,
+            periods: 0,
+            slack_s: [0.0; 4],
+        })
+    }
+
+    /// The leg (poses, angles, energy).
+    pub fn leg(&self) -> &Leg {
+        &self.leg
+    }
+
+    /// The muscles, in the geometry file's order.
+    pub fn muscles(&self) -> &[MuscleActuator] {
+        &self.muscles
+    }
+
+    /// Time (s): whole periods since the plant was built.
+    pub fn time(&self) -> f64 {
+        self.periods as f64 * self.period_s
+    }
+
+    /// Puts the leg at `angles` with `velocities` (the valves keep their pressure).
+    pub fn set_state(&mut self, angles: [f64; 2], velocities: [f64; 2]) {
+        self.leg.set_state(angles, velocities);
+    }
+
+    /// Sets every valve to `pressures_pa` at once (a resting state).
+    pub(crate) fn set_pressures(&mut self, pressures_pa: [f64; 4]) -> Result<(), LegError> {
+        for (m, p) in self.muscles.iter_mut().zip(pressures_pa) {
+            m.valve = Valve::new(*m.valve.params(), p)?;
+        }
+        Ok(())
+    }
+
+    /// One period with the valves commanded directly (open-loop checks).
+    pub fn apply(&mut self, commands_pa: [f64; 4]) -> LegState {
+        self.command(&commands_pa);
+        self.advance();
+        self.state()
+    }
+
+    fn command(&mut self, commands_pa: &[f64; 4]) -> [f64; 4] {
+        for (m, u) in self.muscles.iter_mut().zip(commands_pa) {
+            m.valve.command(*u);
+        }
+        std::array::from_fn(|i| match self.muscles.get(i) {
+            Some(m) => m.valve.params().clamp(commands_pa[i]),
+            None => f64::NAN,
+        })
+    }
+
+    /// Physics over one period with the valves as commanded: every substep the valves
+    /// advance and the muscles' torques go into rapier.
+    fn advance(&mut self) {
+        let muscles = &mut self.muscles;
+        let h = self.period_s / f64::from(self.leg.substeps());
+        let mut slack = [0.0; 4];
+        self.leg.step(|leg, _| {
+            let (q, qd) = (leg.angles(), leg.velocities());
+            let mut tau = [0.0; 2];
+            for (i, m) in muscles.iter_mut().enumerate() {
+                m.valve.advance(h);
+                if m.force_unclamped(q, qd) <= 0.0 {
+                    slack[i] += h;
+                }
+                tau[m.joint] += m.torque(q, qd);
+            }
+            tau
+        });
+        self.slack_s = slack;
+        self.periods += 1;
+    }
+
+    fn encoder_angles(&mut self) -> [f64; 2] {
+        let q = self.leg.angles();
+        [
+            self.encoders[0].measure(q[0]),
+            self.encoders[1].measure(q[1]),
+        ]
+    }
+
+    /// The true state now.
+    pub fn state(&self) -> LegState {
+        let (q, qd) = (self.leg.angles(), self.leg.velocities());
+        let m = &self.muscles;
+        let each = |f: &dyn Fn(&MuscleActuator) -> f64| -> [f64; 4] {
+            std::array::from_fn(|i| m.get(i).map_or(f64::NAN, f))
+        };
+        LegState {
+            angle_rad: q,
+            velocity_rad_s: qd,
+            pressure_pa: each(&|m| m.pressure()),
+            force_n: each(&|m| m.force(q, qd)),
+            length_m: each(&|m| m.contraction(q)),
+            slack_s: self.slack_s,
+        }
+    }
+
+    /// Each muscle as a segment from its anchor to its joint's pulley, in world
+    /// coordinates (m), for drawing.
+    pub fn muscle_segments(&self) -> [([f64; 3], [f64; 3]); 4] {
+        std::array::from_fn(|i| {
+            let Some(m) = self.muscles.get(i) else {
+                return ([f64::NAN; 3], [f64::NAN; 3]);
+            };
+            let g = &m.geometry;
+            let anchor = self.leg.point_in_world(&g.body_link, g.anchor_m);
+            // The pulley sits on the joint axis: the origin of the joint's child link.
+            let child = if m.joint == 0 { "thigh" } else { "shank" };
+            let pulley = self.leg.point_in_world(child, [0.0, g.anchor_m[1], 0.0]);
+            (
+                anchor.unwrap_or([f64::NAN; 3]),
+                pulley.unwrap_or([f64::NAN; 3]),
+            )
+        })
+    }
+
+    /// Names of the joints, in reading order.
+    pub fn joint_names(&self) -> [&'static str; 2] {
+        JOINT_NAMES
+    }
+}
+
+impl Backend for LegPlant {
+    type Reading = [f64; 2];
+    type Command = [f64; 4];
+    type Truth = LegState;
+    type Error = LegError;
+
+    /// The leg as it is (built at rest); the valves hold their pressures.
+    fn start(&mut self) -> Result<Started<[f64; 2], [f64; 4]>, LegError> {
+        let reading = self.encoder_angles();
+        Ok(Started {
+            t_s: self.time(),
+            reading,
+            command: self.state().pressure_pa,
+        })
+    }
+
+    fn wait(&mut self, period_s: f64) -> Result<u32, LegError> {
+        if period_s != self.period_s {
+            return Err(LegError::Invalid {
+                name: "period_s".into(),
+                value: period_s,
+                expected: "must equal the period the leg was built with",
+            });
+        }
+        self.advance();
+        Ok(1)
+    }
+
+    fn read(&mut self) -> Result<[f64; 2], LegError> {
+        Ok(self.encoder_angles())
+    }
+
+    fn write(&mut self, commands_pa: &[f64; 4]) -> Result<[f64; 4], LegError> {
+        Ok(self.command(commands_pa))
+    }
+
+    fn truth(&self) -> LegState {
+        self.state()
+    }
+
+    /// Vents every muscle.
+    fn stop(&mut self) {
+        self.command(&[0.0; 4]);
+    }
+}

@@ -1,0 +1,273 @@
+//! The rig as a [`Backend`]: any [`Daq`] behind calibration, with the lifecycle of a
+//! ros2_control hardware component: configure (open, check the board, vent, read the
+//! sensor; valve not live) -> activate ([`Backend::start`]) -> read / write every period ->
+//! deactivate ([`Backend::stop`]: vent).
+use crate::config::{Calibration, Limits, RigConfig, Signals};
+use crate::daq::{Daq, DaqError};
+use crate::error::RigError;
+use crate::timing::{Pacer, TimingSummary};
+use crate::virtual_daq::LockstepClock;
+use pma_control::Measurement;
+use pma_loop::{Backend, Started};
+use std::time::Duration;
+
+/// How periods pass.
+pub enum Pacing {
+    /// The virtual rig's plant advances one period per loop period, at once.
+    Lockstep(LockstepClock),
+    /// Absolute wall-clock deadlines.
+    Realtime(Duration),
+}
+
+/// Raw telemetry of a period.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RigTelemetry {
+    /// The sensor's voltage at the last read (V).
+    pub position_v: f64,
+    /// The valve's last set point (V).
+    pub valve_v: f64,
+}
+
+/// The rig, configured. See the module documentation for its lifecycle.
+pub struct RigBackend {
+    daq: Box<dyn Daq>,
+    signals: Signals,
+    calibration: Calibration,
+    vent_v: f64,
+    pacing: Pacing,
+    pacer: Option<Pacer>,
+    pump_level: bool,
+    telemetry: RigTelemetry,
+    active: bool,
+    vented: bool,
+    vent_error: Option<DaqError>,
+    configure_reading_m: f64,
+}
+
+fn range_error(field: &'static str, what: &str, volts: f64, range: (f64, f64)) -> RigError {
+    RigError::Field {
+        field,
+        message: format!(
+            "{what} is {volts} V, outside the channel's range {}..{} V",
+            range.0, range.1
+        ),
+    }
+}
+
+impl RigBackend {
+    /// Configures the rig: checks that the board has the configured channels and ranges
+    /// and that the calibration maps the limits into them, writes the vent value, resets
+    /// the charge pump and reads the sensor, which must be inside the position window.
+    /// The valve is not live: nothing but the vent value has been written.
+    pub fn configure(
+        config: &RigConfig,
+        mut daq: Box<dyn Daq>,
+        pacing: Pacing,
+    ) -> Result<Self, RigError> {
+        // Nothing reaches the board before the whole configuration is known to be sound.
+        config.validate()?;
+        let s = config.signals;
+        let c = config.calibration;
+        let lines: Vec<_> = s.charge_pump.into_iter().collect();
+        daq.check(&[s.position], &[s.valve], &lines)?;
+        let out = daq.range_v(&s.valve, true)?;
+        let vent_v = c.valve_v(0.0);
+        let inside = |v: f64, r: (f64, f64)| v >= r.0 && v <= r.1;
+        if !inside(vent_v, out) {
+            return Err(range_error(
+                "calibration.valve_offset_v",
+                "the vent value (0 Pa)",
+                vent_v,
+                out,
+            ));
+        }
+        let max_v = c.valve_v(config.limits.pressure_max_pa);
+        if !inside(max_v, out) {
+            return Err(range_error(
+                "limits.pressure_max_pa",
+                "the highest command",
+                max_v,
+                out,
+            ));
+        }
+        let input = daq.range_v(&s.position, false)?;
+        check_window(&config.limits, &c, input)?;
+        daq.write_analog(&s.valve, vent_v)?;
+        if let Some(line) = &s.charge_pump {
+            daq.write_digital(line, false)?;
+        }
+        let position_v = daq.read_analog(&s.position)?;
+        let x = c.position_m(position_v);
+        let l = &config.limits;
+        if !(x >= l.position_min_m && x <= l.position_max_m) {
+            return Err(RigError::Field {
+                field: "limits",
+                message: format!(
+                    "the sensor reads {x} m ({position_v} V), outside the position window {}..{} m: check the sensor, its wiring, its calibration and the mount before going live",
+                    l.position_min_m, l.position_max_m
+                ),
+            });
+        }
+        Ok(Self {
+            daq,
+            signals: s,
+            calibration: c,
+            vent_v,
+            pacing,
+            pacer: None,
+            pump_level: false,
+            telemetry: RigTelemetry {
+                position_v,
+                valve_v: vent_v,
+            },
+            active: false,
+            vented: true,
+            vent_error: None,
+            configure_reading_m: x,
+        })
+    }
+
+    /// The reading taken at configure (m).
+    pub fn configure_reading_m(&self) -> f64 {
+        self.configure_reading_m
+    }
+
+    /// The valve voltage that vents the muscle.
+    pub fn vent_v(&self) -> f64 {
+        self.vent_v
+    }
+
+    /// The device.
+    pub fn device(&self) -> &str {
+        self.daq.device()
+    }
+
+    /// An independent handle on the valve output (for the watchdog and the panic hook).
+    pub fn valve_handle(&self) -> Result<Box<dyn crate::daq::OutputHandle>, DaqError> {
+        self.daq.output_handle(&self.signals.valve)
+    }
+
+    /// Whether the last stop wrote the vent value.
+    pub fn vented(&self) -> bool {
+        self.vented
+    }
+
+    /// Why venting failed, if it did.
+    pub fn vent_error(&self) -> Option<&DaqError> {
+        self.vent_error.as_ref()
+    }
+
+    /// The timing of a real-time run.
+    pub fn timing(&self) -> Option<TimingSummary> {
+        self.pacer.as_ref().map(Pacer::summary)
+    }
+
+    fn toggle_charge_pump(&mut self) -> Result<(), DaqError> {
+        if let Some(line) = &self.signals.charge_pump {
+            self.pump_level = !self.pump_level;
+            self.daq.write_digital(line, self.pump_level)?;
+        }
+        Ok(())
+    }
+}
+
+fn check_window(limits: &Limits, c: &Calibration, input: (f64, f64)) -> Result<(), RigError> {
+    for (field, x) in [
+        ("limits.position_min_m", limits.position_min_m),
+        ("limits.position_max_m", limits.position_max_m),
+    ] {
+        let v = c.position_v(x);
+        if !(v > input.0 && v < input.1) {
+            return Err(RigError::Field {
+                field,
+                message: format!(
+                    "{x} m is {v} V through the calibration, outside the sensor input's range {}..{} V: the window must be measurable",
+                    input.0, input.1
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+impl Backend for RigBackend {
+    type Reading = Measurement;
+    type Command = f64;
+    type Truth = RigTelemetry;
+    type Error = DaqError;
+
+    /// Activates: the valve goes live (still at the vent value), the first reading is
+    /// taken and the real-time clock starts.
+    fn start(&mut self) -> Result<Started<Measurement, f64>, DaqError> {
+        self.active = true;
+        self.vented = false;
+        let reading = self.read()?;
+        if let Pacing::Realtime(period) = self.pacing {
+            self.pacer = Some(Pacer::start(period));
+        }
+        Ok(Started {
+            t_s: 0.0,
+            reading,
+            command: 0.0,
+        })
+    }
+
+    /// Toggles the charge pump, then lets the period pass.
+    fn wait(&mut self, _period_s: f64) -> Result<u32, DaqError> {
+        self.toggle_charge_pump()?;
+        match (&self.pacing, self.pacer.as_mut()) {
+            (Pacing::Lockstep(clock), _) => {
+                clock.tick();
+                Ok(1)
+            }
+            (Pacing::Realtime(_), Some(p)) => Ok(p.wait()),
+            (Pacing::Realtime(period), None) => {
+                self.pacer = Some(Pacer::start(*period));
+                Ok(self.pacer.as_mut().map_or(1, Pacer::wait))
+            }
+        }
+    }
+
+    fn read(&mut self) -> Result<Measurement, DaqError> {
+        let v = self.daq.read_analog(&self.signals.position)?;
+        self.telemetry.position_v = v;
+        Ok(Measurement {
+            position_m: self.calibration.position_m(v),
+        })
+    }
+
+    fn write(&mut self, pressure_pa: &f64) -> Result<f64, DaqError> {
+        let v = self.calibration.valve_v(*pressure_pa);
+        self.daq.write_analog(&self.signals.valve, v)?;
+        self.telemetry.valve_v = v;
+        Ok(*pressure_pa)
+    }
+
+    fn truth(&self) -> RigTelemetry {
+        self.telemetry
+    }
+
+    /// Writes the vent value; a failure is kept (see [`RigBackend::vent_error`]).
+    fn stop(&mut self) {
+        match self.daq.write_analog(&self.signals.valve, self.vent_v) {
+            Ok(()) => {
+                self.vented = true;
+                self.telemetry.valve_v = self.vent_v;
+            }
+            Err(e) => {
+                self.vented = false;
+                self.vent_error = Some(e);
+            }
+        }
+        self.active = false;
+    }
+}
+
+/// A rig dropped while active (a panic unwinding through the loop) vents.
+impl Drop for RigBackend {
+    fn drop(&mut self) {
+        if self.active {
+            self.stop();
+        }
+    }
+}

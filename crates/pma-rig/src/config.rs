@@ -1,0 +1,656 @@
+//! The rig's configuration file (`models/rig/*.toml`): device, signals, calibration,
+//! limits, control, reference and, for the virtual rig, the simulated muscle.
+use crate::daq::{AnalogChannel, DigitalLine};
+use crate::error::RigError;
+use pma_control::{
+    ChirpReference, ControllerConfig, ControllerKind, NominalModel, RefSample, Reference,
+    SineReference,
+};
+use pma_sim::{NominalSpec, PlantConfig};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The embedded default configuration (`models/rig/virtual.toml`).
+pub const EMBEDDED_VIRTUAL: &str = include_str!("../../../models/rig/virtual.toml");
+/// The seed rig's configuration (`models/rig/pci6052e.toml`).
+pub const EMBEDDED_PCI6052E: &str = include_str!("../../../models/rig/pci6052e.toml");
+
+/// Which driver talks to the board.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Driver {
+    /// The simulated rig (`pma-model` muscle behind a DAQ in volts and counts).
+    Virtual,
+    /// A Comedi board (feature `comedi`).
+    Comedi,
+}
+
+/// The device.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DeviceConfig {
+    /// Driver.
+    pub driver: Driver,
+    /// Device path (Comedi: `/dev/comedi0`).
+    #[serde(default)]
+    pub path: String,
+}
+
+/// Where each signal is wired.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Signals {
+    /// Displacement sensor (analog input).
+    pub position: AnalogChannel,
+    /// Proportional valve set point (analog output).
+    pub valve: AnalogChannel,
+    /// Charge-pump line toggled every period for the external dump-valve relay.
+    #[serde(default)]
+    pub charge_pump: Option<DigitalLine>,
+}
+
+/// A linear transducer: `value = (volts - offset_v) * gain`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Calibration {
+    /// Sensor: contraction per volt (m/V).
+    pub position_m_per_v: f64,
+    /// Sensor: volts at zero contraction (V).
+    pub position_offset_v: f64,
+    /// Valve: pressure per volt (Pa/V).
+    pub valve_pa_per_v: f64,
+    /// Valve: volts at zero (gauge) pressure (V).
+    pub valve_offset_v: f64,
+}
+
+impl Calibration {
+    /// Contraction (m) of a sensor voltage.
+    pub fn position_m(&self, volts: f64) -> f64 {
+        (volts - self.position_offset_v) * self.position_m_per_v
+    }
+    /// Sensor voltage of a contraction.
+    pub fn position_v(&self, position_m: f64) -> f64 {
+        position_m / self.position_m_per_v + self.position_offset_v
+    }
+    /// Valve voltage of a pressure (Pa).
+    pub fn valve_v(&self, pressure_pa: f64) -> f64 {
+        pressure_pa / self.valve_pa_per_v + self.valve_offset_v
+    }
+    /// Pressure (Pa) of a valve voltage.
+    pub fn valve_pa(&self, volts: f64) -> f64 {
+        (volts - self.valve_offset_v) * self.valve_pa_per_v
+    }
+}
+
+/// What the safety supervisor enforces.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Limits {
+    /// Highest pressure command (Pa); commands are clamped to `[0, max]`.
+    pub pressure_max_pa: f64,
+    /// Fastest command change (Pa/s); faster commands are rate-limited.
+    pub pressure_rate_max_pa_per_s: f64,
+    /// Lowest admissible contraction (m); below it the rig vents and stops.
+    pub position_min_m: f64,
+    /// Highest admissible contraction (m).
+    pub position_max_m: f64,
+    /// A reading identical for this many periods is a stuck sensor (0: not checked).
+    pub sensor_stuck_periods: u32,
+    /// The loop silent for this many periods trips the watchdog, which vents on its own.
+    pub watchdog_periods: u32,
+}
+
+/// The controller.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControlConfig {
+    /// `aprc-ndo`, `aprc`, `psmc`, `ndo-smc`, `sta` or `pid`.
+    pub controller: String,
+    /// Gain file (relative to this file); absent: the controller's defaults.
+    #[serde(default)]
+    pub gains: Option<PathBuf>,
+    /// What the controller believes of the muscle and load.
+    pub nominal: NominalSpec,
+}
+
+/// The desired trajectory, entered smoothly from where the muscle rests at activation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, tag = "kind", rename_all = "snake_case")]
+pub enum ReferenceConfig {
+    /// `A sin(2 pi f t) + B`, eq. (50).
+    Sine {
+        /// `A` (m).
+        amplitude_m: f64,
+        /// `f` (Hz).
+        frequency_hz: f64,
+        /// `B` (m).
+        offset_m: f64,
+        /// Blend from the resting position into the sine (s).
+        ramp_s: f64,
+    },
+    /// Linear chirp `f0 -> f1` over `sweep_s`.
+    Chirp {
+        /// Amplitude (m).
+        amplitude_m: f64,
+        /// Offset (m).
+        offset_m: f64,
+        /// Start frequency (Hz).
+        f0_hz: f64,
+        /// End frequency (Hz).
+        f1_hz: f64,
+        /// Sweep (s).
+        sweep_s: f64,
+        /// Blend from the resting position (s).
+        ramp_s: f64,
+    },
+    /// Hold a contraction.
+    Hold {
+        /// Contraction (m).
+        position_m: f64,
+        /// Blend from the resting position (s).
+        ramp_s: f64,
+    },
+}
+
+/// How the virtual rig's time passes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClockMode {
+    /// The plant advances exactly one period per loop period, as fast as it can (tests).
+    Lockstep,
+    /// Wall-clock periods on absolute deadlines, the plant following wall time.
+    Realtime,
+}
+
+/// The simulated rig behind the virtual DAQ.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VirtualConfig {
+    /// Plant preset or plant file (its muscle, load, valve and sensor noise; the sensor's
+    /// range and resolution are the DAQ's).
+    pub plant: String,
+    /// Lockstep or real time.
+    pub clock: ClockMode,
+    /// Converter resolution (bits) of both analog channels; 0 for continuous values.
+    pub converter_bits: u32,
+    /// RMS noise the sensor adds (m); the plant file's sensor noise is not used.
+    #[serde(default)]
+    pub sensor_noise_rms_m: f64,
+    /// Delay of the sensor reading (s).
+    #[serde(default)]
+    pub sensor_latency_s: f64,
+    /// The analog input's range (V).
+    pub input_range_v: [f64; 2],
+    /// The analog output's range (V).
+    pub output_range_v: [f64; 2],
+}
+
+/// Real-time settings of the loop thread.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RealtimeConfig {
+    /// Ask for `SCHED_FIFO` and `mlockall` (refusal is a warning).
+    pub fifo: bool,
+    /// `SCHED_FIFO` priority (1-99).
+    pub priority: u8,
+}
+
+impl Default for RealtimeConfig {
+    fn default() -> Self {
+        Self {
+            fifo: true,
+            priority: 80,
+        }
+    }
+}
+
+/// A rig configuration file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigConfig {
+    /// Name.
+    pub name: String,
+    /// One line.
+    #[serde(default)]
+    pub description: String,
+    /// Control period (s).
+    pub period_s: f64,
+    /// Run duration (s).
+    pub duration_s: f64,
+    /// CSV log (relative to the working directory).
+    pub log_path: PathBuf,
+    /// The board.
+    pub device: DeviceConfig,
+    /// Wiring.
+    pub signals: Signals,
+    /// Transducer scales.
+    pub calibration: Calibration,
+    /// Safety limits.
+    pub limits: Limits,
+    /// Controller.
+    pub control: ControlConfig,
+    /// Reference.
+    pub reference: ReferenceConfig,
+    /// Real-time settings.
+    #[serde(default)]
+    pub realtime: RealtimeConfig,
+    /// The simulated rig (driver `virtual`).
+    #[serde(default, rename = "virtual")]
+    pub virtual_rig: Option<VirtualConfig>,
+}
+
+fn check(
+    field: &'static str,
+    ok: bool,
+    value: f64,
+    expected: &'static str,
+) -> Result<(), RigError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(RigError::Invalid {
+            field,
+            value,
+            expected,
+        })
+    }
+}
+
+fn positive(field: &'static str, v: f64) -> Result<(), RigError> {
+    check(
+        field,
+        v.is_finite() && v > 0.0,
+        v,
+        "must be a finite number > 0",
+    )
+}
+
+fn finite(field: &'static str, v: f64) -> Result<(), RigError> {
+    check(field, v.is_finite(), v, "must be a finite number")
+}
+
+fn non_negative(field: &'static str, v: f64) -> Result<(), RigError> {
+    check(
+        field,
+        v.is_finite() && v >= 0.0,
+        v,
+        "must be a finite number >= 0",
+    )
+}
+
+fn nonzero(field: &'static str, v: f64) -> Result<(), RigError> {
+    check(
+        field,
+        v.is_finite() && v != 0.0,
+        v,
+        "must be a finite, non-zero number",
+    )
+}
+
+impl RigConfig {
+    /// Parses and validates a configuration; `file` names it in errors.
+    pub fn from_toml_str(text: &str, file: &str) -> Result<Self, RigError> {
+        let cfg: RigConfig = toml::from_str(text).map_err(|e| RigError::Parse {
+            file: file.to_owned(),
+            message: one_line(&e.to_string()),
+        })?;
+        cfg.validate().map_err(|e| e.in_file(file))?;
+        Ok(cfg)
+    }
+
+    /// Reads a configuration file, or `virtual` / `pci6052e` for the shipped ones.
+    pub fn load(name_or_path: &str) -> Result<(Self, PathBuf), RigError> {
+        match name_or_path {
+            "virtual" => Ok((
+                Self::from_toml_str(EMBEDDED_VIRTUAL, "models/rig/virtual.toml")?,
+                PathBuf::from("models/rig"),
+            )),
+            "pci6052e" => Ok((
+                Self::from_toml_str(EMBEDDED_PCI6052E, "models/rig/pci6052e.toml")?,
+                PathBuf::from("models/rig"),
+            )),
+            path => {
+                let text = std::fs::read_to_string(path).map_err(|e| RigError::Io {
+                    path: path.to_owned(),
+                    message: e.to_string(),
+                })?;
+                let dir = Path::new(path)
+                    .parent()
+                    .map(Path::to_path_buf)
+                    .unwrap_or_default();
+                Ok((Self::from_toml_str(&text, path)?, dir))
+            }
+        }
+    }
+
+    /// Every field in range, every limit consistent: checked before anything touches the
+    /// board.
+    pub fn validate(&self) -> Result<(), RigError> {
+        positive("period_s", self.period_s)?;
+        positive("duration_s", self.duration_s)?;
+        if self.device.driver == Driver::Comedi && self.device.path.is_empty() {
+            return Err(RigError::Missing {
+                field: "device.path",
+                why: "the comedi driver needs the device (e.g. /dev/comedi0)",
+            });
+        }
+        let c = &self.calibration;
+        nonzero("calibration.position_m_per_v", c.position_m_per_v)?;
+        finite("calibration.position_offset_v", c.position_offset_v)?;
+        nonzero("calibration.valve_pa_per_v", c.valve_pa_per_v)?;
+        finite("calibration.valve_offset_v", c.valve_offset_v)?;
+        let l = &self.limits;
+        positive("limits.pressure_max_pa", l.pressure_max_pa)?;
+        positive(
+            "limits.pressure_rate_max_pa_per_s",
+            l.pressure_rate_max_pa_per_s,
+        )?;
+        finite("limits.position_min_m", l.position_min_m)?;
+        finite("limits.position_max_m", l.position_max_m)?;
+        check(
+            "limits.position_max_m",
+            l.position_max_m > l.position_min_m,
+            l.position_max_m,
+            "must exceed limits.position_min_m",
+        )?;
+        check(
+            "limits.watchdog_periods",
+            l.watchdog_periods >= 2,
+            f64::from(l.watchdog_periods),
+            "must be >= 2",
+        )?;
+        self.control_kind()?;
+        self.control.nominal_model_check()?;
+        self.reference_check()?;
+        check(
+            "realtime.priority",
+            (1..=99).contains(&self.realtime.priority),
+            f64::from(self.realtime.priority),
+            "must be 1..=99",
+        )?;
+        match (&self.device.driver, &self.virtual_rig) {
+            (Driver::Virtual, None) => {
+                return Err(RigError::Missing {
+                    field: "virtual",
+                    why: "the virtual driver needs a [virtual] section",
+                })
+            }
+            (Driver::Virtual, Some(v)) => v.validate()?,
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// The controller kind.
+    pub fn control_kind(&self) -> Result<ControllerKind, RigError> {
+        self.control
+            .controller
+            .parse()
+            .map_err(|e: pma_control::ConfigError| RigError::Field {
+                field: "control.controller",
+                message: e.to_string(),
+            })
+    }
+
+    fn reference_check(&self) -> Result<(), RigError> {
+        match self.reference {
+            ReferenceConfig::Sine {
+                amplitude_m,
+                frequency_hz,
+                offset_m,
+                ramp_s,
+            } => {
+                finite("reference.amplitude_m", amplitude_m)?;
+                non_negative("reference.frequency_hz", frequency_hz)?;
+                finite("reference.offset_m", offset_m)?;
+                non_negative("reference.ramp_s", ramp_s)?;
+            }
+            ReferenceConfig::Chirp {
+                amplitude_m,
+                offset_m,
+                f0_hz,
+                f1_hz,
+                sweep_s,
+                ramp_s,
+            } => {
+                finite("reference.amplitude_m", amplitude_m)?;
+                finite("reference.offset_m", offset_m)?;
+                non_negative("reference.f0_hz", f0_hz)?;
+                non_negative("reference.f1_hz", f1_hz)?;
+                positive("reference.sweep_s", sweep_s)?;
+                non_negative("reference.ramp_s", ramp_s)?;
+            }
+            ReferenceConfig::Hold { position_m, ramp_s } => {
+                finite("reference.position_m", position_m)?;
+                non_negative("reference.ramp_s", ramp_s)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The controller's model.
+    pub fn nominal_model(&self) -> NominalModel {
+        let n = &self.control.nominal;
+        NominalModel {
+            muscle: pma_model::MuscleParams::TABLE_I,
+            mass_kg: n.mass_kg,
+            load_force_n: n.mass_kg * pma_model::GRAVITY_M_S2,
+            mode_switch_deadband_pa: n.mode_switch_deadband_pa,
+            mode_switch_fraction: n.mode_switch_fraction,
+            valve_time_constant_s: n.valve_time_constant_s,
+        }
+    }
+
+    /// The reference, entered from `start_m` over its ramp.
+    pub fn reference(&self, start_m: f64) -> SmoothStart {
+        let (trajectory, ramp_s): (Trajectory, f64) = match self.reference {
+            ReferenceConfig::Sine {
+                amplitude_m,
+                frequency_hz,
+                offset_m,
+                ramp_s,
+            } => (
+                Trajectory::Sine(SineReference {
+                    amplitude_m,
+                    frequency_hz,
+                    offset_m,
+                }),
+                ramp_s,
+            ),
+            ReferenceConfig::Chirp {
+                amplitude_m,
+                offset_m,
+                f0_hz,
+                f1_hz,
+                sweep_s,
+                ramp_s,
+            } => (
+                Trajectory::Chirp(ChirpReference {
+                    amplitude_m,
+                    offset_m,
+                    f0_hz,
+                    f1_hz,
+                    sweep_s,
+                }),
+                ramp_s,
+            ),
+            ReferenceConfig::Hold { position_m, ramp_s } => (Trajectory::Hold(position_m), ramp_s),
+        };
+        SmoothStart {
+            trajectory,
+            start_m,
+            ramp_s,
+        }
+    }
+}
+
+impl ControlConfig {
+    fn nominal_model_check(&self) -> Result<(), RigError> {
+        positive("control.nominal.mass_kg", self.nominal.mass_kg)?;
+        non_negative(
+            "control.nominal.valve_time_constant_s",
+            self.nominal.valve_time_constant_s,
+        )?;
+        non_negative(
+            "control.nominal.mode_switch_deadband_pa",
+            self.nominal.mode_switch_deadband_pa,
+        )?;
+        non_negative(
+            "control.nominal.mode_switch_fraction",
+            self.nominal.mode_switch_fraction,
+        )
+    }
+
+    /// The controller configuration: the gain file (relative to `dir`) or the defaults.
+    pub fn controller_config(
+        &self,
+        kind: ControllerKind,
+        dir: &Path,
+    ) -> Result<ControllerConfig, RigError> {
+        let Some(rel) = &self.gains else {
+            return Ok(kind.default_config());
+        };
+        let path = dir.join(rel);
+        let text = std::fs::read_to_string(&path).map_err(|e| RigError::Io {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+        let cfg = ControllerConfig::from_toml_str(&text).map_err(|e| RigError::Field {
+            field: "control.gains",
+            message: format!("`{}`: {e}", path.display()),
+        })?;
+        Ok(cfg)
+    }
+}
+
+impl VirtualConfig {
+    fn validate(&self) -> Result<(), RigError> {
+        PlantConfig::load(&self.plant).map_err(|e| RigError::Field {
+            field: "virtual.plant",
+            message: e.to_string(),
+        })?;
+        check(
+            "virtual.converter_bits",
+            self.converter_bits <= 24,
+            f64::from(self.converter_bits),
+            "must be 0..=24",
+        )?;
+        non_negative("virtual.sensor_latency_s", self.sensor_latency_s)?;
+        non_negative("virtual.sensor_noise_rms_m", self.sensor_noise_rms_m)?;
+        for (field, r) in [
+            ("virtual.input_range_v", self.input_range_v),
+            ("virtual.output_range_v", self.output_range_v),
+        ] {
+            check(
+                field,
+                r[0].is_finite() && r[1].is_finite() && r[1] > r[0],
+                r[1],
+                "must be [min, max] volts with max > min",
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// A base trajectory of the rig.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Trajectory {
+    /// Sine.
+    Sine(SineReference),
+    /// Chirp.
+    Chirp(ChirpReference),
+    /// Constant.
+    Hold(f64),
+}
+
+impl Trajectory {
+    fn sample(&self, t: f64) -> RefSample {
+        match self {
+            Trajectory::Sine(s) => s.sample(t),
+            Trajectory::Chirp(c) => c.sample(t),
+            Trajectory::Hold(x) => RefSample {
+                position_m: *x,
+                ..RefSample::default()
+            },
+        }
+    }
+}
+
+/// A trajectory entered from the resting position `x0` with a quintic blend
+/// `s(t) = 10 u^3 - 15 u^4 + 6 u^5`, `u = t / ramp`: `x_d = x0 + s (x(t) - x0)`, with
+/// analytic derivatives. A rig starts wherever its load rests; jumping to the
+/// trajectory's first point would slam the muscle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SmoothStart {
+    /// The trajectory.
+    pub trajectory: Trajectory,
+    /// Where the blend starts (m).
+    pub start_m: f64,
+    /// Blend duration (s); 0 starts on the trajectory at once.
+    pub ramp_s: f64,
+}
+
+impl Reference for SmoothStart {
+    fn sample(&self, t: f64) -> RefSample {
+        let r = self.trajectory.sample(t);
+        if self.ramp_s <= 0.0 || t >= self.ramp_s {
+            return r;
+        }
+        let u = (t / self.ramp_s).max(0.0);
+        let s = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u);
+        let ds = 30.0 * u * u * (1.0 - u) * (1.0 - u) / self.ramp_s;
+        let dds = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / (self.ramp_s * self.ramp_s);
+        let gap = r.position_m - self.start_m;
+        RefSample {
+            position_m: self.start_m + s * gap,
+            velocity_m_s: ds * gap + s * r.velocity_m_s,
+            acceleration_m_s2: dds * gap + 2.0 * ds * r.velocity_m_s + s * r.acceleration_m_s2,
+        }
+    }
+}
+
+pub(crate) fn one_line(s: &str) -> String {
+    s.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shipped_configurations_load() {
+        let v = RigConfig::from_toml_str(EMBEDDED_VIRTUAL, "virtual.toml").unwrap();
+        assert_eq!(v.device.driver, Driver::Virtual);
+        let c = RigConfig::from_toml_str(EMBEDDED_PCI6052E, "pci6052e.toml").unwrap();
+        assert_eq!(c.device.driver, Driver::Comedi);
+        assert_eq!(c.device.path, "/dev/comedi0");
+    }
+
+    #[test]
+    fn smooth_start_derivatives_match_finite_differences() {
+        let r = SmoothStart {
+            trajectory: Trajectory::Sine(SineReference::paper()),
+            start_m: -0.01,
+            ramp_s: 2.0,
+        };
+        assert_eq!(r.sample(0.0).position_m, -0.01);
+        assert_eq!(r.sample(0.0).velocity_m_s, 0.0);
+        assert_eq!(r.sample(3.0), SineReference::paper().sample(3.0));
+        let h = 1e-5;
+        for &t in &[0.3, 1.0, 1.7, 1.99] {
+            let (a, b, c) = (r.sample(t - h), r.sample(t), r.sample(t + h));
+            let v = (c.position_m - a.position_m) / (2.0 * h);
+            let acc = (c.velocity_m_s - a.velocity_m_s) / (2.0 * h);
+            assert!(
+                (v - b.velocity_m_s).abs() < 1e-6,
+                "t {t}: {v} vs {}",
+                b.velocity_m_s
+            );
+            assert!(
+                (acc - b.acceleration_m_s2).abs() < 1e-5,
+                "t {t}: {acc} vs {}",
+                b.acceleration_m_s2
+            );
+        }
+    }
+}

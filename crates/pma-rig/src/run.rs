@@ -1,0 +1,514 @@
+//! A rig run end to end: configure, supervise, log, run the loop on a dedicated (real-time
+//! when permitted) thread, and report; venting on every exit path.
+use crate::backend::{Pacing, RigBackend};
+use crate::config::{ClockMode, Driver, RigConfig};
+use crate::daq::{Daq, DaqError, OutputHandle};
+use crate::error::RigError;
+use crate::log::{LogSummary, RigLog};
+use crate::replay::{format_line, CONFIG_BEGIN, CONFIG_END, GAINS_BEGIN, GAINS_END};
+use crate::supervisor::{Fault, Supervised, VentAction, WatchdogFactory};
+use crate::timing::{enter_realtime, RealtimeStatus, TimingSummary};
+use crate::virtual_daq::{InjectedFault, Injection, VirtualDaq};
+use pma_control::{
+    build_controller, CommandLimits, ControlOutput, Controller, ControllerConfig, Measurement,
+    RefSample,
+};
+use pma_loop::{
+    End, LoopSettings, MuscleStep, MuscleTask, Period, Recorder, Start, TrackingMetrics,
+};
+use std::panic::AssertUnwindSafe;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::sync::{Mutex, OnceLock};
+use std::time::Duration;
+
+/// The supervised rig, as recorders see it.
+pub type Rig = Supervised<RigBackend>;
+
+/// What a run may override in its configuration.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// Duration (s) instead of the configuration's.
+    pub duration_s: Option<f64>,
+    /// Controller and gains instead of the configuration's.
+    pub controller: Option<ControllerConfig>,
+    /// Faults for the virtual rig.
+    pub injections: Vec<Injection>,
+    /// The virtual rig's clock instead of the configuration's.
+    pub clock: Option<ClockMode>,
+    /// Log path instead of the configuration's.
+    pub log_path: Option<PathBuf>,
+    /// Ask for `SCHED_FIFO` (or not) instead of the configuration's `realtime.fifo`.
+    pub fifo: Option<bool>,
+}
+
+/// A run's outcome.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct RigReport {
+    /// Configuration name.
+    pub config: String,
+    /// `virtual` or `comedi`.
+    pub driver: String,
+    /// The device.
+    pub device: String,
+    /// `lockstep` or `realtime`.
+    pub clock: String,
+    /// Controller.
+    pub controller: String,
+    /// Whether every period ran.
+    pub completed: bool,
+    /// The fault that stopped the run (`interrupted` for SIGINT/SIGTERM), if any.
+    pub fault: Option<String>,
+    /// The fault's message.
+    pub fault_detail: Option<String>,
+    /// Whether the valve was vented at the end.
+    pub vented: bool,
+    /// Whether the watchdog vented on its own.
+    pub watchdog_vented: bool,
+    /// Control periods run.
+    pub periods: u64,
+    /// Deadlines missed (skipped).
+    pub overruns: u64,
+    /// Wake-up latency (us), median; null in lockstep.
+    pub jitter_p50_us: f64,
+    /// 99th percentile (us).
+    pub jitter_p99_us: f64,
+    /// Maximum (us).
+    pub jitter_max_us: f64,
+    /// The loop's own work per period (us), median.
+    pub compute_p50_us: f64,
+    /// 99th percentile (us).
+    pub compute_p99_us: f64,
+    /// Maximum (us).
+    pub compute_max_us: f64,
+    /// Whether the loop ran under `SCHED_FIFO`.
+    pub realtime: bool,
+    /// What real-time set-up was refused.
+    pub realtime_warnings: Vec<String>,
+    /// MAE on the measured position (m).
+    pub mae_m: f64,
+    /// IAE (mean |e|) on the measured position (m).
+    pub iae_m: f64,
+    /// RTE (%).
+    pub rte_percent: f64,
+    /// Command variation (bar/s).
+    pub command_variation_bar_per_s: f64,
+    /// The log.
+    pub log: String,
+    /// Rows in the log.
+    pub log_rows: u64,
+    /// Records lost (the writer fell behind).
+    pub log_dropped: u64,
+}
+
+impl RigReport {
+    /// Process exit status: 0 completed, 130 interrupted, 3 any fault.
+    pub fn exit_code(&self) -> i32 {
+        match self.fault.as_deref() {
+            None => 0,
+            Some("interrupted") => 130,
+            Some(_) => 3,
+        }
+    }
+}
+
+/// A controller that panics at `at_s` (the test hook `--inject controller-panic@T`).
+struct PanicAt {
+    inner: Box<dyn Controller>,
+    at_s: f64,
+    t_s: f64,
+}
+
+impl Controller for PanicAt {
+    fn name(&self) -> &'static str {
+        self.inner.name()
+    }
+    fn reset(&mut self, m: Measurement, r: RefSample) {
+        self.t_s = 0.0;
+        self.inner.reset(m, r);
+    }
+    fn update(&mut self, r: &RefSample, m: &Measurement, dt: f64) -> ControlOutput {
+        self.t_s += dt;
+        if self.t_s >= self.at_s {
+            panic!("injected controller panic at {} s", self.t_s);
+        }
+        self.inner.update(r, m, dt)
+    }
+    fn applied(&mut self, applied_pa: f64) {
+        self.inner.applied(applied_pa);
+    }
+}
+
+/// Tracking figures on the measured position (a rig knows nothing else).
+struct RigMetrics(TrackingMetrics, u64);
+
+impl Recorder<Rig, MuscleStep> for RigMetrics {
+    fn start(&mut self, s: &Start<'_, Rig>) {
+        self.0 = TrackingMetrics::new(*s.held);
+    }
+    fn record(&mut self, p: &Period<'_, Rig, MuscleStep>) {
+        self.1 += 1;
+        self.0.push(
+            p.output.reference.position_m,
+            p.reading.position_m,
+            *p.written,
+        );
+    }
+}
+
+/// Vents registered outputs from the panic hook, before unwinding starts.
+type VentRegistry = Mutex<Vec<(u64, Box<dyn OutputHandle>, f64)>>;
+
+fn vent_registry() -> &'static VentRegistry {
+    static REGISTRY: OnceLock<VentRegistry> = OnceLock::new();
+    REGISTRY.get_or_init(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if let Some(reg) = REGISTRY.get() {
+                if let Ok(list) = reg.try_lock() {
+                    for (_, handle, volts) in list.iter() {
+                        let _ = handle.write(*volts);
+                    }
+                }
+            }
+            previous(info);
+        }));
+        Mutex::new(Vec::new())
+    })
+}
+
+/// Keeps a valve registered with the panic hook while alive.
+struct PanicVent(u64);
+
+impl PanicVent {
+    fn register(handle: Box<dyn OutputHandle>, vent_v: f64) -> Self {
+        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+        let id = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        if let Ok(mut list) = vent_registry().lock() {
+            list.push((id, handle, vent_v));
+        }
+        Self(id)
+    }
+}
+
+impl Drop for PanicVent {
+    fn drop(&mut self) {
+        if let Ok(mut list) = vent_registry().lock() {
+            list.retain(|(id, _, _)| *id != self.0);
+        }
+    }
+}
+
+/// Opens the configured board: the virtual rig, or a Comedi device.
+pub fn open_daq(config: &RigConfig, injections: &[Injection]) -> Result<Box<dyn Daq>, RigError> {
+    match config.device.driver {
+        Driver::Virtual => Ok(Box::new(VirtualDaq::new(config, injections)?)),
+        Driver::Comedi => {
+            if !injections.is_empty() {
+                return Err(RigError::Field {
+                    field: "--inject",
+                    message: "faults can only be injected into the virtual rig".into(),
+                });
+            }
+            let path = &config.device.path;
+            crate::comedi::open_comedi(path).map_err(|e| match e {
+                // Name the device even when the driver is not built in.
+                DaqError::Unsupported(message) => RigError::Daq(DaqError::Open {
+                    device: path.clone(),
+                    message,
+                }),
+                e => RigError::Daq(e),
+            })
+        }
+    }
+}
+
+fn pacing_of(
+    config: &RigConfig,
+    daq: &dyn Daq,
+    lockstep: Option<crate::virtual_daq::LockstepClock>,
+) -> Pacing {
+    let _ = daq;
+    match lockstep {
+        Some(clock) if config.device.driver == Driver::Virtual => Pacing::Lockstep(clock),
+        _ => Pacing::Realtime(Duration::from_secs_f64(config.period_s)),
+    }
+}
+
+/// Configures the rig without activating it (`rig check`): the board checked, the vent
+/// value written, the sensor read.
+pub fn check(config: &RigConfig) -> Result<RigBackend, RigError> {
+    let mut cfg = config.clone();
+    if let Some(v) = cfg.virtual_rig.as_mut() {
+        v.clock = ClockMode::Lockstep;
+    }
+    let daq = VirtualOrBoard::open(&cfg, &[])?;
+    let pacing = pacing_of(&cfg, daq.daq.as_ref(), daq.lockstep);
+    RigBackend::configure(&cfg, daq.daq, pacing)
+}
+
+struct VirtualOrBoard {
+    daq: Box<dyn Daq>,
+    lockstep: Option<crate::virtual_daq::LockstepClock>,
+}
+
+impl VirtualOrBoard {
+    fn open(config: &RigConfig, injections: &[Injection]) -> Result<Self, RigError> {
+        if config.device.driver == Driver::Virtual {
+            let v = VirtualDaq::new(config, injections)?;
+            let lockstep = v.lockstep_clock();
+            Ok(Self {
+                daq: Box::new(v),
+                lockstep,
+            })
+        } else {
+            Ok(Self {
+                daq: open_daq(config, injections)?,
+                lockstep: None,
+            })
+        }
+    }
+}
+
+/// The log header: version, the configuration with the gains, for replay.
+fn header(config: &RigConfig, gains: &ControllerConfig) -> Result<String, RigError> {
+    let mut cfg = config.clone();
+    cfg.control.gains = None;
+    cfg.control.controller = gains.kind().as_str().to_owned();
+    let toml = toml::to_string(&cfg).map_err(|e| RigError::Field {
+        field: "config",
+        message: format!("cannot serialise the configuration for the log: {e}"),
+    })?;
+    Ok(format!(
+        "{}\n{CONFIG_BEGIN}\n{toml}{CONFIG_END}\n{GAINS_BEGIN}\n{}{GAINS_END}",
+        format_line(),
+        gains.to_toml_string()
+    ))
+}
+
+/// Runs the rig of `config` (gain files relative to `config_dir`), `recorder` observing
+/// every period (Rerun, say). `stop` ends the run early (SIGINT, SIGTERM). The valve is
+/// vented on every exit path: the end of the run, a fault, `stop`, a panic.
+pub fn run<R>(
+    config: &RigConfig,
+    config_dir: &Path,
+    options: &RunOptions,
+    stop: &AtomicBool,
+    recorder: R,
+) -> Result<RigReport, RigError>
+where
+    R: Recorder<Rig, MuscleStep> + Send,
+{
+    let mut cfg = config.clone();
+    if let Some(d) = options.duration_s {
+        cfg.duration_s = d;
+    }
+    if let Some(p) = &options.log_path {
+        cfg.log_path = p.clone();
+    }
+    if let (Some(clock), Some(v)) = (options.clock, cfg.virtual_rig.as_mut()) {
+        v.clock = clock;
+    }
+    if let Some(fifo) = options.fifo {
+        cfg.realtime.fifo = fifo;
+    }
+    cfg.validate()?;
+    let gains = match options.controller {
+        Some(c) => c,
+        None => cfg
+            .control
+            .controller_config(cfg.control_kind()?, config_dir)?,
+    };
+    let settings = LoopSettings::new(cfg.period_s, cfg.duration_s)?.with_stop_flag(stop);
+    let limits = CommandLimits {
+        min_pa: 0.0,
+        max_pa: cfg.limits.pressure_max_pa,
+    };
+    let mut controller = build_controller(&gains, cfg.nominal_model(), limits)?;
+    let panic_at = options
+        .injections
+        .iter()
+        .find(|i| i.fault == InjectedFault::ControllerPanic);
+    if let Some(p) = panic_at {
+        if cfg.device.driver != Driver::Virtual {
+            return Err(RigError::Field {
+                field: "--inject",
+                message: "faults can only be injected into the virtual rig".into(),
+            });
+        }
+        controller = Box::new(PanicAt {
+            inner: controller,
+            at_s: p.at_s,
+            t_s: 0.0,
+        });
+    }
+    let board = VirtualOrBoard::open(&cfg, &options.injections)?;
+    let clock_name = if board.lockstep.is_some() {
+        "lockstep"
+    } else {
+        "realtime"
+    };
+    let pacing = pacing_of(&cfg, board.daq.as_ref(), board.lockstep);
+    let realtime_pacing = matches!(pacing, Pacing::Realtime(_));
+    let backend = RigBackend::configure(&cfg, board.daq, pacing)?;
+    let device = backend.device().to_owned();
+    let reference = cfg.reference(backend.configure_reading_m());
+    let vent_v = backend.vent_v();
+    let header = header(&cfg, &gains)?;
+    let _panic_vent = PanicVent::register(backend.valve_handle()?, vent_v);
+    let watchdog_handle = backend.valve_handle()?;
+    let factory: WatchdogFactory = Box::new(move || {
+        let vent: VentAction = Box::new(move || watchdog_handle.write(vent_v).is_ok());
+        Some(vent)
+    });
+    let mut rig = Supervised::new(backend, cfg.limits, cfg.period_s, Some(factory));
+    let controller_name = controller.name().to_owned();
+    let mut task = MuscleTask::new(controller, &reference);
+    let mut metrics = RigMetrics(TrackingMetrics::new(0.0), 0);
+    let mut recorder = recorder;
+    let log_path = cfg.log_path.clone();
+    let (end, rt, log_summary) = std::thread::scope(|s| {
+        let worker = std::thread::Builder::new()
+            .name("pma-rig-loop".into())
+            .spawn_scoped(
+                s,
+                || -> Result<(Ended, RealtimeStatus, LogSummary), RigError> {
+                    // Real-time set-up first, so that the log's header says what was obtained;
+                    // the log is still opened before anything goes live.
+                    let rt = if realtime_pacing {
+                        enter_realtime(cfg.realtime.fifo, cfg.realtime.priority)
+                    } else {
+                        no_rt()
+                    };
+                    let header = format!("{header}\n{}", realtime_line(&rt, realtime_pacing));
+                    let mut log = RigLog::create(
+                        &log_path,
+                        &header,
+                        Box::new(reference),
+                        vent_v,
+                        !realtime_pacing,
+                    )?;
+                    let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| {
+                        pma_loop::run(
+                            &mut rig,
+                            &mut task,
+                            &mut (&mut metrics, &mut log, &mut recorder),
+                            &settings,
+                        )
+                    }));
+                    let end = match outcome {
+                        Ok(o) => Ended::Loop(o.end),
+                        Err(_) => {
+                            // The panic hook vented already; vent through the backend too and
+                            // close the log with the fault.
+                            pma_loop::Backend::stop(&mut rig);
+                            log.vent_row(Some("controller-panic"));
+                            Ended::Panic
+                        }
+                    };
+                    Ok((end, rt, log.finish()?))
+                },
+            );
+        match worker {
+            Ok(h) => h.join().unwrap_or_else(|_| {
+                Err(RigError::Io {
+                    path: "pma-rig-loop thread".into(),
+                    message: "the loop thread panicked outside the loop".into(),
+                })
+            }),
+            Err(e) => Err(RigError::Io {
+                path: "pma-rig-loop thread".into(),
+                message: format!("cannot start the loop thread: {e}"),
+            }),
+        }
+    })?;
+    let timing = rig.inner().timing();
+    let summary = metrics.0.summary(metrics.1 as f64 * cfg.period_s, None);
+    let (fault, detail) = end.fault();
+    let report = RigReport {
+        config: cfg.name.clone(),
+        driver: match cfg.device.driver {
+            Driver::Virtual => "virtual".into(),
+            Driver::Comedi => "comedi".into(),
+        },
+        device,
+        clock: clock_name.into(),
+        controller: controller_name,
+        completed: matches!(end, Ended::Loop(End::Completed)),
+        fault,
+        fault_detail: detail,
+        vented: rig.inner().vented() || rig.watchdog_vented(),
+        watchdog_vented: rig.watchdog_vented(),
+        periods: metrics.1,
+        overruns: timing.map_or(0, |t| t.overruns),
+        jitter_p50_us: timing.map_or(f64::NAN, |t| t.jitter_p50_us),
+        jitter_p99_us: timing.map_or(f64::NAN, |t| t.jitter_p99_us),
+        jitter_max_us: timing.map_or(f64::NAN, |t| t.jitter_max_us),
+        compute_p50_us: timing.map_or(f64::NAN, |t| t.compute_p50_us),
+        compute_p99_us: timing.map_or(f64::NAN, |t| t.compute_p99_us),
+        compute_max_us: timing.map_or(f64::NAN, |t: TimingSummary| t.compute_max_us),
+        realtime: rt.is_realtime(),
+        realtime_warnings: rt.warnings,
+        mae_m: summary.stats.mae_m,
+        iae_m: summary.stats.iae_m,
+        rte_percent: summary.stats.rte_percent,
+        command_variation_bar_per_s: summary.command_variation_pa_per_s / 1e5,
+        log: log_summary.path.display().to_string(),
+        log_rows: log_summary.rows,
+        log_dropped: log_summary.dropped,
+    };
+    Ok(report)
+}
+
+/// The log header's line on the real-time set-up.
+fn realtime_line(rt: &RealtimeStatus, realtime_pacing: bool) -> String {
+    if !realtime_pacing {
+        return "timing: lockstep (no wall clock)".into();
+    }
+    let mut line = format!(
+        "timing: absolute deadlines; SCHED_FIFO {}; mlockall {}; timer slack 1 ns {}",
+        rt.fifo_priority
+            .map_or("no".to_owned(), |p| format!("yes (priority {p})")),
+        if rt.memory_locked { "yes" } else { "no" },
+        if rt.timer_slack_1ns { "yes" } else { "no" },
+    );
+    for w in &rt.warnings {
+        line.push_str("; warning: ");
+        line.push_str(w);
+    }
+    line
+}
+
+fn no_rt() -> RealtimeStatus {
+    RealtimeStatus {
+        fifo_priority: None,
+        memory_locked: false,
+        timer_slack_1ns: false,
+        warnings: Vec::new(),
+    }
+}
+
+enum Ended {
+    Loop(End<Fault<crate::daq::DaqError>>),
+    Panic,
+}
+
+impl Ended {
+    fn fault(&self) -> (Option<String>, Option<String>) {
+        match self {
+            Ended::Loop(End::Completed) => (None, None),
+            Ended::Loop(End::Stopped) => (
+                Some("interrupted".into()),
+                Some("stopped by a signal (SIGINT or SIGTERM)".into()),
+            ),
+            Ended::Loop(End::Fault { error, period, .. }) => (
+                Some(error.name().into()),
+                Some(format!("period {period}: {error}")),
+            ),
+            Ended::Panic => (
+                Some("controller-panic".into()),
+                Some("the control loop panicked (see the message above)".into()),
+            ),
+        }
+    }
+}

@@ -1,0 +1,546 @@
+//! The virtual rig: the `pma-model` muscle, load and valve (the bench of `pma-sim`) behind
+//! the [`Daq`] trait, in volts and converter counts, so that calibration, quantisation and
+//! every fault path of the real rig run without hardware.
+use crate::config::{Calibration, ClockMode, RigConfig, VirtualConfig};
+use crate::daq::{AnalogChannel, ChannelName, Daq, DaqError, DigitalLine, OutputHandle};
+use crate::error::RigError;
+use pma_model::{PositionSensor, SensorParams};
+use pma_sim::{MuscleBench, PlantConfig};
+use std::str::FromStr;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+/// The device name the virtual rig reports.
+pub const VIRTUAL_DEVICE: &str = "virtual";
+
+/// Plant step of the real-time virtual rig (s): commands take effect within it.
+const REALTIME_STEP_S: f64 = 1e-4;
+
+/// A fault the virtual rig can be told to produce (`--inject FAULT@T`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InjectedFault {
+    /// The sensor reads NaN (a broken wire on a board that reports it).
+    SensorNan,
+    /// The sensor repeats its last value (a frozen converter or driver).
+    SensorStuck,
+    /// The reading jumps 60 mm (a slipped sensor mount, a broken tendon).
+    PositionOut,
+    /// The board's reads fail (EIO).
+    DaqError,
+    /// One read blocks for 0.5 s (a hung driver call).
+    Stall,
+    /// The controller panics (a test hook for the panic path; not a board fault).
+    ControllerPanic,
+}
+
+impl InjectedFault {
+    /// Every fault, with its command-line name.
+    pub const ALL: [(InjectedFault, &'static str); 6] = [
+        (InjectedFault::SensorNan, "sensor-nan"),
+        (InjectedFault::SensorStuck, "sensor-stuck"),
+        (InjectedFault::PositionOut, "position-out"),
+        (InjectedFault::DaqError, "daq-error"),
+        (InjectedFault::Stall, "stall"),
+        (InjectedFault::ControllerPanic, "controller-panic"),
+    ];
+
+    /// Command-line name.
+    pub fn name(self) -> &'static str {
+        Self::ALL
+            .iter()
+            .find(|(f, _)| *f == self)
+            .map_or("?", |(_, n)| n)
+    }
+}
+
+/// A fault and when (seconds after the virtual rig was configured).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Injection {
+    /// Which fault.
+    pub fault: InjectedFault,
+    /// When (s).
+    pub at_s: f64,
+}
+
+impl FromStr for Injection {
+    type Err = String;
+    /// `FAULT@T`, e.g. `sensor-nan@5`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        let names: Vec<&str> = InjectedFault::ALL.iter().map(|(_, n)| *n).collect();
+        let expected = format!(
+            "expected FAULT@SECONDS with FAULT one of {}",
+            names.join(", ")
+        );
+        let (name, at) = s
+            .split_once('@')
+            .ok_or_else(|| format!("`{s}`: {expected}"))?;
+        let fault = InjectedFault::ALL
+            .iter()
+            .find(|(_, n)| *n == name)
+            .map(|(f, _)| *f)
+            .ok_or_else(|| format!("unknown fault `{name}`: {expected}"))?;
+        let at_s: f64 = at
+            .parse()
+            .ok()
+            .filter(|t: &f64| t.is_finite() && *t >= 0.0)
+            .ok_or_else(|| format!("`{at}` is not a time in seconds >= 0: {expected}"))?;
+        Ok(Self { fault, at_s })
+    }
+}
+
+/// A converter: range and resolution.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Converter {
+    min_v: f64,
+    max_v: f64,
+    /// Highest code; 0 for a continuous converter.
+    maxdata: u64,
+}
+
+impl Converter {
+    fn new(range: [f64; 2], bits: u32) -> Self {
+        Self {
+            min_v: range[0],
+            max_v: range[1],
+            maxdata: if bits == 0 { 0 } else { (1u64 << bits) - 1 },
+        }
+    }
+
+    /// The value the converter delivers for `volts`, or NaN when it saturates (Comedi's
+    /// out-of-range behaviour at code 0 or maxdata).
+    fn sample(&self, volts: f64) -> f64 {
+        if !(volts > self.min_v && volts < self.max_v) {
+            return f64::NAN;
+        }
+        self.quantise(volts)
+    }
+
+    fn quantise(&self, volts: f64) -> f64 {
+        if self.maxdata == 0 {
+            return volts;
+        }
+        let span = self.max_v - self.min_v;
+        let code = ((volts - self.min_v) / span * self.maxdata as f64)
+            .round()
+            .clamp(0.0, self.maxdata as f64);
+        if code == 0.0 || code == self.maxdata as f64 {
+            return f64::NAN;
+        }
+        self.min_v + code * span / self.maxdata as f64
+    }
+
+    fn output(&self, volts: f64) -> Option<f64> {
+        if !(volts >= self.min_v && volts <= self.max_v) {
+            return None;
+        }
+        if self.maxdata == 0 {
+            return Some(volts);
+        }
+        let span = self.max_v - self.min_v;
+        let code = ((volts - self.min_v) / span * self.maxdata as f64).round();
+        Some(self.min_v + code * span / self.maxdata as f64)
+    }
+}
+
+/// The simulated hardware: plant, valve input, sensor, charge pump.
+struct Hardware {
+    bench: MuscleBench,
+    sensor: PositionSensor,
+    calibration: Calibration,
+    input: Converter,
+    output: Converter,
+    step_s: f64,
+    steps_done: u64,
+    history: Vec<f64>,
+    history_next: usize,
+    valve_v: f64,
+    pump_toggles: u64,
+    pump_level: bool,
+    stuck_v: Option<f64>,
+    stalled: bool,
+}
+
+impl Hardware {
+    fn integrate_to(&mut self, steps: u64) {
+        while self.steps_done < steps {
+            self.bench.advance(self.step_s);
+            self.steps_done += 1;
+            if !self.history.is_empty() {
+                self.history[self.history_next] = self.bench.position();
+                self.history_next = (self.history_next + 1) % self.history.len();
+            }
+        }
+    }
+
+    /// The true contraction the sensor sees now (delayed by the latency, if any).
+    fn sensed_position(&self) -> f64 {
+        if self.history.is_empty() || self.steps_done < self.history.len() as u64 {
+            self.bench.position()
+        } else {
+            self.history[self.history_next]
+        }
+    }
+
+    fn command_volts(&mut self, volts: f64) {
+        self.valve_v = volts;
+        self.bench.command(self.calibration.valve_pa(volts));
+    }
+}
+
+/// How the virtual rig's time advances.
+#[derive(Debug, Clone)]
+enum TimeSource {
+    /// Counted periods, advanced by [`LockstepClock::tick`].
+    Lockstep(Arc<AtomicU64>),
+    /// Wall time since creation.
+    Wall(Instant),
+}
+
+/// The lockstep clock of a virtual rig: one tick per control period.
+#[derive(Debug, Clone)]
+pub struct LockstepClock(Arc<AtomicU64>);
+
+impl LockstepClock {
+    /// Lets one period pass.
+    pub fn tick(&self) {
+        self.0.fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+/// What a test can see of the simulated hardware.
+#[derive(Clone)]
+pub struct VirtualProbe(Arc<Mutex<Hardware>>);
+
+/// The true state of the simulated rig.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VirtualState {
+    /// True contraction (m).
+    pub position_m: f64,
+    /// Pressure in the muscle (Pa).
+    pub pressure_pa: f64,
+    /// Valve set point (V).
+    pub valve_v: f64,
+    /// Times the charge-pump line changed level.
+    pub pump_toggles: u64,
+}
+
+impl VirtualProbe {
+    /// The state now.
+    pub fn state(&self) -> VirtualState {
+        let hw = lock(&self.0);
+        VirtualState {
+            position_m: hw.bench.position(),
+            pressure_pa: hw.bench.pressure(),
+            valve_v: hw.valve_v,
+            pump_toggles: hw.pump_toggles,
+        }
+    }
+}
+
+fn lock(m: &Mutex<Hardware>) -> MutexGuard<'_, Hardware> {
+    // A panic while the lock was held leaves a consistent plant (every update is a few
+    // assignments): keep using it, so that venting still works after a panic.
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// The virtual DAQ.
+pub struct VirtualDaq {
+    hw: Arc<Mutex<Hardware>>,
+    time: TimeSource,
+    period_s: f64,
+    position: AnalogChannel,
+    valve: AnalogChannel,
+    pump: Option<DigitalLine>,
+    injections: Vec<Injection>,
+}
+
+impl VirtualDaq {
+    /// The simulated rig of `config` (its `[virtual]` section), the load hanging at rest on
+    /// the vented muscle, with `injections` scheduled.
+    pub fn new(config: &RigConfig, injections: &[Injection]) -> Result<Self, RigError> {
+        let v: &VirtualConfig = config.virtual_rig.as_ref().ok_or(RigError::Missing {
+            field: "virtual",
+            why: "the virtual driver needs a [virtual] section",
+        })?;
+        let mut plant = PlantConfig::load(&v.plant)?;
+        let seed = plant.sensor.seed;
+        plant.sensor = SensorParams::ideal();
+        let (step_s, substeps) = match v.clock {
+            ClockMode::Lockstep => (config.period_s, plant.substeps_per_period),
+            ClockMode::Realtime => (REALTIME_STEP_S, 1),
+        };
+        let bench = MuscleBench::vented(&plant)?.with_substeps(substeps);
+        let sensor = PositionSensor::new(SensorParams {
+            noise_rms_m: v.sensor_noise_rms_m,
+            seed,
+            ..SensorParams::ideal()
+        })
+        .map_err(|e| RigError::Field {
+            field: "virtual.sensor_noise_rms_m",
+            message: e.to_string(),
+        })?;
+        let latency_steps = (v.sensor_latency_s / step_s).round() as usize;
+        let hw = Hardware {
+            bench,
+            sensor,
+            calibration: config.calibration,
+            input: Converter::new(v.input_range_v, v.converter_bits),
+            output: Converter::new(v.output_range_v, v.converter_bits),
+            step_s,
+            steps_done: 0,
+            history: vec![0.0; latency_steps],
+            history_next: 0,
+            valve_v: config.calibration.valve_v(0.0),
+            pump_toggles: 0,
+            pump_level: false,
+            stuck_v: None,
+            stalled: false,
+        };
+        let time = match v.clock {
+            ClockMode::Lockstep => TimeSource::Lockstep(Arc::new(AtomicU64::new(0))),
+            ClockMode::Realtime => TimeSource::Wall(Instant::now()),
+        };
+        Ok(Self {
+            hw: Arc::new(Mutex::new(hw)),
+            time,
+            period_s: config.period_s,
+            position: config.signals.position,
+            valve: config.signals.valve,
+            pump: config.signals.charge_pump,
+            injections: injections.to_vec(),
+        })
+    }
+
+    /// The lockstep clock, if the rig runs in lockstep.
+    pub fn lockstep_clock(&self) -> Option<LockstepClock> {
+        match &self.time {
+            TimeSource::Lockstep(c) => Some(LockstepClock(Arc::clone(c))),
+            TimeSource::Wall(_) => None,
+        }
+    }
+
+    /// A probe on the simulated hardware.
+    pub fn probe(&self) -> VirtualProbe {
+        VirtualProbe(Arc::clone(&self.hw))
+    }
+
+    /// Seconds since the rig was configured (virtual time in lockstep).
+    fn now_s(&self) -> f64 {
+        match &self.time {
+            TimeSource::Lockstep(c) => c.load(Ordering::Relaxed) as f64 * self.period_s,
+            TimeSource::Wall(t0) => t0.elapsed().as_secs_f64(),
+        }
+    }
+
+    fn steps_now(&self, step_s: f64) -> u64 {
+        match &self.time {
+            TimeSource::Lockstep(c) => c.load(Ordering::Relaxed),
+            TimeSource::Wall(t0) => (t0.elapsed().as_secs_f64() / step_s) as u64,
+        }
+    }
+
+    fn active(&self, fault: InjectedFault) -> bool {
+        let now = self.now_s();
+        self.injections
+            .iter()
+            .any(|i| i.fault == fault && now >= i.at_s)
+    }
+
+    fn wrong_channel(&self, channel: ChannelName) -> DaqError {
+        DaqError::Channel {
+            device: VIRTUAL_DEVICE.into(),
+            channel,
+            message: "the virtual rig has no such channel (it has the configured position, valve and charge-pump signals only)".into(),
+        }
+    }
+}
+
+impl Daq for VirtualDaq {
+    fn device(&self) -> &str {
+        VIRTUAL_DEVICE
+    }
+
+    fn check(
+        &mut self,
+        inputs: &[AnalogChannel],
+        outputs: &[AnalogChannel],
+        lines: &[DigitalLine],
+    ) -> Result<(), DaqError> {
+        if let Some(c) = inputs.iter().find(|c| **c != self.position) {
+            return Err(self.wrong_channel(c.input_name()));
+        }
+        if let Some(c) = outputs.iter().find(|c| **c != self.valve) {
+            return Err(self.wrong_channel(c.output_name()));
+        }
+        if let Some(l) = lines.iter().find(|l| Some(**l) != self.pump) {
+            return Err(self.wrong_channel(l.name()));
+        }
+        Ok(())
+    }
+
+    fn range_v(&mut self, channel: &AnalogChannel, output: bool) -> Result<(f64, f64), DaqError> {
+        let hw = lock(&self.hw);
+        match (output, *channel == self.valve, *channel == self.position) {
+            (true, true, _) => Ok((hw.output.min_v, hw.output.max_v)),
+            (false, _, true) => Ok((hw.input.min_v, hw.input.max_v)),
+            (true, _, _) => Err(self.wrong_channel(channel.output_name())),
+            (false, _, _) => Err(self.wrong_channel(channel.input_name())),
+        }
+    }
+
+    fn read_analog(&mut self, channel: &AnalogChannel) -> Result<f64, DaqError> {
+        if *channel != self.position {
+            return Err(self.wrong_channel(channel.input_name()));
+        }
+        if self.active(InjectedFault::Stall) {
+            let first = {
+                let mut hw = lock(&self.hw);
+                !std::mem::replace(&mut hw.stalled, true)
+            };
+            if first {
+                // Blocks without holding the plant, as a hung driver call would: the
+                // watchdog must be able to vent meanwhile.
+                std::thread::sleep(Duration::from_millis(500));
+            }
+        }
+        if self.active(InjectedFault::DaqError) {
+            return Err(DaqError::Io {
+                device: VIRTUAL_DEVICE.into(),
+                channel: channel.input_name(),
+                operation: "read",
+                message: "Input/output error (injected)".into(),
+            });
+        }
+        let (nan, stuck, out) = (
+            self.active(InjectedFault::SensorNan),
+            self.active(InjectedFault::SensorStuck),
+            self.active(InjectedFault::PositionOut),
+        );
+        let mut hw = lock(&self.hw);
+        let steps = self.steps_now(hw.step_s);
+        hw.integrate_to(steps);
+        let sensed = hw.sensed_position();
+        let mut x = hw.sensor.measure(sensed);
+        if out {
+            x += 0.060;
+        }
+        let volts = hw.input.sample(hw.calibration.position_v(x));
+        if stuck {
+            return Ok(*hw.stuck_v.get_or_insert(volts));
+        }
+        Ok(if nan { f64::NAN } else { volts })
+    }
+
+    fn write_analog(&mut self, channel: &AnalogChannel, volts: f64) -> Result<(), DaqError> {
+        if *channel != self.valve {
+            return Err(self.wrong_channel(channel.output_name()));
+        }
+        let mut hw = lock(&self.hw);
+        let range = (hw.output.min_v, hw.output.max_v);
+        let v = hw
+            .output
+            .output(volts)
+            .ok_or_else(|| DaqError::OutOfRange {
+                device: VIRTUAL_DEVICE.into(),
+                channel: channel.output_name(),
+                volts,
+                min_v: range.0,
+                max_v: range.1,
+            })?;
+        let steps = self.steps_now(hw.step_s);
+        hw.integrate_to(steps);
+        hw.command_volts(v);
+        Ok(())
+    }
+
+    fn write_digital(&mut self, line: &DigitalLine, high: bool) -> Result<(), DaqError> {
+        if Some(*line) != self.pump {
+            return Err(self.wrong_channel(line.name()));
+        }
+        let mut hw = lock(&self.hw);
+        if hw.pump_level != high {
+            hw.pump_toggles += 1;
+        }
+        hw.pump_level = high;
+        Ok(())
+    }
+
+    fn output_handle(&self, channel: &AnalogChannel) -> Result<Box<dyn OutputHandle>, DaqError> {
+        if *channel != self.valve {
+            return Err(self.wrong_channel(channel.output_name()));
+        }
+        Ok(Box::new(VirtualOutput {
+            hw: Arc::clone(&self.hw),
+            time: self.time.clone(),
+            channel: *channel,
+        }))
+    }
+}
+
+/// The virtual valve output, for the watchdog and the panic hook.
+struct VirtualOutput {
+    hw: Arc<Mutex<Hardware>>,
+    time: TimeSource,
+    channel: AnalogChannel,
+}
+
+impl OutputHandle for VirtualOutput {
+    fn write(&self, volts: f64) -> Result<(), DaqError> {
+        let mut hw = lock(&self.hw);
+        let range = (hw.output.min_v, hw.output.max_v);
+        let v = hw
+            .output
+            .output(volts)
+            .ok_or_else(|| DaqError::OutOfRange {
+                device: VIRTUAL_DEVICE.into(),
+                channel: self.channel.output_name(),
+                volts,
+                min_v: range.0,
+                max_v: range.1,
+            })?;
+        let steps = match &self.time {
+            TimeSource::Lockstep(c) => c.load(Ordering::Relaxed),
+            TimeSource::Wall(t0) => (t0.elapsed().as_secs_f64() / hw.step_s) as u64,
+        };
+        hw.integrate_to(steps);
+        hw.command_volts(v);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sixteen_bit_converter_quantises_and_saturates_to_nan() {
+        let c = Converter::new([0.0, 10.0], 16);
+        let lsb = 10.0 / 65535.0;
+        let v = c.sample(3.3);
+        assert!((v - 3.3).abs() <= lsb / 2.0 + 1e-12);
+        assert!(c.sample(0.0).is_nan() && c.sample(10.0).is_nan() && c.sample(-1.0).is_nan());
+        assert!(c.sample(f64::NAN).is_nan());
+        assert_eq!(c.output(11.0), None);
+        assert_eq!(Converter::new([0.0, 10.0], 0).sample(3.3), 3.3);
+    }
+
+    #[test]
+    fn injections_parse_and_name_the_problem() {
+        let i: Injection = "sensor-nan@5".parse().unwrap();
+        assert_eq!(i.fault, InjectedFault::SensorNan);
+        assert_eq!(i.at_s, 5.0);
+        assert!("sensor-nan"
+            .parse::<Injection>()
+            .unwrap_err()
+            .contains("FAULT@SECONDS"));
+        assert!("smoke@1"
+            .parse::<Injection>()
+            .unwrap_err()
+            .contains("unknown fault `smoke`"));
+        assert!("stall@-1"
+            .parse::<Injection>()
+            .unwrap_err()
+            .contains("seconds"));
+    }
+}

@@ -1,0 +1,220 @@
+//! Regression: the figures of every run are bit-identical across the move of the bench and
+//! the leg onto the one closed loop of `pma-loop`. The fingerprints below were computed by
+//! this test on the commit before that move (3497363) and are compared bit for bit.
+//!
+//! The bench's are those of 3497363. The leg's were reproduced bit for bit once with the
+//! old leg loop's two habits patched back in (its clock summed `t += T` every period, and
+//! its controllers were reset on the exact resting contraction instead of the encoder
+//! reading); the shared loop keeps neither (time is `k T`, controllers start from what is
+//! measured), so the leg's pins are the shared loop's own.
+use pma_control::{ControllerKind, SineReference};
+use pma_leg::{LegSim, Scenario};
+use pma_sim::{run_single, PlantConfig, RunSpec, Sample, Samples};
+
+/// FNV-1a over the bits of a sequence of floats.
+#[derive(Clone, Copy)]
+struct Fnv(u64);
+
+impl Fnv {
+    fn new() -> Self {
+        Self(0xcbf2_9ce4_8422_2325)
+    }
+    fn push(&mut self, v: f64) {
+        for b in v.to_bits().to_le_bytes() {
+            self.0 ^= u64::from(b);
+            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+}
+
+fn bench_fingerprint(kind: ControllerKind, plant: &str) -> (u64, u64) {
+    let plant = PlantConfig::preset(plant).expect("preset");
+    let spec = RunSpec {
+        duration_s: 2.0,
+        ..RunSpec::default()
+    };
+    let mut trace = Fnv::new();
+    let mut observe = |s: &Sample| {
+        trace.push(s.pressure_cmd_pa);
+        trace.push(s.position_m);
+        trace.push(s.measured_m);
+    };
+    let r = run_single(
+        &kind.default_config(),
+        &plant,
+        &SineReference::paper(),
+        &spec,
+        &mut Samples(&mut observe),
+    )
+    .expect("run");
+    let mut figures = Fnv::new();
+    for v in [
+        r.stats.mae_m,
+        r.stats.iae_m,
+        r.stats.rte_percent,
+        r.stats.rms_m,
+        r.x_a_m,
+        r.command_variation_pa_per_s,
+    ] {
+        figures.push(v);
+    }
+    (trace.0, figures.0)
+}
+
+fn leg_fingerprint(scenario: &str) -> u64 {
+    let loaded = Scenario::load(scenario).expect("scenario");
+    let mut sim = LegSim::new(&loaded).expect("sim");
+    let r = sim.run(4.0, &mut ()).expect("run");
+    let mut f = Fnv::new();
+    for j in r.joints.values() {
+        f.push(j.rms_deg);
+        f.push(j.max_deg);
+    }
+    for m in r.muscles.values() {
+        f.push(m.p_min_pa);
+        f.push(m.p_max_pa);
+        f.push(m.slack_s);
+    }
+    f.push(r.cocontraction_pa.start);
+    f.push(r.cocontraction_pa.end);
+    f.push(r.command_variation_bar_per_s);
+    f.0
+}
+
+/// `(plant, controller, trace, figures)`: 2 s of the paper's sine.
+const BENCH: [(&str, ControllerKind, u64, u64); 18] = [
+    (
+        "ideal",
+        ControllerKind::AprcNdo,
+        0x9adbdee43e41101a,
+        0x11d2562d0c687ffd,
+    ),
+    (
+        "ideal",
+        ControllerKind::Aprc,
+        0x30bf24400514a7e0,
+        0xd4e5f2a8a553af3d,
+    ),
+    (
+        "ideal",
+        ControllerKind::Psmc,
+        0x2dfd3bb451731ec7,
+        0x4c0e7fbb517c92a4,
+    ),
+    (
+        "ideal",
+        ControllerKind::NdoSmc,
+        0xf6ce4899b1634425,
+        0xe88b7ac47f3cd410,
+    ),
+    (
+        "ideal",
+        ControllerKind::Sta,
+        0xd00506c5b9c93036,
+        0x5f3c2f4e01e7f14c,
+    ),
+    (
+        "ideal",
+        ControllerKind::Pid,
+        0xa5f4a47378c8bc6f,
+        0x19c128c9530faa79,
+    ),
+    (
+        "mismatch",
+        ControllerKind::AprcNdo,
+        0xdcec5bbebd0bf204,
+        0xec427ce855f476de,
+    ),
+    (
+        "mismatch",
+        ControllerKind::Aprc,
+        0x222113756144ce30,
+        0x00c213ed436e5673,
+    ),
+    (
+        "mismatch",
+        ControllerKind::Psmc,
+        0xdaa4265d0fd15968,
+        0x41b89c2335fd3593,
+    ),
+    (
+        "mismatch",
+        ControllerKind::NdoSmc,
+        0x96c18376772f9a20,
+        0x2ab0b8720a2bf1cf,
+    ),
+    (
+        "mismatch",
+        ControllerKind::Sta,
+        0xfc1bd806f0aee932,
+        0xdbdbc0498e14acbb,
+    ),
+    (
+        "mismatch",
+        ControllerKind::Pid,
+        0xc82308a52361cdc9,
+        0x73056c7eb248cfb4,
+    ),
+    (
+        "realistic",
+        ControllerKind::AprcNdo,
+        0xf979b3ba0a700dd5,
+        0xf0036d176cba3038,
+    ),
+    (
+        "realistic",
+        ControllerKind::Aprc,
+        0xef8814fb774e2f2b,
+        0x6b85205b6c84d503,
+    ),
+    (
+        "realistic",
+        ControllerKind::Psmc,
+        0xd3346004a7499122,
+        0xb88a134f7014702b,
+    ),
+    (
+        "realistic",
+        ControllerKind::NdoSmc,
+        0x8ccb2e55dffb4557,
+        0x1da52d0ccfd5ff4b,
+    ),
+    (
+        "realistic",
+        ControllerKind::Sta,
+        0x418aea4c37b5e14d,
+        0x1e13dd6dc4e27b58,
+    ),
+    (
+        "realistic",
+        ControllerKind::Pid,
+        0x8c2ff48aaefde87b,
+        0x5f3735362859bf1a,
+    ),
+];
+
+/// `(scenario, figures)`: 4 s of gait.
+const LEG: [(&str, u64); 2] = [
+    ("gait_training", 0xa436ba1ad0bfb796),
+    ("gait_realistic", 0x4258de070405beba),
+];
+
+#[test]
+fn bench_runs_are_bit_identical_to_the_commit_before_the_shared_loop() {
+    let mut wrong = Vec::new();
+    for (plant, kind, trace, figures) in BENCH {
+        let got = bench_fingerprint(kind, plant);
+        if got != (trace, figures) {
+            wrong.push(format!("{plant} {kind}: {:#018x} {:#018x}", got.0, got.1));
+        }
+    }
+    assert!(wrong.is_empty(), "changed: {wrong:?}");
+}
+
+#[test]
+fn leg_runs_are_bit_identical_to_their_pins() {
+    for (scenario, pin) in LEG {
+        let got = leg_fingerprint(scenario);
+        assert_eq!(got, pin, "{scenario}: {got:#018x}");
+    }
+}

@@ -1,0 +1,478 @@
+//! The hardware backend on the virtual rig: the shared loop, tracking, every fault path,
+//! signals, panics, replay and bad configurations.
+use pma_control::{build_controller, CommandLimits, ControllerKind};
+use pma_loop::{FnRecorder, LoopSettings, MuscleStep, MuscleTask, Period};
+use pma_rig::config::{ClockMode, EMBEDDED_VIRTUAL};
+use pma_rig::{
+    AnalogChannel, Daq, DaqError, DigitalLine, OutputHandle, Rig, RigBackend, RigConfig, RunOptions,
+};
+use pma_sim::{MuscleBench, PlantConfig};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+
+fn virtual_config() -> RigConfig {
+    RigConfig::from_toml_str(EMBEDDED_VIRTUAL, "virtual.toml").expect("embedded config")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pma-exo-rig-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).expect("temp dir");
+    d
+}
+
+fn run_virtual(cfg: &RigConfig, options: &RunOptions) -> pma_rig::RigReport {
+    let stop = AtomicBool::new(false);
+    pma_rig::run::run(cfg, Path::new("models/rig"), options, &stop, ()).expect("rig run")
+}
+
+/// Rows of a rig log: (period, t_s, valve_cmd_pa, event, fault).
+fn log_rows(path: &Path) -> Vec<(u64, f64, f64, String, String)> {
+    let mut r = csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .from_path(path)
+        .expect("log");
+    let h = r.headers().expect("header").clone();
+    let col = |n: &str| h.iter().position(|c| c == n).expect("column");
+    let (p, t, v, e, f) = (
+        col("period"),
+        col("t_s"),
+        col("valve_cmd_pa"),
+        col("event"),
+        col("fault"),
+    );
+    r.records()
+        .map(|row| {
+            let row = row.expect("row");
+            (
+                row[p].parse().expect("period"),
+                row[t].parse().expect("t"),
+                row[v].parse().expect("valve"),
+                row[e].to_owned(),
+                row[f].to_owned(),
+            )
+        })
+        .collect()
+}
+
+/// The log has the activation, then every period with none missing, then the vent.
+fn assert_complete_log(rows: &[(u64, f64, f64, String, String)], periods: u64, fault: &str) {
+    assert_eq!(rows[0].3, "activate");
+    for (k, row) in rows.iter().enumerate() {
+        assert_eq!(row.0, k as u64, "row {k} is period {}", row.0);
+    }
+    let last = rows.last().expect("rows");
+    assert_eq!(last.3, "vent", "last row {last:?}");
+    assert_eq!(last.2, 0.0, "the last row vents: {last:?}");
+    assert_eq!(last.4, fault);
+    assert_eq!(
+        rows.len() as u64,
+        periods + 2,
+        "activation + periods + vent"
+    );
+}
+
+#[test]
+fn lockstep_virtual_rig_tracks_the_paper_sine_and_vents() {
+    let dir = temp_dir("sine");
+    let log = dir.join("log.csv");
+    let r = run_virtual(
+        &virtual_config(),
+        &RunOptions {
+            log_path: Some(log.clone()),
+            ..RunOptions::default()
+        },
+    );
+    eprintln!("{r:?}");
+    assert!(r.completed && r.vented && r.fault.is_none(), "{r:?}");
+    assert_eq!(r.periods, 20_000);
+    assert!(r.rte_percent < 1.0, "RTE {} %", r.rte_percent);
+    assert_complete_log(&log_rows(&log), 20_000, "");
+    // Replay: the logged measurements, references and periods through the same controller
+    // give every command bit for bit.
+    let replay = pma_rig::replay(&log).expect("replay");
+    assert_eq!(replay.periods, 20_000);
+    assert_eq!(replay.mismatches, 0);
+    assert_eq!(replay.max_abs_difference_pa, 0.0);
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// Ideal converters: no quantisation, power-of-two scales (exactly invertible), no noise,
+/// limits that never bind. Then the virtual rig is the bench behind volts.
+fn ideal_converter_config() -> RigConfig {
+    let text = EMBEDDED_VIRTUAL
+        .replace("range = 9, aref", "range = 0, aref")
+        .replace(
+            "position_m_per_v = 0.015\n",
+            "position_m_per_v = 0.015625\n",
+        )
+        .replace(
+            "position_offset_v = 1.3333333333333333",
+            "position_offset_v = 0.0",
+        )
+        .replace("valve_pa_per_v = 1.0e5", "valve_pa_per_v = 65536.0")
+        .replace(
+            "pressure_rate_max_pa_per_s = 2.0e8",
+            "pressure_rate_max_pa_per_s = 1.0e12",
+        )
+        .replace("sensor_stuck_periods = 500", "sensor_stuck_periods = 0")
+        .replace("converter_bits = 16", "converter_bits = 0")
+        .replace("sensor_noise_rms_m = 3e-6", "sensor_noise_rms_m = 0.0")
+        .replace(
+            "input_range_v = [0.0, 10.0]",
+            "input_range_v = [-10.0, 10.0]",
+        );
+    assert_ne!(text, EMBEDDED_VIRTUAL);
+    RigConfig::from_toml_str(&text, "ideal-converters.toml").expect("config")
+}
+
+#[test]
+fn the_virtual_rig_and_the_bench_run_the_same_loop_command_for_command() {
+    let cfg = ideal_converter_config();
+    let dir = temp_dir("same-loop");
+    let stop = AtomicBool::new(false);
+    let mut rig_commands = Vec::new();
+    let rec = FnRecorder(|p: &Period<'_, Rig, MuscleStep>| {
+        rig_commands.push(p.output.control.pressure_cmd_pa)
+    });
+    let options = RunOptions {
+        duration_s: Some(5.0),
+        log_path: Some(dir.join("log.csv")),
+        ..RunOptions::default()
+    };
+    let report = pma_rig::run::run(&cfg, Path::new("."), &options, &stop, rec).expect("run");
+    assert!(report.completed, "{report:?}");
+
+    let plant = PlantConfig::preset("mismatch").expect("preset");
+    let mut bench = MuscleBench::vented(&plant).expect("bench");
+    let reference = cfg.reference(bench.position());
+    let limits = CommandLimits {
+        min_pa: 0.0,
+        max_pa: cfg.limits.pressure_max_pa,
+    };
+    let controller = build_controller(
+        &ControllerKind::AprcNdo.default_config(),
+        cfg.nominal_model(),
+        limits,
+    )
+    .expect("controller");
+    let mut task = MuscleTask::new(controller, &reference);
+    let mut bench_commands = Vec::new();
+    let mut rec = FnRecorder(|p: &Period<'_, MuscleBench, MuscleStep>| {
+        bench_commands.push(p.output.control.pressure_cmd_pa)
+    });
+    let settings = LoopSettings::new(cfg.period_s, 5.0).expect("settings");
+    pma_loop::run(&mut bench, &mut task, &mut rec, &settings);
+    assert_eq!(rig_commands.len(), 5000);
+    assert_eq!(rig_commands, bench_commands);
+    // And the commands did something: the load travelled the sine.
+    let max = bench_commands.iter().fold(0.0f64, |m, u| m.max(*u));
+    assert!(max > 1.0e5, "largest command {max} Pa");
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// Regression: with a 50 bar/s rate limit in the supervisor and the controller unaware of
+/// it, APRC-NDO's observer and adaptive gain wound up against the limit until the muscle
+/// left its window at 42 s (lockstep virtual rig). The loop now hands every controller
+/// the command actually applied.
+#[test]
+fn a_rate_limit_the_controller_cannot_see_no_longer_destabilises_it() {
+    let text = EMBEDDED_VIRTUAL.replace(
+        "pressure_rate_max_pa_per_s = 2.0e8",
+        "pressure_rate_max_pa_per_s = 5.0e6",
+    );
+    let cfg = RigConfig::from_toml_str(&text, "rate-limited.toml").expect("config");
+    let dir = temp_dir("rate-limit");
+    let r = run_virtual(
+        &cfg,
+        &RunOptions {
+            duration_s: Some(60.0),
+            log_path: Some(dir.join("log.csv")),
+            ..RunOptions::default()
+        },
+    );
+    eprintln!("{r:?}");
+    assert!(r.completed && r.fault.is_none(), "{r:?}");
+    assert!(r.rte_percent < 2.0, "RTE {} %", r.rte_percent);
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn a_raised_stop_flag_vents_at_the_next_period_and_the_log_is_complete() {
+    let dir = temp_dir("stop");
+    let log = dir.join("log.csv");
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    let rec = FnRecorder(move |p: &Period<'_, Rig, MuscleStep>| {
+        if p.index == 1000 {
+            flag.store(true, Ordering::Relaxed);
+        }
+    });
+    let options = RunOptions {
+        log_path: Some(log.clone()),
+        ..RunOptions::default()
+    };
+    let r =
+        pma_rig::run::run(&virtual_config(), Path::new("."), &options, &stop, rec).expect("run");
+    assert_eq!(r.periods, 1000, "{r:?}");
+    assert!(r.vented && !r.completed);
+    assert_eq!(r.fault.as_deref(), Some("interrupted"));
+    assert_eq!(r.exit_code(), 130);
+    assert_complete_log(&log_rows(&log), 1000, "interrupted");
+    std::fs::remove_dir_all(dir).ok();
+}
+
+fn pma_exo(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("run pma-exo")
+}
+
+#[test]
+fn every_injected_fault_vents_names_itself_and_closes_the_log() {
+    let dir = temp_dir("faults");
+    for fault in [
+        "sensor-nan",
+        "sensor-stuck",
+        "position-out",
+        "daq-error",
+        "stall",
+        "controller-panic",
+    ] {
+        let log = dir.join(format!("{fault}.csv"));
+        let log_s = log.display().to_string();
+        let inject = format!("{fault}@3");
+        let out = pma_exo(&[
+            "rig",
+            "run",
+            "--json",
+            "--duration",
+            "6",
+            "--inject",
+            &inject,
+            "--log",
+            &log_s,
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(3), "{fault}: {stderr}");
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+        assert_eq!(v["fault"], fault, "{v}");
+        assert_eq!(v["vented"], true, "{v}");
+        assert_eq!(v["completed"], false, "{v}");
+        let periods = v["periods"].as_u64().expect("periods");
+        // The fault comes at 3 s (the stuck sensor 500 periods later).
+        assert!(
+            (2999..=3500).contains(&periods),
+            "{fault}: {periods} periods"
+        );
+        assert_complete_log(&log_rows(&log), periods, fault);
+        if fault == "stall" {
+            assert_eq!(v["watchdog_vented"], true, "{v}");
+        }
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[cfg(unix)]
+#[test]
+fn sigint_to_a_realtime_run_vents_and_exits_cleanly_with_a_complete_log() {
+    let dir = temp_dir("sigint");
+    let log = dir.join("log.csv");
+    let log_s = log.display().to_string();
+    let child = Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args([
+            "rig",
+            "run",
+            "--realtime",
+            "--json",
+            "--duration",
+            "60",
+            "--log",
+            &log_s,
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    // SAFETY: sending SIGINT to our own child.
+    let rc = unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
+    assert_eq!(rc, 0);
+    let out = child.wait_with_output().expect("wait");
+    assert_eq!(
+        out.status.code(),
+        Some(130),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(v["fault"], "interrupted");
+    assert_eq!(v["vented"], true);
+    assert_eq!(v["clock"], "realtime");
+    let periods = v["periods"].as_u64().expect("periods");
+    assert!(periods > 500, "{periods} periods in 1.5 s");
+    assert_complete_log(&log_rows(&log), periods, "interrupted");
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn bad_configurations_are_one_line_errors_naming_the_field() {
+    let dir = temp_dir("bad");
+    let cases: [(&str, String, &str); 6] = [
+        (
+            "unknown field",
+            EMBEDDED_VIRTUAL.replace("period_s = 0.001", "period_s = 0.001\nperiod_ms = 1"),
+            "period_ms",
+        ),
+        (
+            "missing channel",
+            EMBEDDED_VIRTUAL.replace(
+                "valve = { subdevice = 1, channel = 0, range = 1, aref = \"ground\" }\n",
+                "",
+            ),
+            "valve",
+        ),
+        (
+            "zero gain",
+            EMBEDDED_VIRTUAL.replace("position_m_per_v = 0.015\n", "position_m_per_v = 0.0\n"),
+            "calibration.position_m_per_v",
+        ),
+        (
+            "limits inverted",
+            EMBEDDED_VIRTUAL.replace("position_max_m = 0.045", "position_max_m = -0.030"),
+            "limits.position_max_m",
+        ),
+        (
+            "NaN",
+            EMBEDDED_VIRTUAL.replace("pressure_max_pa = 6.0e5", "pressure_max_pa = nan"),
+            "limits.pressure_max_pa",
+        ),
+        (
+            "unknown controller",
+            EMBEDDED_VIRTUAL.replace("controller = \"aprc-ndo\"", "controller = \"lqr\""),
+            "control.controller",
+        ),
+    ];
+    for (what, text, needle) in cases {
+        assert_ne!(text, EMBEDDED_VIRTUAL, "{what}: the edit did not apply");
+        let path = dir.join(format!("{}.toml", what.replace(' ', "_")));
+        std::fs::write(&path, text).expect("write");
+        let p = path.display().to_string();
+        for args in [
+            vec!["rig", "check", "--config", &p],
+            vec!["rig", "run", "--config", &p],
+        ] {
+            let out = pma_exo(&args);
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(1), "{what}: {err}");
+            assert_eq!(err.trim_end().lines().count(), 1, "{what}: {err}");
+            assert!(err.contains(needle) && err.contains(&p), "{what}: {err}");
+        }
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// A board that records every write.
+#[derive(Default, Clone)]
+struct Recording(Arc<Mutex<Vec<String>>>);
+
+impl Daq for Recording {
+    fn device(&self) -> &str {
+        "recording"
+    }
+    fn check(
+        &mut self,
+        _: &[AnalogChannel],
+        _: &[AnalogChannel],
+        _: &[DigitalLine],
+    ) -> Result<(), DaqError> {
+        Ok(())
+    }
+    fn range_v(&mut self, _: &AnalogChannel, _: bool) -> Result<(f64, f64), DaqError> {
+        Ok((0.0, 10.0))
+    }
+    fn read_analog(&mut self, _: &AnalogChannel) -> Result<f64, DaqError> {
+        Ok(1.0)
+    }
+    fn write_analog(&mut self, c: &AnalogChannel, v: f64) -> Result<(), DaqError> {
+        self.0
+            .lock()
+            .unwrap()
+            .push(format!("ao {}/{} {v}", c.subdevice, c.channel));
+        Ok(())
+    }
+    fn write_digital(&mut self, l: &DigitalLine, h: bool) -> Result<(), DaqError> {
+        self.0
+            .lock()
+            .unwrap()
+            .push(format!("dio {}/{} {h}", l.subdevice, l.channel));
+        Ok(())
+    }
+    fn output_handle(&self, _: &AnalogChannel) -> Result<Box<dyn OutputHandle>, DaqError> {
+        Err(DaqError::Unsupported("recording board".into()))
+    }
+}
+
+#[test]
+fn nothing_reaches_the_board_before_the_configuration_is_sound() {
+    let mut bad = virtual_config();
+    bad.calibration.valve_pa_per_v = 0.0;
+    let daq = Recording::default();
+    let writes = Arc::clone(&daq.0);
+    let e = RigBackend::configure(
+        &bad,
+        Box::new(daq),
+        pma_rig::Pacing::Realtime(std::time::Duration::from_millis(1)),
+    );
+    assert!(e.is_err());
+    assert!(
+        writes.lock().unwrap().is_empty(),
+        "{:?}",
+        writes.lock().unwrap()
+    );
+    // A vent value outside the output's range is caught before the first write, too.
+    let mut outside = virtual_config();
+    outside.calibration.valve_offset_v = -1.0;
+    let daq = Recording::default();
+    let writes = Arc::clone(&daq.0);
+    let e = RigBackend::configure(
+        &outside,
+        Box::new(daq),
+        pma_rig::Pacing::Realtime(std::time::Duration::from_millis(1)),
+    )
+    .err()
+    .expect("refused");
+    assert!(e.to_string().contains("valve_offset_v"), "{e}");
+    assert!(writes.lock().unwrap().is_empty());
+    // A sound configuration vents first and resets the charge pump.
+    let daq = Recording::default();
+    let writes = Arc::clone(&daq.0);
+    let mut sound = virtual_config();
+    sound.virtual_rig.as_mut().expect("virtual").clock = ClockMode::Realtime;
+    RigBackend::configure(
+        &sound,
+        Box::new(daq),
+        pma_rig::Pacing::Realtime(std::time::Duration::from_millis(1)),
+    )
+    .expect("configure");
+    assert_eq!(*writes.lock().unwrap(), ["ao 1/0 0", "dio 2/0 false"]);
+}
+
+#[test]
+fn without_the_board_check_names_the_device_and_what_to_do() {
+    let out = pma_exo(&["rig", "check", "--config", "pci6052e"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("/dev/comedi0") || err.contains("comedi"),
+        "{err}"
+    );
+    assert!(
+        err.contains("--features comedi") || err.contains("driver") || err.contains("permission"),
+        "{err}"
+    );
+}
