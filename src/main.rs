@@ -7,6 +7,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 mod paper;
+mod plot;
 mod rig;
 mod simulate;
 use pma_exo::viz;
