@@ -1,3 +1,4 @@
 //! Library part of the `pma-exo` package: the glue between the simulations and the Rerun
 //! layer, shared by the binary and the integration tests.
+#[cfg(feature = "rerun")]
 pub mod viz;

@@ -1,5 +1,7 @@
 //! `pma-exo paper`: the paper's experiments in simulation, written as `results.json`,
 //! `report.md` (tables in the paper's layout) and one PNG plot per experiment.
+use crate::output::OutFile;
+use crate::say;
 use anyhow::{Context, Result};
 use pma_sim::experiments::paper::{compute, PaperResults, MP_SWEEP_GAIN};
 use pma_sim::experiments::ComparisonRow;
@@ -11,46 +13,50 @@ use std::path::Path;
 pub fn run(out: &Path) -> Result<()> {
     let plant = PlantConfig::preset("mismatch")?;
     let spec = RunSpec::default();
-    let (results, plots) = compute(&plant, &spec)?;
+    // The outputs exist and are writable before the experiments run.
     std::fs::create_dir_all(out).with_context(|| format!("cannot create `{}`", out.display()))?;
-    let json = serde_json::to_string_pretty(&results)?;
-    write(&out.join("results.json"), &json)?;
-    write(&out.join("report.md"), &report(&results))?;
+    let json_file = OutFile::create(&out.join("results.json"))?;
+    let report_file = OutFile::create(&out.join("report.md"))?;
+    let (results, plots) = compute(&plant, &spec)?;
+    json_file.finish_with(&serde_json::to_string_pretty(&results)?)?;
+    report_file.finish_with(&report(&results))?;
     crate::plot::register_font()?;
     for (name, title, series) in &plots {
         let path = out.join(format!("{name}.png"));
         crate::plot::tracking(&path, title, series)
             .map_err(|e| anyhow::anyhow!("cannot draw `{}`: {e}", path.display()))?;
     }
-    println!(
+    say!(
         "Table II in simulation ({} plant, sine 0.25 Hz, 20 s):",
         results.plant
     );
     for r in &results.table2 {
-        println!(
+        say!(
             "  {:9} {:6} IAE {:.2e} m  RTE {:7.3} %  command variation {:7.1} bar/s",
-            r.controller, r.gains, r.iae_m, r.rte_percent, r.command_variation_bar_per_s
+            r.controller,
+            r.gains,
+            r.iae_m,
+            r.rte_percent,
+            r.command_variation_bar_per_s
         );
     }
     for t in &results.equal_activity {
         let best = t.sine.iter().min_by(|a, b| a.iae_m.total_cmp(&b.iae_m));
         if let Some(b) = best {
-            println!(
+            say!(
                 "  within {} bar/s: lowest sine IAE {} ({:.2e} m)",
-                t.budget_bar_per_s, b.controller, b.iae_m
+                t.budget_bar_per_s,
+                b.controller,
+                b.iae_m
             );
         }
     }
-    println!(
+    say!(
         "wrote {}/results.json, report.md and {} plots",
         out.display(),
         plots.len()
     );
     Ok(())
-}
-
-fn write(path: &Path, text: &str) -> Result<()> {
-    std::fs::write(path, text).with_context(|| format!("cannot write `{}`", path.display()))
 }
 
 fn comparison_table(md: &mut String, rows: &[ComparisonRow]) {

@@ -1,9 +1,11 @@
 //! Glue between the runs and `pma-viz`: the layout (entity paths, legends, colours) of the
-//! bench and of the leg, and the mapping of their samples onto frames.
+//! bench, the leg and the rig, the mapping of their periods onto frames, and one
+//! [`Recorder`] for each (a viewer's error is kept and reported after the run).
 use anyhow::Result;
-use pma_leg::{LegPlant, LegSample, LegSim, VisualShape};
-use pma_sim::Sample;
-use pma_viz::{Frame, Shape, Sink, Viz};
+use pma_leg::{LegOutput, LegPlant, LegSample, LegSim, VisualShape};
+use pma_loop::{MuscleStep, Period, Recorder};
+use pma_sim::{MuscleBench, Sample};
+use pma_viz::{Frame, Shape, Sink, Viz, VizError};
 
 /// Per-muscle series, in this order, under `muscles/<name>/`.
 pub const MUSCLE_SERIES: [(&str, &str); 10] = [
@@ -215,4 +217,100 @@ pub fn push_leg(
         muscle_lines: &lines,
     })?;
     Ok(())
+}
+
+/// Streams a run to Rerun as a [`Recorder`]; the first error is kept for [`Self::finish`].
+pub struct VizRecorder {
+    viz: Viz,
+    step: i64,
+    error: Option<VizError>,
+}
+
+impl VizRecorder {
+    /// Records into `viz`, whose layout is already registered.
+    pub fn new(viz: Viz) -> Self {
+        Self {
+            viz,
+            step: 0,
+            error: None,
+        }
+    }
+
+    fn keep(&mut self, r: Result<()>) {
+        if let Err(e) = r {
+            if self.error.is_none() {
+                self.error = Some(VizError::Rerun(e.to_string()));
+            }
+        }
+    }
+
+    fn push_bench(&mut self, s: &Sample) {
+        let r = push_bench(&mut self.viz, s, self.step);
+        self.keep(r);
+    }
+
+    /// Ends the recording: the first error of the run, or the viewer's.
+    pub fn finish(self) -> Result<()> {
+        if let Some(e) = self.error {
+            return Err(e.into());
+        }
+        finish(Some(self.viz))
+    }
+}
+
+/// Logs one bench period (layout of [`bench_layout`]), if `step` is not decimated away.
+pub fn push_bench(viz: &mut Viz, s: &Sample, step: i64) -> Result<()> {
+    if step % viz.decimation() != 0 {
+        return Ok(());
+    }
+    let mut scalars = [0.0; 11];
+    bench_scalars(s, &mut scalars);
+    viz.push(&Frame {
+        t_s: s.t_s,
+        step,
+        scalars: &scalars,
+        link_poses: &[],
+        muscle_lines: &[],
+    })?;
+    Ok(())
+}
+
+impl Recorder<MuscleBench, MuscleStep> for VizRecorder {
+    fn record(&mut self, p: &Period<'_, MuscleBench, MuscleStep>) {
+        self.step += 1;
+        self.push_bench(&Sample::of(p));
+    }
+}
+
+impl Recorder<pma_rig::Rig, MuscleStep> for VizRecorder {
+    fn record(&mut self, p: &Period<'_, pma_rig::Rig, MuscleStep>) {
+        self.step += 1;
+        let sample = Sample {
+            t_s: p.t_s,
+            reference_m: p.output.reference.position_m,
+            position_m: p.reading.position_m,
+            measured_m: p.reading.position_m,
+            pressure_cmd_pa: *p.written,
+            // A rig measures neither the muscle's pressure nor its force.
+            pressure_pa: f64::NAN,
+            force_n: f64::NAN,
+            diagnostics: p.output.control.diagnostics,
+        };
+        self.push_bench(&sample);
+    }
+}
+
+impl Recorder<LegPlant, LegOutput> for VizRecorder {
+    fn record(&mut self, p: &Period<'_, LegPlant, LegOutput>) {
+        self.step += 1;
+        let mut scalars = [0.0; LEG_SCALARS];
+        let r = push_leg(
+            &mut self.viz,
+            p.backend,
+            &LegSample::of(p),
+            self.step,
+            &mut scalars,
+        );
+        self.keep(r);
+    }
 }

@@ -92,7 +92,7 @@ fn single_writes_the_csv_time_series() {
     let mut lines = text.lines();
     assert_eq!(
         lines.next().unwrap(),
-        "t_s,reference_m,position_m,pressure_cmd_pa,pressure_pa,proxy_m,s_p,s_q,gain_hat,disturbance_hat"
+        "t_s,reference_m,position_m,pressure_cmd_pa,pressure_pa,proxy_m,s_p,s_q,gain_hat,disturbance_hat,measured_m,force_n,velocity_estimate_m_s"
     );
     let rows: Vec<&str> = lines.collect();
     assert_eq!(rows.len(), 500);
@@ -267,7 +267,7 @@ fn rerun_save_writes_an_rrd_recording_for_both_commands() {
     let dir = std::env::temp_dir().join(format!("pma-exo-rrd-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     for (args, file) in [
-        (vec!["simulate", "--duration", "0.5"], "leg.rrd"),
+        (vec!["simulate", "--duration", "3.2"], "leg.rrd"),
         (vec!["single", "--duration", "0.5"], "bench.rrd"),
     ] {
         let path = dir.join(file);
@@ -292,7 +292,7 @@ fn rerun_failures_are_one_line_errors_not_hangs() {
         &[
             "simulate",
             "--duration",
-            "0.2",
+            "3.2",
             "--rerun",
             "connect=rerun+http://127.0.0.1:1/proxy",
         ],
@@ -303,7 +303,7 @@ fn rerun_failures_are_one_line_errors_not_hangs() {
         &[
             "simulate",
             "--duration",
-            "0.2",
+            "3.2",
             "--rerun",
             "save=/tmp/x.rrd",
             "--rerun-hz",
@@ -312,7 +312,7 @@ fn rerun_failures_are_one_line_errors_not_hangs() {
         "rerun-hz",
     );
     let out = Command::new(env!("CARGO_BIN_EXE_pma-exo"))
-        .args(["simulate", "--duration", "0.2", "--rerun", "spawn"])
+        .args(["simulate", "--duration", "3.2", "--rerun", "spawn"])
         .env("PATH", "/nonexistent")
         .output()
         .unwrap();
@@ -353,4 +353,270 @@ fn a_stuck_viewer_is_a_warning_after_the_flush_timeout_not_a_hang() {
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(v["rte_percent"].as_f64().is_some());
     assert!(waited < 10.0 + 20.0, "held {waited} s");
+}
+
+// Regressions of a newcomer's first hour (issue 11): one test per defect, named after it.
+
+fn temp(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("pma-exo-first-hour-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn regression_1_a_closed_stdout_pipe_ends_quietly() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args(["simulate", "--duration", "3.2"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The reader goes away before the summary is printed, as `| true` does.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{:?}: {err}", out.status);
+    assert!(
+        !err.contains("panicked") && !err.contains("Broken pipe"),
+        "{err}"
+    );
+}
+
+#[test]
+fn regression_2_outputs_are_opened_before_the_run() {
+    // Each would run for minutes if the output were checked only afterwards.
+    assert_one_line_error(
+        &[
+            "simulate",
+            "--duration",
+            "3000",
+            "--csv",
+            "/proc/x.csv",
+            "--json",
+        ],
+        "/proc/x.csv",
+    );
+    assert_one_line_error(
+        &["single", "--duration", "20000", "--csv", "/proc/x.csv"],
+        "/proc/x.csv",
+    );
+    assert_one_line_error(
+        &[
+            "tune",
+            "--controller",
+            "pid",
+            "--population",
+            "40",
+            "--generations",
+            "400",
+            "--out",
+            "/proc/x.toml",
+        ],
+        "/proc/x.toml",
+    );
+    assert_one_line_error(&["paper", "--out", "/proc/x"], "/proc/x");
+}
+
+#[cfg(unix)]
+#[test]
+fn regression_3_the_csv_is_streamed_and_complete_after_ctrl_c() {
+    let dir = temp("ctrl-c");
+    let csv = dir.join("a.csv");
+    let child = Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args([
+            "simulate",
+            "--duration",
+            "1000",
+            "--json",
+            "--csv",
+            csv.to_str().unwrap(),
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(2500));
+    // SAFETY: SIGINT to our own child.
+    assert_eq!(
+        unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) },
+        0
+    );
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(130),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["interrupted"], true);
+    let ran = v["duration_s"].as_f64().unwrap();
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert!(text.ends_with('\n'), "the last row is complete");
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    // The controllers' states are in it, as in Rerun.
+    for col in [
+        "hip_flexor_proxy_m",
+        "knee_extensor_gain_hat",
+        "hip_extensor_disturbance_hat",
+        "knee_flexor_s_p",
+    ] {
+        assert!(
+            header.split(',').any(|c| c == col),
+            "{col} missing: {header}"
+        );
+    }
+    let n = header.split(',').count();
+    let rows: Vec<&str> = lines.collect();
+    assert!(rows.iter().all(|r| r.split(',').count() == n));
+    assert_eq!(
+        rows.len() as f64,
+        (ran / 1e-3).round(),
+        "every period of the run so far"
+    );
+    assert!(rows.len() > 100, "{} rows", rows.len());
+}
+
+#[test]
+fn regression_4_every_io_error_names_its_file() {
+    assert_one_line_error(&["single", "--csv", "/dev/full"], "/dev/full");
+    assert_one_line_error(
+        &["simulate", "--duration", "3.2", "--csv", "/dev/full"],
+        "/dev/full",
+    );
+}
+
+#[test]
+fn regression_5_clap_errors_keep_what_they_say_on_one_line() {
+    assert_one_line_error(
+        &["tune"],
+        "--controller <aprc-ndo|aprc|psmc|ndo-smc|sta|pid>",
+    );
+    assert_one_line_error(
+        &["single", "--reference", "square"],
+        "possible values: sine, chirp",
+    );
+    assert_one_line_error(
+        &["single", "--reference", "sin"],
+        "similar value exists: 'sine'",
+    );
+}
+
+#[test]
+fn regression_6_degenerate_runs_are_refused() {
+    assert_one_line_error(
+        &["single", "--duration", "0.0001"],
+        "shorter than one control period",
+    );
+    assert_one_line_error(&["simulate", "--duration", "1"], "two strides");
+    assert_one_line_error(&["tune-leg", "--duration", "1"], "two strides");
+    let dir = temp("degenerate");
+    let sc = dir.join("slow.toml");
+    std::fs::write(
+        &sc,
+        include_str!("../models/scenarios/gait_training.toml")
+            .replace("period_s = 0.001", "period_s = 100"),
+    )
+    .unwrap();
+    assert_one_line_error(&["simulate", sc.to_str().unwrap()], "control period");
+}
+
+#[test]
+fn regression_7_runs_of_centuries_are_refused_without_yes() {
+    assert_one_line_error(&["single", "--duration", "1e12"], "--yes");
+    assert_one_line_error(&["simulate", "--duration", "1e9"], "--yes");
+    let dir = temp("centuries");
+    let sc = dir.join("fine.toml");
+    std::fs::write(
+        &sc,
+        include_str!("../models/scenarios/gait_training.toml")
+            .replace("period_s = 0.001", "period_s = 1e-9"),
+    )
+    .unwrap();
+    assert_one_line_error(&["simulate", sc.to_str().unwrap()], "--yes");
+}
+
+#[cfg(unix)]
+#[test]
+fn regression_9_a_viewer_that_dies_at_start_is_a_one_line_error() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = temp("no-display");
+    let fake = dir.join("rerun");
+    std::fs::write(
+        &fake,
+        "#!/bin/sh\necho 'Error: no display (DISPLAY unset)' >&2\nexit 1\n",
+    )
+    .unwrap();
+    std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let path = format!(
+        "{}:{}",
+        dir.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args(["single", "--duration", "1", "--rerun", "spawn"])
+        .env("PATH", path)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("exited") && err.contains("no display") && err.contains("save="),
+        "{err}"
+    );
+}
+
+#[test]
+fn regression_10_no_progress_bar_when_stderr_is_not_a_terminal() {
+    let out = pma_exo(&["simulate", "--duration", "8", "--json"]);
+    assert!(out.status.success());
+    assert!(
+        out.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn regression_11_help_warnings_and_file_names() {
+    let help = String::from_utf8_lossy(&pma_exo(&["tune", "--help"]).stdout).to_string();
+    assert!(help.contains("aprc-ndo"), "{help}");
+    let out = pma_exo(&["single", "--duration", "1", "--rerun-hz", "10"]);
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--rerun-hz has no effect"));
+    let dir = temp("names");
+    let sc = dir.join("zero.toml");
+    std::fs::write(
+        &sc,
+        include_str!("../models/scenarios/gait_training.toml")
+            .replace("period_s = 0.001", "period_s = 0"),
+    )
+    .unwrap();
+    assert_one_line_error(&["simulate", sc.to_str().unwrap()], "zero.toml");
+    let text = include_str!("../models/scenarios/gait_training.toml");
+    let start = text.find("[gait]").unwrap();
+    let end = start + text[start..].find("\n\n").unwrap();
+    let no_gait = dir.join("no_gait.toml");
+    std::fs::write(&no_gait, format!("{}{}", &text[..start], &text[end..])).unwrap();
+    let out = pma_exo(&["simulate", no_gait.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("missing field `gait`"), "{err}");
+    let first_comment = text.lines().next().unwrap();
+    assert!(
+        !err.contains(first_comment.trim_start_matches('#').trim()),
+        "{err}"
+    );
+    let gains = dir.join("bad.toml");
+    std::fs::write(&gains, "controller = \"pid\"\nkp = 1\n").unwrap();
+    let out = pma_exo(&[
+        "single",
+        "--controller",
+        "pid",
+        "--gains",
+        gains.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.matches("gain file").count(), 1, "{err}");
 }

@@ -155,8 +155,8 @@ pub enum ConfigError {
         /// The offending quantity.
         value: f64,
     },
-    /// The gain file could not be parsed.
-    #[error("gain file: {0}")]
+    /// The gain file could not be parsed (the caller names the file).
+    #[error("{0}")]
     Parse(String),
     /// The gain file names another controller than the one requested.
     #[error("gain file is for `{found}` but the controller requested is `{requested}`")]
@@ -306,8 +306,8 @@ impl ControllerConfig {
     /// Parses and validates a gain file.
     #[cfg(feature = "serde")]
     pub fn from_toml_str(text: &str) -> Result<Self, ConfigError> {
-        let cfg: ControllerConfig =
-            toml::from_str(text).map_err(|e| ConfigError::Parse(one_line(&e.to_string())))?;
+        let cfg: ControllerConfig = toml::from_str(text)
+            .map_err(|e| ConfigError::Parse(crate::text::toml_error(text, &e)))?;
         cfg.validate()?;
         Ok(cfg)
     }
@@ -317,15 +317,6 @@ impl ControllerConfig {
     pub fn to_toml_string(&self) -> String {
         toml::to_string(self).unwrap_or_else(|e| format!("# could not serialise gains: {e}\n"))
     }
-}
-
-#[cfg(feature = "serde")]
-fn one_line(s: &str) -> String {
-    s.lines()
-        .map(str::trim)
-        .filter(|l| !l.is_empty())
-        .collect::<Vec<_>>()
-        .join(" ")
 }
 
 /// Validates `config` and builds the controller.

@@ -31,6 +31,8 @@ mod pid;
 mod psmc;
 mod reference;
 mod sta;
+#[cfg(feature = "serde")]
+pub mod text;
 
 pub use aprc::{AprcGains, AprcNdo};
 pub use config::{build_controller, ConfigError, ControllerConfig, ControllerKind};

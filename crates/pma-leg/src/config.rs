@@ -1,5 +1,5 @@
 //! Scenario and muscle-geometry files (TOML, `deny_unknown_fields`, units in the names).
-use crate::error::{finite_non_negative, finite_positive, one_line, LegError};
+use crate::error::{finite_non_negative, finite_positive, LegError};
 use pma_control::AprcGains;
 use pma_model::{SensorParams, ValveParams};
 use pma_sim::gait::GaitSpeed;
@@ -82,7 +82,7 @@ struct MuscleFile {
 pub fn parse_muscles(text: &str, file: &str) -> Result<Vec<MuscleGeometry>, LegError> {
     let f: MuscleFile = toml::from_str(text).map_err(|e| LegError::Parse {
         file: file.to_owned(),
-        message: one_line(&e.to_string()),
+        message: pma_control::text::toml_error(text, &e),
     })?;
     for (i, m) in f.muscles.iter().enumerate() {
         if f.muscles[..i].iter().any(|o| o.name == m.name) {
@@ -273,9 +273,12 @@ impl Scenario {
     pub fn from_toml_str(text: &str, file: &str) -> Result<Self, LegError> {
         let s: Scenario = toml::from_str(text).map_err(|e| LegError::Parse {
             file: file.to_owned(),
-            message: one_line(&e.to_string()),
+            message: pma_control::text::toml_error(text, &e),
         })?;
-        s.validate()?;
+        s.validate().map_err(|e| LegError::Parse {
+            file: file.to_owned(),
+            message: e.to_string(),
+        })?;
         Ok(s)
     }
 

@@ -59,13 +59,7 @@ pub enum LegError {
     Settings(#[from] pma_loop::SettingsError),
 }
 
-pub(crate) fn one_line(s: &str) -> String {
-    s.lines()
-        .map(str::trim)
-        .filter(|l| !l.is_empty())
-        .collect::<Vec<_>>()
-        .join(" ")
-}
+pub(crate) use pma_control::text::one_line;
 
 pub(crate) fn finite_positive(name: &str, value: f64) -> Result<f64, LegError> {
     if value.is_finite() && value > 0.0 {

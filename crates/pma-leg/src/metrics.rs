@@ -55,6 +55,8 @@ pub struct LegReport {
     pub finite: bool,
     /// Simulated seconds per wall-clock second.
     pub real_time_factor: f64,
+    /// Whether the run was stopped early (SIGINT, SIGTERM).
+    pub interrupted: bool,
 }
 
 /// Accumulates the [`LegReport`] figures period by period.
@@ -190,6 +192,7 @@ impl LegMetrics {
             command_variation_bar_per_s: self.variation / self.t_s.max(1e-12) / 1e5,
             finite: self.finite,
             real_time_factor: duration_s / wall_s.max(1e-12),
+            interrupted: false,
         }
     }
 }

@@ -212,13 +212,21 @@ impl LegSim {
             settings,
         )
         .into_result()?;
+        let interrupted = matches!(outcome.end, pma_loop::End::Stopped);
+        let ran_s = if interrupted {
+            outcome.periods as f64 * sc.period_s
+        } else {
+            settings.duration_s()
+        };
         let names: Vec<String> = self
             .plant
             .muscles()
             .iter()
             .map(|m| m.geometry.name.clone())
             .collect();
-        Ok(metrics.report(&sc.name, &names, settings.duration_s(), outcome.wall_s))
+        let mut report = metrics.report(&sc.name, &names, ran_s, outcome.wall_s);
+        report.interrupted = interrupted;
+        Ok(report)
     }
 }
 

@@ -9,9 +9,12 @@ use pma_sim::tune::{config_at, firefly, search_space, FireflyOptions};
 /// (hundreds of bar/s) must not buy tracking accuracy.
 pub const VARIATION_WEIGHT_DEG_PER_BAR_S: f64 = 0.01;
 
+/// The objective of a run that failed or went non-finite.
+pub const FAILED_RUN: f64 = 1000.0;
+
 /// Objective of a run: hip RMS + knee RMS (deg, after the first stride) plus
 /// [`VARIATION_WEIGHT_DEG_PER_BAR_S`] times the command variation; a failed or
-/// non-finite run scores 1000.
+/// non-finite run scores [`FAILED_RUN`].
 pub fn objective(loaded: &LoadedScenario, gains: AprcGains, duration_s: f64) -> f64 {
     let mut l = loaded.clone();
     l.scenario.control.gains = gains;
@@ -23,7 +26,7 @@ pub fn objective(loaded: &LoadedScenario, gains: AprcGains, duration_s: f64) -> 
             j("hip")? + j("knee")? + VARIATION_WEIGHT_DEG_PER_BAR_S * r.command_variation_bar_per_s;
         (r.finite && v.is_finite()).then_some(v)
     };
-    run().unwrap_or(1000.0)
+    run().unwrap_or(FAILED_RUN)
 }
 
 /// Tunes the scenario's shared APRC-NDO gains; returns them, their objective and the runs.
@@ -44,7 +47,7 @@ pub fn tune(
     let (u, best, evals) = firefly(dims, opts, |u| {
         gains_at(u)
             .filter(|g| ControllerConfig::AprcNdo(*g).validate().is_ok())
-            .map_or(1000.0, |g| objective(loaded, g, duration_s))
+            .map_or(FAILED_RUN, |g| objective(loaded, g, duration_s))
     });
     (
         gains_at(&u).unwrap_or(loaded.scenario.control.gains),

@@ -34,6 +34,25 @@ impl<B: Backend, O, R: Recorder<B, O> + ?Sized> Recorder<B, O> for &mut R {
     }
 }
 
+/// Records if present: optional outputs (a CSV file, a viewer) without optional closures.
+impl<B: Backend, O, R: Recorder<B, O>> Recorder<B, O> for Option<R> {
+    fn start(&mut self, start: &Start<'_, B>) {
+        if let Some(r) = self {
+            r.start(start);
+        }
+    }
+    fn record(&mut self, period: &Period<'_, B, O>) {
+        if let Some(r) = self {
+            r.record(period);
+        }
+    }
+    fn end(&mut self, end: &End<B::Error>, t_s: f64) {
+        if let Some(r) = self {
+            r.end(end, t_s);
+        }
+    }
+}
+
 macro_rules! tuple_recorder {
     ($($name:ident),+) => {
         /// Records into each, in order.

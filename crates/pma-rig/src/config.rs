@@ -292,7 +292,7 @@ impl RigConfig {
     pub fn from_toml_str(text: &str, file: &str) -> Result<Self, RigError> {
         let cfg: RigConfig = toml::from_str(text).map_err(|e| RigError::Parse {
             file: file.to_owned(),
-            message: one_line(&e.to_string()),
+            message: pma_control::text::toml_error(text, &e),
         })?;
         cfg.validate().map_err(|e| e.in_file(file))?;
         Ok(cfg)
@@ -607,10 +607,6 @@ impl Reference for SmoothStart {
             acceleration_m_s2: dds * gap + 2.0 * ds * r.velocity_m_s + s * r.acceleration_m_s2,
         }
     }
-}
-
-pub(crate) fn one_line(s: &str) -> String {
-    s.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
 #[cfg(test)]

@@ -24,4 +24,4 @@ pub mod tune;
 pub use bench::{BenchState, MuscleBench};
 pub use error::SimError;
 pub use plant::{MuscleScale, NominalSpec, PlantConfig, PRESET_NAMES};
-pub use run::{run_single, RunResult, RunSpec, Sample, Samples};
+pub use run::{run_single, run_single_until, RunResult, RunSpec, Sample, Samples};

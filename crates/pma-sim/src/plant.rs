@@ -157,15 +157,12 @@ impl PlantConfig {
     pub fn from_toml_str(text: &str, file: &str) -> Result<Self, SimError> {
         let cfg: PlantConfig = toml::from_str(text).map_err(|e| SimError::Parse {
             file: file.to_owned(),
-            message: e
-                .to_string()
-                .lines()
-                .map(str::trim)
-                .filter(|l| !l.is_empty())
-                .collect::<Vec<_>>()
-                .join(" "),
+            message: pma_control::text::toml_error(text, &e),
         })?;
-        cfg.validate()?;
+        cfg.validate().map_err(|e| SimError::Parse {
+            file: file.to_owned(),
+            message: e.to_string(),
+        })?;
         Ok(cfg)
     }
 

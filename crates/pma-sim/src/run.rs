@@ -3,6 +3,7 @@ use pma_control::{
     build_controller, CommandLimits, ControllerConfig, Diagnostics, Reference, TrackingStats,
 };
 use pma_loop::{LoopSettings, MuscleStep, MuscleTask, Period, Recorder, Start, TrackingMetrics};
+use std::sync::atomic::AtomicBool;
 
 /// Duration and period of a closed-loop run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -120,6 +121,10 @@ pub struct RunResult {
     pub real_time_factor: f64,
     /// Whether every state stayed finite.
     pub finite: bool,
+    /// Control periods run.
+    pub periods: u64,
+    /// Whether the run was stopped early (the stop flag).
+    pub interrupted: bool,
 }
 
 /// Builds the controller and the bench (at rest on the reference's start) and runs them
@@ -136,7 +141,26 @@ pub fn run_single<R: Recorder<MuscleBench, MuscleStep>>(
     spec: &RunSpec,
     recorder: &mut R,
 ) -> Result<RunResult, SimError> {
-    let settings = spec.settings()?;
+    run_single_until(
+        config,
+        plant,
+        reference,
+        spec,
+        &AtomicBool::new(false),
+        recorder,
+    )
+}
+
+/// [`run_single`], ended early (and reported `interrupted`) once `stop` is raised.
+pub fn run_single_until<R: Recorder<MuscleBench, MuscleStep>>(
+    config: &ControllerConfig,
+    plant: &PlantConfig,
+    reference: &dyn Reference,
+    spec: &RunSpec,
+    stop: &AtomicBool,
+    recorder: &mut R,
+) -> Result<RunResult, SimError> {
+    let settings = spec.settings()?.with_stop_flag(stop);
     let limits = CommandLimits {
         min_pa: 0.0,
         max_pa: plant.valve.pressure_max_pa,
@@ -156,13 +180,21 @@ pub fn run_single<R: Recorder<MuscleBench, MuscleStep>>(
         Ok(o) => o,
         Err(never) => match never {},
     };
-    let summary = metrics.0.summary(spec.duration_s, spec.x_a_m);
+    let interrupted = matches!(outcome.end, pma_loop::End::Stopped);
+    let ran_s = if interrupted {
+        outcome.periods as f64 * spec.period_s
+    } else {
+        spec.duration_s
+    };
+    let summary = metrics.0.summary(ran_s, spec.x_a_m);
     Ok(RunResult {
         controller: name,
         stats: summary.stats,
         x_a_m: summary.x_a_m,
         command_variation_pa_per_s: summary.command_variation_pa_per_s,
-        real_time_factor: spec.duration_s / outcome.wall_s.max(1e-12),
+        real_time_factor: ran_s / outcome.wall_s.max(1e-12),
         finite: summary.finite,
+        periods: outcome.periods,
+        interrupted,
     })
 }

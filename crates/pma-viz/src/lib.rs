@@ -58,6 +58,20 @@ pub enum VizError {
         /// Why.
         reason: String,
     },
+    /// The viewer `--rerun spawn` started exited before it could show anything.
+    #[error("the Rerun viewer exited at start ({status}): {message}; without a display, use --rerun save=PATH.rrd and open the file elsewhere")]
+    ViewerExited {
+        /// Exit status.
+        status: String,
+        /// The first line it printed on stderr.
+        message: String,
+    },
+    /// The viewer went away during the run.
+    #[error("the Rerun viewer at {url} is gone (closed or crashed during the run): the recording is incomplete")]
+    ViewerGone {
+        /// Address.
+        url: String,
+    },
     /// A viewer did not take the end of the recording in time (the run itself finished).
     #[error("the Rerun viewer did not take the end of the recording within {seconds} s; it may be incomplete")]
     FlushTimeout {
@@ -125,6 +139,72 @@ fn check_reachable(url: &str) -> Result<(), VizError> {
     std::net::TcpStream::connect_timeout(&addr, std::time::Duration::from_secs(1))
         .map(|_| ())
         .map_err(|e| err(e.to_string()))
+}
+
+/// The port of the viewer `spawn` starts (Rerun's default).
+const VIEWER_PORT: u16 = 9876;
+
+/// How long a spawned viewer gets to listen.
+const VIEWER_START_S: u64 = 10;
+
+/// Starts `rerun` (unless a viewer already listens on `port`) and waits until it listens;
+/// a viewer that exits first (no display, say) is an error with its own message. Rerun's
+/// `spawn` would forget the process and let the run stream into nothing.
+fn spawn_viewer(port: u16) -> Result<(), VizError> {
+    use std::net::{Ipv4Addr, SocketAddr, TcpStream};
+    use std::time::{Duration, Instant};
+    let addr = SocketAddr::from((Ipv4Addr::LOCALHOST, port));
+    let listening = || TcpStream::connect_timeout(&addr, Duration::from_millis(200)).is_ok();
+    if listening() {
+        return Ok(());
+    }
+    let log = std::env::temp_dir().join(format!("pma-exo-rerun-viewer-{}.log", std::process::id()));
+    let stderr = std::fs::File::create(&log)
+        .map_err(|e| VizError::Spawn(format!("{}: {e}", log.display())))?;
+    let mut child = std::process::Command::new("rerun")
+        .args([
+            format!("--port={port}"),
+            "--memory-limit=75%".into(),
+            "--expect-data-soon".into(),
+        ])
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(stderr)
+        .spawn()
+        .map_err(|e| {
+            VizError::Spawn(if e.kind() == std::io::ErrorKind::NotFound {
+                "`rerun` is not on PATH".into()
+            } else {
+                e.to_string()
+            })
+        })?;
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(VIEWER_START_S) {
+        if listening() {
+            return Ok(());
+        }
+        // The launcher may fork the viewer and exit 0: only a failure is final.
+        if let Ok(Some(status)) = child.try_wait() {
+            if !status.success() {
+                let text = std::fs::read_to_string(&log).unwrap_or_default();
+                let message = text
+                    .lines()
+                    .map(str::trim)
+                    .find(|l| !l.is_empty())
+                    .unwrap_or("no message")
+                    .to_owned();
+                let _ = std::fs::remove_file(&log);
+                return Err(VizError::ViewerExited {
+                    status: status.to_string(),
+                    message,
+                });
+            }
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    Err(VizError::Spawn(format!(
+        "the viewer did not listen on port {port} within {VIEWER_START_S} s"
+    )))
 }
 
 /// A link's drawable shape, in the link's frame.
@@ -198,6 +278,8 @@ pub struct Viz {
     every: i64,
     /// `None`: wait for the sink however long it takes (file, memory).
     flush_timeout: Option<std::time::Duration>,
+    /// The viewer's address, checked before the end of the recording is sent.
+    viewer_url: Option<String>,
 }
 
 /// Radius of the drawn muscles (m).
@@ -226,21 +308,29 @@ impl Viz {
         let viewer_wait = Some(std::time::Duration::from_secs(VIEWER_FLUSH_TIMEOUT_S));
         let (rec, flush_timeout) = match sink {
             Sink::Off => return Ok(None),
-            Sink::Spawn => (
-                builder
-                    .spawn()
-                    .map_err(|e| VizError::Spawn(e.to_string()))?,
-                viewer_wait,
-            ),
+            Sink::Spawn => {
+                spawn_viewer(VIEWER_PORT)?;
+                let url = DEFAULT_URL.to_owned();
+                (
+                    builder.connect_grpc_opts(url.clone()).map_err(rr)?,
+                    Some((viewer_wait, url)),
+                )
+            }
             Sink::Connect(url) => {
                 let url = url.clone().unwrap_or_else(|| DEFAULT_URL.to_owned());
                 check_reachable(&url)?;
-                (builder.connect_grpc_opts(url).map_err(rr)?, viewer_wait)
+                (
+                    builder.connect_grpc_opts(url.clone()).map_err(rr)?,
+                    Some((viewer_wait, url)),
+                )
             }
             Sink::Save(path) => (builder.save(path).map_err(rr)?, None),
         };
         let mut viz = Self::with_stream(rec, period_s, rate_hz)?;
-        viz.flush_timeout = flush_timeout;
+        if let Some((wait, url)) = flush_timeout {
+            viz.flush_timeout = wait;
+            viz.viewer_url = Some(url);
+        }
         Ok(Some(viz))
     }
 
@@ -282,6 +372,7 @@ impl Viz {
             pressure_max_pa: 6.0e5,
             every,
             flush_timeout: None,
+            viewer_url: None,
         })
     }
 
@@ -439,6 +530,14 @@ impl Viz {
     /// [`VizError::FlushTimeout`], and the stream is abandoned rather than dropped), so
     /// that a stuck viewer never holds the run.
     pub fn finish(mut self) -> Result<(), VizError> {
+        if let Some(url) = &self.viewer_url {
+            if check_reachable(url).is_err() {
+                // Nobody to send the rest to: say so now instead of waiting for a flush.
+                let url = url.clone();
+                std::mem::forget(self.rec);
+                return Err(VizError::ViewerGone { url });
+            }
+        }
         self.flush()?;
         match self.flush_timeout {
             None => self.rec.flush_blocking().map_err(rr),

@@ -1,13 +1,13 @@
 //! `pma-exo rig`: the hardware backend (check, run, replay).
-use anyhow::{bail, Context, Result};
+use super::{viz, RerunArgs};
+use crate::output;
+use crate::say;
+use anyhow::{bail, Result};
 use clap::Subcommand;
 use pma_control::ControllerKind;
-use pma_loop::{MuscleStep, Period, Recorder};
 use pma_rig::config::ClockMode;
-use pma_rig::{Injection, Rig, RigConfig, RunOptions};
+use pma_rig::{Injection, RigConfig, RunOptions};
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
 
 /// `rig` subcommands.
 #[derive(Subcommand)]
@@ -28,7 +28,7 @@ pub enum RigCommand {
         #[arg(long, allow_negative_numbers = true)]
         duration: Option<f64>,
         /// Controller instead of the configuration's.
-        #[arg(long)]
+        #[arg(long, value_name = crate::CONTROLLERS)]
         controller: Option<ControllerKind>,
         /// Gain file for the controller.
         #[arg(long)]
@@ -49,8 +49,11 @@ pub enum RigCommand {
         /// Print one JSON object instead of the summary.
         #[arg(long)]
         json: bool,
+        /// Run even if it would take over an hour.
+        #[arg(long)]
+        yes: bool,
         #[command(flatten)]
-        rerun: crate::RerunArgs,
+        rerun: RerunArgs,
     },
     /// Feed a log's measurements, references and periods back through the same
     /// controller and report the largest difference from the logged commands.
@@ -77,6 +80,7 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
             no_fifo,
             log,
             json,
+            yes,
             rerun,
         } => {
             let (cfg, dir) = RigConfig::load(&config)?;
@@ -87,7 +91,7 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
                         Some(k) => k,
                         None => cfg.control_kind()?,
                     };
-                    Some(crate::load_gains(kind, path)?)
+                    Some(super::load_gains(kind, path)?)
                 }
             };
             let options = RunOptions {
@@ -98,16 +102,30 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
                 log_path: log,
                 fifo: no_fifo.then_some(false),
             };
+            let duration = options.duration_s.unwrap_or(cfg.duration_s);
+            super::check_duration(duration)?;
+            let lockstep = !realtime
+                && cfg
+                    .virtual_rig
+                    .as_ref()
+                    .is_some_and(|v| v.clock == ClockMode::Lockstep);
+            // Lockstep runs take ~1 us per period; anything else runs in real time.
+            let per_period_s = if lockstep { 1e-6 } else { cfg.period_s };
+            output::check_wall_time("this rig run", duration / cfg.period_s, per_period_s, yes)?;
             run_rig(&cfg, &dir, &options, json, &rerun)
         }
         RigCommand::Replay { log, json } => {
             let r = pma_rig::replay(&log)?;
             if json {
-                println!("{}", serde_json::to_string(&r)?);
+                say!("{}", serde_json::to_string(&r)?);
             } else {
-                println!(
+                say!(
                     "replayed {} periods of {} from `{}`: largest command difference {} Pa, {} periods differ",
-                    r.periods, r.controller, r.log, r.max_abs_difference_pa, r.mismatches
+                    r.periods,
+                    r.controller,
+                    r.log,
+                    r.max_abs_difference_pa,
+                    r.mismatches
                 );
             }
             Ok(if r.mismatches == 0 { 0 } else { 4 })
@@ -121,20 +139,20 @@ fn check(config: &str) -> Result<()> {
     let c = &cfg.calibration;
     let l = &cfg.limits;
     let x = backend.configure_reading_m();
-    println!(
+    say!(
         "rig `{}` on `{}`: board checked, valve vented ({} V)",
         cfg.name,
         backend.device(),
         backend.vent_v()
     );
-    println!(
+    say!(
         "  position: {:.3} mm ({:.4} V; calibration {} m/V, {} V at 0 m)",
         x * 1e3,
         c.position_v(x),
         c.position_m_per_v,
         c.position_offset_v
     );
-    println!(
+    say!(
         "  valve: {} Pa/V, {} V at 0 Pa; 0..{} bar is {}..{} V",
         c.valve_pa_per_v,
         c.valve_offset_v,
@@ -142,7 +160,7 @@ fn check(config: &str) -> Result<()> {
         c.valve_v(0.0),
         c.valve_v(l.pressure_max_pa)
     );
-    println!(
+    say!(
         "  limits: position {}..{} mm, rate {} bar/s, stuck after {} periods, watchdog {} periods of {} ms",
         l.position_min_m * 1e3,
         l.position_max_m * 1e3,
@@ -154,86 +172,29 @@ fn check(config: &str) -> Result<()> {
     Ok(())
 }
 
-/// Logs rig periods to Rerun with the bench's layout (`muscles/muscle/...`).
-struct RigViz {
-    viz: pma_viz::Viz,
-    step: i64,
-    scalars: [f64; 11],
-    error: Option<pma_viz::VizError>,
-}
-
-impl Recorder<Rig, MuscleStep> for RigViz {
-    fn record(&mut self, p: &Period<'_, Rig, MuscleStep>) {
-        self.step += 1;
-        if self.step % self.viz.decimation() != 0 {
-            return;
-        }
-        let sample = pma_sim::Sample {
-            t_s: p.t_s,
-            reference_m: p.output.reference.position_m,
-            position_m: p.reading.position_m,
-            measured_m: p.reading.position_m,
-            pressure_cmd_pa: *p.written,
-            // A rig does not measure the muscle's pressure or force.
-            pressure_pa: f64::NAN,
-            force_n: f64::NAN,
-            diagnostics: p.output.control.diagnostics,
-        };
-        crate::viz::bench_scalars(&sample, &mut self.scalars);
-        let frame = pma_viz::Frame {
-            t_s: p.t_s,
-            step: self.step,
-            scalars: &self.scalars,
-            link_poses: &[],
-            muscle_lines: &[],
-        };
-        if let Err(e) = self.viz.push(&frame) {
-            self.error.get_or_insert(e);
-        }
-    }
-}
-
 fn run_rig(
     cfg: &RigConfig,
     dir: &std::path::Path,
     options: &RunOptions,
     json: bool,
-    rerun: &crate::RerunArgs,
+    rerun: &RerunArgs,
 ) -> Result<i32> {
-    let stop = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(signal, Arc::clone(&stop))
-            .context("cannot install the SIGINT/SIGTERM handler")?;
+    let stop = output::stop_flag()?;
+    let meta = format!("# rig `{}`\n\n{}\n", cfg.name, cfg.description);
+    let mut viz = viz::bench(rerun, "pma-exo rig", cfg.period_s, &meta)?;
+    let report = pma_rig::run::run(cfg, dir, options, &stop, &mut viz)?;
+    if let Err(e) = viz::finish(viz) {
+        eprintln!("warning: Rerun: {e}");
     }
-    let viz = crate::viz::open(&rerun.sink, "pma-exo rig", cfg.period_s, rerun.rerun_hz)?;
-    let report = match viz {
-        Some(mut v) => {
-            let meta = format!("# rig `{}`\n\n{}\n", cfg.name, cfg.description);
-            crate::viz::bench_layout(&mut v, &meta)?;
-            let mut rec = RigViz {
-                viz: v,
-                step: 0,
-                scalars: [0.0; 11],
-                error: None,
-            };
-            let report = pma_rig::run::run(cfg, dir, options, &stop, &mut rec)?;
-            if let Some(e) = rec.error.take() {
-                eprintln!("warning: Rerun: {e}");
-            }
-            crate::viz::finish(Some(rec.viz))?;
-            report
-        }
-        None => pma_rig::run::run(cfg, dir, options, &stop, ())?,
-    };
     if !report.vented {
         eprintln!(
             "DANGER: the valve could not be vented at the end of the run: dump the air by hand"
         );
     }
     if json {
-        println!("{}", serde_json::to_string(&report)?);
+        say!("{}", serde_json::to_string(&report)?);
     } else {
-        print_report(&report);
+        print_report(&report)?;
     }
     if report.log_dropped > 0 {
         bail!(
@@ -245,31 +206,39 @@ fn run_rig(
     Ok(report.exit_code())
 }
 
-fn print_report(r: &pma_rig::RigReport) {
+fn print_report(r: &pma_rig::RigReport) -> Result<()> {
     let status = match (&r.fault, r.completed) {
         (None, true) => "completed".to_owned(),
         (Some(f), _) => format!("stopped: {f}"),
         (None, false) => "stopped".to_owned(),
     };
-    println!(
+    say!(
         "rig `{}` ({} {}, {}): {status}, {} periods, vented: {}",
-        r.config, r.driver, r.clock, r.controller, r.periods, r.vented
+        r.config,
+        r.driver,
+        r.clock,
+        r.controller,
+        r.periods,
+        r.vented
     );
     if let Some(d) = &r.fault_detail {
-        println!("  {d}");
+        say!("  {d}");
     }
-    println!(
+    say!(
         "  tracking (measured): MAE {:.3e} m, IAE {:.3e} m, RTE {:.3} %",
-        r.mae_m, r.iae_m, r.rte_percent
+        r.mae_m,
+        r.iae_m,
+        r.rte_percent
     );
     if r.clock == "realtime" {
-        println!(
+        say!(
             "  timing: {} overruns, wake-up jitter p50 {:.0} us, p99 {:.0} us, max {:.0} us; compute p50 {:.1} us, p99 {:.1} us; SCHED_FIFO: {}",
             r.overruns, r.jitter_p50_us, r.jitter_p99_us, r.jitter_max_us, r.compute_p50_us, r.compute_p99_us, r.realtime
         );
     }
     for w in &r.realtime_warnings {
-        println!("  warning: {w}");
+        say!("  warning: {w}");
     }
-    println!("  log: {} ({} rows)", r.log, r.log_rows);
+    say!("  log: {} ({} rows)", r.log, r.log_rows);
+    Ok(())
 }

@@ -1,0 +1,188 @@
+//! One module per command; what they share is here.
+use anyhow::{bail, Context, Result};
+use pma_control::{ChirpReference, ControllerConfig, ControllerKind, Reference, SineReference};
+use std::path::Path;
+
+pub mod rig;
+pub mod simulate;
+pub mod single;
+pub mod tune;
+
+/// The reference trajectories of the bench.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum RefName {
+    /// A = 15 mm, f = 0.25 Hz, B = 15 mm.
+    Sine,
+    /// 0.1 -> 0.5 Hz linearly in 20 s, A = B = 15 mm.
+    Chirp,
+}
+
+impl RefName {
+    /// Name and trajectory.
+    pub fn build(self) -> (&'static str, Box<dyn Reference>) {
+        match self {
+            RefName::Sine => ("sine", Box::new(SineReference::paper())),
+            RefName::Chirp => ("chirp", Box::new(ChirpReference::paper())),
+        }
+    }
+}
+
+/// Where a run's state goes in Rerun (every command that runs a control loop).
+#[derive(clap::Args, Clone)]
+pub struct RerunArgs {
+    /// Rerun: off, spawn, connect, connect=URL or save=PATH.rrd.
+    #[arg(
+        long = "rerun",
+        default_value = "off",
+        value_name = "off|spawn|connect[=URL]|save=PATH.rrd"
+    )]
+    pub mode: String,
+    /// Log to Rerun at this rate (Hz) instead of every control period.
+    #[arg(long)]
+    pub rerun_hz: Option<f64>,
+}
+
+impl Default for RerunArgs {
+    fn default() -> Self {
+        Self {
+            mode: "off".into(),
+            rerun_hz: None,
+        }
+    }
+}
+
+impl RerunArgs {
+    /// Whether anything is to be logged; warns about a rate given without a sink.
+    pub fn enabled(&self) -> Result<bool> {
+        let on = self.mode != "off";
+        if !on && self.rerun_hz.is_some() {
+            eprintln!("warning: --rerun-hz has no effect without --rerun (nothing is logged)");
+        }
+        if on && !cfg!(feature = "rerun") {
+            bail!(
+                "this pma-exo was built without Rerun support (--no-default-features): rebuild with `cargo build --release` to use --rerun {}",
+                self.mode
+            );
+        }
+        Ok(on)
+    }
+}
+
+/// The gains of `kind`: its defaults, or a gain file (an APRC-NDO file may drive APRC, the
+/// ablation, and the other way round).
+pub fn load_gains(kind: ControllerKind, path: Option<&Path>) -> Result<ControllerConfig> {
+    let Some(path) = path else {
+        return Ok(kind.default_config());
+    };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read gain file `{}`", path.display()))?;
+    let cfg = ControllerConfig::from_toml_str(&text)
+        .with_context(|| format!("gain file `{}`", path.display()))?;
+    let compatible = cfg.kind() == kind
+        || matches!(
+            (cfg.kind(), kind),
+            (ControllerKind::AprcNdo, ControllerKind::Aprc)
+                | (ControllerKind::Aprc, ControllerKind::AprcNdo)
+        );
+    if !compatible {
+        return Err(pma_control::ConfigError::WrongController {
+            requested: kind,
+            found: cfg.kind(),
+        })
+        .with_context(|| format!("gain file `{}`", path.display()));
+    }
+    Ok(match (cfg, kind) {
+        (ControllerConfig::AprcNdo(g), ControllerKind::Aprc) => ControllerConfig::Aprc(g),
+        (ControllerConfig::Aprc(g), ControllerKind::AprcNdo) => ControllerConfig::AprcNdo(g),
+        (c, _) => c,
+    })
+}
+
+/// Rejects a duration that is not a finite number of seconds > 0.
+pub fn check_duration(duration: f64) -> Result<()> {
+    if !(duration.is_finite() && duration > 0.0) {
+        bail!("--duration must be a finite number of seconds > 0 (got {duration})");
+    }
+    Ok(())
+}
+
+/// Rerun recorders, or nothing when the binary is built without the `rerun` feature.
+#[cfg(feature = "rerun")]
+pub mod viz {
+    use super::RerunArgs;
+    use anyhow::{Context, Result};
+    pub use pma_exo::viz::VizRecorder as Recorder;
+
+    fn open(args: &RerunArgs, app: &'static str, period_s: f64) -> Result<Option<pma_viz::Viz>> {
+        if !args.enabled()? {
+            return Ok(None);
+        }
+        let sink: pma_viz::Sink = args.mode.parse().context("--rerun")?;
+        pma_exo::viz::open(&sink, app, period_s, args.rerun_hz)
+    }
+
+    /// The bench's (and the rig's) layout, with `meta` as the recording's description.
+    pub fn bench(
+        args: &RerunArgs,
+        app: &'static str,
+        period_s: f64,
+        meta: &str,
+    ) -> Result<Option<Recorder>> {
+        let Some(mut v) = open(args, app, period_s)? else {
+            return Ok(None);
+        };
+        pma_exo::viz::bench_layout(&mut v, meta)?;
+        Ok(Some(Recorder::new(v)))
+    }
+
+    /// The leg's layout.
+    pub fn leg(args: &RerunArgs, sim: &pma_leg::LegSim, meta: &str) -> Result<Option<Recorder>> {
+        let Some(mut v) = open(args, "pma-exo simulate", sim.scenario().period_s)? else {
+            return Ok(None);
+        };
+        pma_exo::viz::leg_layout(&mut v, sim, meta)?;
+        Ok(Some(Recorder::new(v)))
+    }
+
+    /// Ends the recording, if there was one.
+    pub fn finish(r: Option<Recorder>) -> Result<()> {
+        r.map_or(Ok(()), Recorder::finish)
+    }
+}
+
+/// Without the `rerun` feature: `--rerun off` only, nothing recorded.
+#[cfg(not(feature = "rerun"))]
+pub mod viz {
+    use super::RerunArgs;
+    use anyhow::Result;
+    use pma_loop::{Backend, Period};
+
+    /// No recorder can exist.
+    pub enum Recorder {}
+
+    impl<B: Backend, O> pma_loop::Recorder<B, O> for Recorder {
+        fn record(&mut self, _: &Period<'_, B, O>) {
+            match *self {}
+        }
+    }
+
+    /// Checks `--rerun` (an error unless `off`).
+    pub fn bench(args: &RerunArgs, _: &'static str, _: f64, _: &str) -> Result<Option<Recorder>> {
+        args.enabled()?;
+        Ok(None)
+    }
+
+    /// Checks `--rerun` (an error unless `off`).
+    pub fn leg(args: &RerunArgs, _: &pma_leg::LegSim, _: &str) -> Result<Option<Recorder>> {
+        args.enabled()?;
+        Ok(None)
+    }
+
+    /// Nothing to finish.
+    pub fn finish(r: Option<Recorder>) -> Result<()> {
+        match r {
+            None => Ok(()),
+            Some(never) => match never {},
+        }
+    }
+}

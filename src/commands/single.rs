@@ -1,0 +1,177 @@
+//! `pma-exo single`: one controller on the single-muscle bench.
+use super::{check_duration, load_gains, viz, RefName, RerunArgs};
+use crate::output::{self, CsvOut, INTERRUPTED};
+use crate::say;
+use anyhow::{bail, Result};
+use pma_control::ControllerKind;
+use pma_loop::{MuscleStep, Period, Recorder};
+use pma_sim::{run_single_until, MuscleBench, PlantConfig, RunSpec, Sample};
+use std::path::PathBuf;
+
+/// Estimated wall time of one bench period (release build, with margin).
+const BENCH_PERIOD_S: f64 = 1e-6;
+
+/// `single`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Controller.
+    #[arg(long, default_value = "aprc-ndo", value_name = crate::CONTROLLERS)]
+    controller: ControllerKind,
+    /// Reference trajectory.
+    #[arg(long, value_enum, default_value = "sine")]
+    reference: RefName,
+    /// Plant preset (ideal, mismatch, realistic, realistic_known_lag) or a plant .toml file.
+    #[arg(long, default_value = "ideal")]
+    plant: String,
+    /// Simulated seconds.
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
+    duration: f64,
+    /// Gain file (TOML) for the controller.
+    #[arg(long)]
+    gains: Option<PathBuf>,
+    /// Stream the time series to this CSV file.
+    #[arg(long)]
+    csv: Option<PathBuf>,
+    /// Print one JSON object instead of a summary line.
+    #[arg(long)]
+    json: bool,
+    /// Run even if it would take over an hour.
+    #[arg(long)]
+    yes: bool,
+    #[command(flatten)]
+    rerun: RerunArgs,
+}
+
+/// CSV columns of `single --csv`.
+pub const CSV_COLUMNS: [&str; 13] = [
+    "t_s",
+    "reference_m",
+    "position_m",
+    "pressure_cmd_pa",
+    "pressure_pa",
+    "proxy_m",
+    "s_p",
+    "s_q",
+    "gain_hat",
+    "disturbance_hat",
+    "measured_m",
+    "force_n",
+    "velocity_estimate_m_s",
+];
+
+/// Streams each period to the CSV file.
+struct CsvRecorder(CsvOut);
+
+impl Recorder<MuscleBench, MuscleStep> for CsvRecorder {
+    fn record(&mut self, p: &Period<'_, MuscleBench, MuscleStep>) {
+        let s = Sample::of(p);
+        let d = &s.diagnostics;
+        self.0.row(&[
+            s.t_s,
+            s.reference_m,
+            s.position_m,
+            s.pressure_cmd_pa,
+            s.pressure_pa,
+            d.proxy_position_m,
+            d.s_p,
+            d.s_q,
+            d.gain_hat,
+            d.disturbance_hat,
+            s.measured_m,
+            s.force_n,
+            d.velocity_m_s,
+        ]);
+    }
+}
+
+/// Runs `single`.
+pub fn run(a: Args) -> Result<i32> {
+    check_duration(a.duration)?;
+    let plant = PlantConfig::load(&a.plant)?;
+    let config = load_gains(a.controller, a.gains.as_deref())?;
+    let (ref_name, reference) = a.reference.build();
+    let spec = RunSpec {
+        duration_s: a.duration,
+        ..RunSpec::default()
+    };
+    let settings = spec.settings()?;
+    output::check_wall_time("this run", settings.periods() as f64, BENCH_PERIOD_S, a.yes)?;
+    let header: Vec<String> = CSV_COLUMNS.iter().map(|c| (*c).to_owned()).collect();
+    let csv = a
+        .csv
+        .as_deref()
+        .map(|p| CsvOut::create(p, &header))
+        .transpose()?;
+    let meta = format!(
+        "# single muscle\n\ncontroller `{}`, reference `{ref_name}`, plant `{}`\n\n```toml\n{}```\n",
+        a.controller,
+        plant.name,
+        config.to_toml_string()
+    );
+    let viz = viz::bench(&a.rerun, "pma-exo single", spec.period_s, &meta)?;
+    let stop = output::stop_flag()?;
+    let mut recorders = (csv.map(CsvRecorder), viz);
+    let res = run_single_until(
+        &config,
+        &plant,
+        reference.as_ref(),
+        &spec,
+        &stop,
+        &mut recorders,
+    )?;
+    let (csv, viz) = recorders;
+    if let Some(c) = csv {
+        c.0.finish()?;
+    }
+    // The results are printed even if the viewer failed; its error comes after them.
+    let viz_result = viz::finish(viz);
+    if !res.finite {
+        bail!(
+            "the run went non-finite (controller {}, plant {})",
+            a.controller,
+            plant.name
+        );
+    }
+    let s = res.stats;
+    let ran_s = if res.interrupted {
+        res.periods as f64 * spec.period_s
+    } else {
+        a.duration
+    };
+    if a.json {
+        let v = serde_json::json!({
+            "controller": a.controller.as_str(),
+            "reference": ref_name,
+            "plant": plant.name,
+            "duration_s": ran_s,
+            "mae_m": s.mae_m,
+            "iae_m": s.iae_m,
+            "rte_percent": s.rte_percent,
+            "rms_m": s.rms_m,
+            "x_a_m": res.x_a_m,
+            "command_variation_bar_per_s": res.command_variation_pa_per_s / 1e5,
+            "samples": s.samples,
+            "real_time_factor": res.real_time_factor,
+            "interrupted": res.interrupted,
+        });
+        say!("{v}");
+    } else {
+        say!(
+            "{} on {} ({ref_name}, {} s): MAE {:.3e} m, IAE {:.3e} m, RTE {:.3} %, RMS {:.3e} m, {:.0}x real time",
+            a.controller,
+            plant.name,
+            ran_s,
+            s.mae_m,
+            s.iae_m,
+            s.rte_percent,
+            s.rms_m,
+            res.real_time_factor
+        );
+    }
+    viz_result?;
+    if res.interrupted {
+        eprintln!("interrupted after {ran_s} s: the figures and the CSV cover the run so far");
+        return Ok(INTERRUPTED);
+    }
+    Ok(0)
+}
