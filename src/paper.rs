@@ -17,9 +17,9 @@ pub fn run(out: &Path) -> Result<()> {
     write(&out.join("results.json"), &json)?;
     write(&out.join("report.md"), &report(&results))?;
     crate::plot::register_font()?;
-    for (name, title, series) in &plots {
-        let path = out.join(format!("{name}.png"));
-        crate::plot::tracking(&path, title, series)
+    for plot in &plots {
+        let path = out.join(format!("{}.png", plot.name));
+        crate::plot::draw(&path, plot)
             .map_err(|e| anyhow::anyhow!("cannot draw `{}`: {e}", path.display()))?;
     }
     println!(
