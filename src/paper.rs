@@ -21,9 +21,9 @@ pub fn run(out: &Path) -> Result<()> {
     json_file.finish_with(&serde_json::to_string_pretty(&results)?)?;
     report_file.finish_with(&report(&results))?;
     crate::plot::register_font()?;
-    for (name, title, series) in &plots {
-        let path = out.join(format!("{name}.png"));
-        crate::plot::tracking(&path, title, series)
+    for plot in &plots {
+        let path = out.join(format!("{}.png", plot.name));
+        crate::plot::draw(&path, plot)
             .map_err(|e| anyhow::anyhow!("cannot draw `{}`: {e}", path.display()))?;
     }
     say!(

@@ -1,7 +1,18 @@
 //! The PNG plots of `paper` (plotters, bitmap backend, the embedded DejaVu Sans).
+//!
+//! Every figure is 1200 x 800: two title lines (the experiment; reference, plant and
+//! duration), the trajectories over their reference(s), then the tracking errors. Runs of
+//! one controller with one setting varied share a signed error panel; runs of different
+//! controllers, whose errors span decades, get one log-scale panel each so that no run's
+//! error sets the scale of the others. Legends sit in a column of their own, off the data.
 use anyhow::Result;
+use plotters::coord::types::RangedCoordf64;
+use plotters::coord::Shift;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+use pma_sim::experiments::paper::{Plot, Varied};
 use pma_sim::experiments::Series;
+use std::ops::Range;
 use std::path::Path;
 
 /// Registers the embedded DejaVu Sans as plotters' `sans-serif`.
@@ -14,89 +25,412 @@ pub fn register_font() -> Result<()> {
     .map_err(|_| anyhow::anyhow!("the embedded DejaVuSans.ttf is not a valid font"))
 }
 
-/// A drawing's result.
-pub type DrawResult = std::result::Result<(), Box<dyn std::error::Error + Send + Sync>>;
+/// A drawing step's result.
+pub type DrawOutcome<T> = std::result::Result<T, Box<dyn std::error::Error + Send + Sync>>;
 
-/// Two panels: reference and positions (mm) over time, and tracking errors (mm).
-pub fn tracking(path: &Path, title: &str, series: &[Series]) -> DrawResult {
-    let root = BitMapBackend::new(path, (1200, 800)).into_drawing_area();
+/// A drawing's result.
+pub type DrawResult = DrawOutcome<()>;
+
+type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+type LinearChart<'a, 'b> =
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+const SIZE: (u32, u32) = (1200, 800);
+const FONT: &str = "sans-serif";
+const TITLE_PX: u32 = 26;
+const SETTING_PX: u32 = 18;
+const AXIS_DESC_PX: u32 = 17;
+const TICK_PX: u32 = 15;
+const SMALL_TICK_PX: u32 = 13;
+const LEGEND_PX: u32 = 16;
+const TITLE_HEIGHT: u32 = 72;
+const LEGEND_WIDTH: u32 = 240;
+const LINE_PX: u32 = 2;
+const REFERENCE_PX: u32 = 7;
+
+/// The reference: a light grey band under the runs, so that a run that tracks it well
+/// shows as a coloured line inside it and a run that does not leaves it. Opaque, so the
+/// identical references of several runs do not darken where they overlap.
+const REFERENCE_GREY: RGBColor = RGBColor(200, 200, 200);
+
+/// Run colours: Tableau 10 (classic) without its olive, which reads as yellow on white,
+/// and with its grey last, since the reference band is grey (only a ninth run gets it).
+const PALETTE: [RGBColor; 9] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(23, 190, 207),
+    RGBColor(127, 127, 127),
+];
+
+/// Colour of run `i`.
+fn colour(i: usize) -> RGBColor {
+    PALETTE[i % PALETTE.len()]
+}
+
+/// The log error panels' range (m). The tuned controllers track to a fraction of a
+/// micrometre in simulation, so the floor sits two decades under 1 um; smaller errors
+/// (zero crossings) are drawn at the floor.
+const ERROR_FLOOR_M: f64 = 1e-8;
+const ERROR_CEILING_M: f64 = 0.1;
+
+/// Draws `plot` to `path`.
+pub fn draw(path: &Path, plot: &Plot) -> DrawResult {
+    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
     root.fill(&WHITE)?;
-    let root = root.titled(title, ("sans-serif", 24))?;
-    let (top, bottom) = root.split_vertically(440);
-    let t_max = series
-        .iter()
-        .filter_map(|s| s.t_s.last().copied())
-        .fold(1.0, f64::max);
-    let mm = |v: f64| v * 1e3;
-    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
-    let (mut elo, mut ehi) = (f64::MAX, f64::MIN);
-    for s in series {
-        for (r, x) in s.reference_m.iter().zip(&s.position_m) {
-            lo = lo.min(mm(*r)).min(mm(*x));
-            hi = hi.max(mm(*r)).max(mm(*x));
-            let e = mm(r - x);
-            elo = elo.min(e);
-            ehi = ehi.max(e);
-        }
-    }
-    let pad = |a: f64, b: f64| {
-        let p = ((b - a) * 0.05).max(1e-3);
-        (a - p, b + p)
-    };
-    let (lo, hi) = pad(lo, hi);
-    let (elo, ehi) = pad(elo, ehi);
-    let mut c = ChartBuilder::on(&top)
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(60)
-        .build_cartesian_2d(0.0..t_max, lo..hi)?;
-    c.configure_mesh()
-        .x_desc("t (s)")
-        .y_desc("contraction (mm)")
-        .draw()?;
-    if let Some(s0) = series.first() {
-        c.draw_series(LineSeries::new(
-            s0.t_s
-                .iter()
-                .zip(&s0.reference_m)
-                .map(|(t, r)| (*t, mm(*r))),
-            BLACK.stroke_width(2),
-        ))?
-        .label("reference")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
-    }
-    for (i, s) in series.iter().enumerate() {
-        let col = Palette99::pick(i).to_rgba();
-        c.draw_series(LineSeries::new(
-            s.t_s.iter().zip(&s.position_m).map(|(t, x)| (*t, mm(*x))),
-            col,
-        ))?
-        .label(s.label.clone())
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col));
-    }
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
-    let mut e = ChartBuilder::on(&bottom)
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(60)
-        .build_cartesian_2d(0.0..t_max, elo..ehi)?;
-    e.configure_mesh()
-        .x_desc("t (s)")
-        .y_desc("error x_d - x (mm)")
-        .draw()?;
-    for (i, s) in series.iter().enumerate() {
-        let col = Palette99::pick(i).to_rgba();
-        e.draw_series(LineSeries::new(
-            s.t_s
-                .iter()
-                .zip(s.reference_m.iter().zip(&s.position_m))
-                .map(|(t, (r, x))| (*t, mm(r - x))),
-            col,
-        ))?;
+    let (head, body) = root.split_vertically(TITLE_HEIGHT);
+    title_block(&head, &plot.title, &plot.setting)?;
+    match plot.varied {
+        Varied::Controller => controller_figure(&body, plot)?,
+        Varied::Setting => setting_figure(&body, plot)?,
     }
     root.present()?;
     Ok(())
+}
+
+/// The experiment on the first line, its conditions on the second, centred.
+fn title_block(area: &Area, title: &str, setting: &str) -> DrawResult {
+    let centre = area.dim_in_pixel().0 as i32 / 2;
+    let top = Pos::new(HPos::Center, VPos::Top);
+    area.draw_text(
+        title,
+        &(FONT, TITLE_PX).into_font().into_text_style(area).pos(top),
+        (centre, 8),
+    )?;
+    let style = (FONT, SETTING_PX)
+        .into_font()
+        .color(&BLACK.mix(0.75))
+        .pos(top);
+    area.draw_text(setting, &style, (centre, 44))?;
+    Ok(())
+}
+
+/// One controller, one setting varied: trajectories over signed errors, legend on the right.
+fn setting_figure(area: &Area, plot: &Plot) -> DrawResult {
+    let (plots, legend) = area.split_horizontally(SIZE.0 - LEGEND_WIDTH);
+    let (top, bottom) = plots.split_vertically(plots.dim_in_pixel().1 / 2);
+    let t_max = time_span(&plot.series);
+    trajectory_panel(&top, plot, t_max)?;
+    signed_error_panel(&bottom, plot, t_max)?;
+    legend_column(&legend, &plot.legend_title, &legend_entries(&plot.series))
+}
+
+/// Several controllers: trajectories and legend on top, one log error panel per run below.
+fn controller_figure(area: &Area, plot: &Plot) -> DrawResult {
+    let (top, bottom) = area.split_vertically(300);
+    let (trajectories, legend) = top.split_horizontally(SIZE.0 - LEGEND_WIDTH);
+    let t_max = time_span(&plot.series);
+    trajectory_panel(&trajectories, plot, t_max)?;
+    legend_column(&legend, &plot.legend_title, &legend_entries(&plot.series))?;
+    log_error_grid(&bottom, &plot.series, t_max)
+}
+
+/// End of the time axis (s): the last sample, rounded up to a whole second.
+fn time_span(series: &[Series]) -> f64 {
+    series
+        .iter()
+        .filter_map(|s| s.t_s.last().copied())
+        .fold(1.0, f64::max)
+        .ceil()
+}
+
+/// The smallest and largest of `values`, widened by 5 % on each side.
+fn padded_range(values: impl Iterator<Item = f64>) -> Range<f64> {
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+        (l.min(v), h.max(v))
+    });
+    if !(lo.is_finite() && hi.is_finite()) {
+        return -1.0..1.0;
+    }
+    let pad = ((hi - lo) * 0.05).max(1e-3);
+    (lo - pad)..(hi + pad)
+}
+
+/// A linear tick label: enough decimals for `span`, trailing zeros dropped, and `0` for
+/// anything that rounds to zero (plotters' default prints `-0.0` for a tiny negative).
+fn tick_label(v: f64, span: f64) -> String {
+    let decimals = (2.0 - span.abs().log10().floor()).clamp(0.0, 9.0) as usize;
+    let text = format!("{v:.decimals$}");
+    let text = if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.')
+    } else {
+        &text
+    };
+    if text.trim_start_matches('-').chars().all(|c| c == '0') {
+        "0".to_owned()
+    } else {
+        text.to_owned()
+    }
+}
+
+/// A power of ten of metres with its unit (`10 nm`, `1 µm`, `100 mm`).
+fn decade_label(m: f64) -> String {
+    let exponent = m.log10().round() as i32;
+    let (unit, unit_exponent) = match exponent {
+        ..=-7 => ("nm", -9),
+        -6..=-4 => ("µm", -6),
+        -3..=-1 => ("mm", -3),
+        _ => ("m", 0),
+    };
+    format!("{} {unit}", 10f64.powi(exponent - unit_exponent))
+}
+
+/// A linear chart on `area` with readable tick labels and axis descriptions.
+fn linear_chart<'a, 'b>(
+    area: &'a Area<'b>,
+    x: Range<f64>,
+    y: Range<f64>,
+    y_desc: &str,
+) -> DrawOutcome<LinearChart<'a, 'b>> {
+    let mut chart = ChartBuilder::on(area)
+        .margin(10)
+        .margin_right(20)
+        .x_label_area_size(44)
+        .y_label_area_size(80)
+        .build_cartesian_2d(x.clone(), y.clone())?;
+    let (x_span, y_span) = (x.end - x.start, y.end - y.start);
+    let x_fmt = move |v: &f64| tick_label(*v, x_span);
+    let y_fmt = move |v: &f64| tick_label(*v, y_span);
+    chart
+        .configure_mesh()
+        .x_labels(11)
+        .y_labels(7)
+        .x_label_formatter(&x_fmt)
+        .y_label_formatter(&y_fmt)
+        .x_desc("t (s)")
+        .y_desc(y_desc)
+        .label_style((FONT, TICK_PX))
+        .axis_desc_style((FONT, AXIS_DESC_PX))
+        .bold_line_style(BLACK.mix(0.15))
+        .light_line_style(BLACK.mix(0.04))
+        .draw()?;
+    Ok(chart)
+}
+
+/// `(t, scale * v)` pairs of one series.
+fn points<'s>(
+    t: &'s [f64],
+    v: &'s [f64],
+    scale: f64,
+) -> impl Iterator<Item = (f64, f64)> + Clone + 's {
+    t.iter().zip(v).map(move |(t, v)| (*t, v * scale))
+}
+
+/// Whether every run tracks the same reference (the legend then names one).
+fn shared_reference(series: &[Series]) -> bool {
+    series
+        .windows(2)
+        .all(|w| w[0].reference_m == w[1].reference_m)
+}
+
+/// Positions (mm) over time, each over its run's reference.
+fn trajectory_panel(area: &Area, plot: &Plot, t_max: f64) -> DrawResult {
+    let series = &plot.series;
+    let y = padded_range(
+        series
+            .iter()
+            .flat_map(|s| s.reference_m.iter().chain(&s.position_m))
+            .map(|v| v * 1e3),
+    );
+    let mut chart = linear_chart(area, 0.0..t_max, y.clone(), "contraction x (mm)")?;
+    for s in series {
+        let style = REFERENCE_GREY.stroke_width(REFERENCE_PX);
+        chart.draw_series(LineSeries::new(points(&s.t_s, &s.reference_m, 1e3), style))?;
+    }
+    for (i, s) in series.iter().enumerate() {
+        let style = colour(i).stroke_width(LINE_PX);
+        chart.draw_series(LineSeries::new(points(&s.t_s, &s.position_m, 1e3), style))?;
+    }
+    event_markers(&mut chart, &plot.events, y)
+}
+
+/// Signed tracking errors (mm) of every run in one panel.
+fn signed_error_panel(area: &Area, plot: &Plot, t_max: f64) -> DrawResult {
+    let errors_mm = |s: &Series| -> Vec<f64> {
+        s.reference_m
+            .iter()
+            .zip(&s.position_m)
+            .map(|(r, x)| (r - x) * 1e3)
+            .collect()
+    };
+    let errors: Vec<Vec<f64>> = plot.series.iter().map(errors_mm).collect();
+    let y = padded_range(errors.iter().flatten().copied());
+    let mut chart = linear_chart(area, 0.0..t_max, y.clone(), "error x_d - x (mm)")?;
+    for (i, (s, e)) in plot.series.iter().zip(&errors).enumerate() {
+        let style = colour(i).stroke_width(LINE_PX);
+        chart.draw_series(LineSeries::new(points(&s.t_s, e, 1.0), style))?;
+    }
+    event_markers(&mut chart, &plot.events, y)
+}
+
+/// A dashed grey vertical line and its label at each event.
+fn event_markers(chart: &mut LinearChart, events: &[(f64, String)], y: Range<f64>) -> DrawResult {
+    let grey = BLACK.mix(0.55);
+    for (t, label) in events {
+        let line = vec![(*t, y.start), (*t, y.end)];
+        chart.draw_series(DashedLineSeries::new(
+            line,
+            6,
+            4,
+            grey.stroke_width(LINE_PX),
+        ))?;
+        let text = Text::new(
+            label.clone(),
+            (6, 4),
+            (FONT, LEGEND_PX).into_font().color(&grey),
+        );
+        chart.draw_series(std::iter::once(EmptyElement::at((*t, y.end)) + text))?;
+    }
+    Ok(())
+}
+
+/// One log-scale |error| panel per run, sharing the decades, under a one-line caption.
+fn log_error_grid(area: &Area, series: &[Series], t_max: f64) -> DrawResult {
+    let (head, grid) = area.split_vertically(28);
+    let floor = decade_label(ERROR_FLOOR_M);
+    let caption =
+        format!("Tracking error |x_d - x| of each run, log scale (below {floor} drawn at {floor})");
+    let centre = head.dim_in_pixel().0 as i32 / 2;
+    let style = (FONT, LEGEND_PX)
+        .into_font()
+        .into_text_style(&head)
+        .pos(Pos::new(HPos::Center, VPos::Top));
+    head.draw_text(&caption, &style, (centre, 6))?;
+    let cols = if series.len() <= 6 { 3 } else { 4 };
+    let rows = series.len().div_ceil(cols).max(1);
+    let cells = grid.split_evenly((rows, cols));
+    for (i, (s, cell)) in series.iter().zip(&cells).enumerate() {
+        let place = CellPlace {
+            left: i % cols == 0,
+            bottom: i + cols >= series.len(),
+        };
+        log_error_cell(cell, s, colour(i), t_max, place)?;
+    }
+    Ok(())
+}
+
+/// Where a panel sits in the grid: only the outer panels carry axis descriptions.
+#[derive(Clone, Copy)]
+struct CellPlace {
+    left: bool,
+    bottom: bool,
+}
+
+/// |x_d - x| of one run on a log scale, captioned with the run's label in its colour.
+fn log_error_cell(
+    area: &Area,
+    s: &Series,
+    col: RGBColor,
+    t_max: f64,
+    place: CellPlace,
+) -> DrawResult {
+    let caption = (FONT, LEGEND_PX).into_font().color(&col);
+    let mut chart = ChartBuilder::on(area)
+        .margin(6)
+        .margin_right(16)
+        .caption(&s.label, caption)
+        .x_label_area_size(if place.bottom { 42 } else { 24 })
+        .y_label_area_size(if place.left { 78 } else { 60 })
+        .build_cartesian_2d(0.0..t_max, (ERROR_FLOOR_M..ERROR_CEILING_M).log_scale())?;
+    let x_fmt = move |v: &f64| tick_label(*v, t_max);
+    let y_fmt = |v: &f64| decade_label(*v);
+    chart
+        .configure_mesh()
+        .x_labels(6)
+        .y_labels(4)
+        .x_label_formatter(&x_fmt)
+        .y_label_formatter(&y_fmt)
+        .x_desc(if place.bottom { "t (s)" } else { "" })
+        .y_desc(if place.left { "|x_d - x|" } else { "" })
+        .label_style((FONT, SMALL_TICK_PX))
+        .axis_desc_style((FONT, SMALL_TICK_PX + 1))
+        .bold_line_style(BLACK.mix(0.15))
+        .light_line_style(BLACK.mix(0.04))
+        .draw()?;
+    let error = s
+        .t_s
+        .iter()
+        .zip(s.reference_m.iter().zip(&s.position_m))
+        .map(|(t, (r, x))| (*t, (r - x).abs().clamp(ERROR_FLOOR_M, ERROR_CEILING_M)));
+    chart.draw_series(LineSeries::new(error, col.stroke_width(1)))?;
+    Ok(())
+}
+
+/// One legend row: a line sample and its label.
+struct LegendEntry {
+    label: String,
+    style: ShapeStyle,
+}
+
+/// The reference band first, then the runs.
+fn legend_entries(series: &[Series]) -> Vec<LegendEntry> {
+    let reference = LegendEntry {
+        label: if shared_reference(series) {
+            "reference x_d"
+        } else {
+            "each run's x_d"
+        }
+        .to_owned(),
+        style: REFERENCE_GREY.stroke_width(REFERENCE_PX),
+    };
+    let runs = series.iter().enumerate().map(|(i, s)| LegendEntry {
+        label: s.label.clone(),
+        style: colour(i).stroke_width(3),
+    });
+    std::iter::once(reference).chain(runs).collect()
+}
+
+/// The legend in its own column: the title's lines, then one row per entry.
+fn legend_column(area: &Area, title: &str, entries: &[LegendEntry]) -> DrawResult {
+    const ROW: i32 = 24;
+    let left = Pos::new(HPos::Left, VPos::Center);
+    let text = (FONT, LEGEND_PX)
+        .into_font()
+        .into_text_style(area)
+        .pos(left);
+    let mut y = 24;
+    for line in title.lines() {
+        area.draw_text(line, &text, (8, y))?;
+        y += ROW;
+    }
+    y += ROW / 3;
+    for e in entries {
+        legend_sample(area, (12, y), e)?;
+        area.draw_text(&e.label, &text, (58, y))?;
+        y += ROW;
+    }
+    Ok(())
+}
+
+/// A 36 px line sample starting at `(x, y)`.
+fn legend_sample(area: &Area, (x, y): (i32, i32), e: &LegendEntry) -> DrawResult {
+    area.draw(&PathElement::new(vec![(x, y), (x + 36, y)], e.style))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ticks_never_print_negative_zero() {
+        assert_eq!(tick_label(-0.0, 1.0), "0");
+        assert_eq!(tick_label(-1e-12, 1.0), "0");
+        assert_eq!(tick_label(0.2, 1.8), "0.2");
+        assert_eq!(tick_label(-0.25, 1.8), "-0.25");
+        assert_eq!(tick_label(20.0, 20.0), "20");
+    }
+
+    #[test]
+    fn decades_carry_their_unit() {
+        assert_eq!(decade_label(1e-8), "10 nm");
+        assert_eq!(decade_label(1e-6), "1 µm");
+        assert_eq!(decade_label(1e-4), "100 µm");
+        assert_eq!(decade_label(1e-2), "10 mm");
+        assert_eq!(decade_label(0.1), "100 mm");
+    }
 }

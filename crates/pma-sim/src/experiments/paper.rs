@@ -4,8 +4,33 @@ use crate::{PlantConfig, RunSpec, SimError};
 use pma_control::{AprcGains, ControllerConfig, ControllerKind, SineReference};
 use serde::Serialize;
 
-/// A plot: file stem, title, series.
-pub type Plot = (&'static str, String, Vec<Series>);
+/// What the runs of a plot differ in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Varied {
+    /// The controller or its gains: errors can differ by decades.
+    Controller,
+    /// One setting of a single controller (proxy mass, amplitude, load).
+    Setting,
+}
+
+/// A plot of `paper`: its runs and what a reader needs to read them.
+#[derive(Debug, Clone)]
+pub struct Plot {
+    /// File stem.
+    pub name: &'static str,
+    /// First title line: the experiment.
+    pub title: String,
+    /// Second title line: reference, plant, duration and period.
+    pub setting: String,
+    /// Heading of the legend: what the runs differ in, with its unit.
+    pub legend_title: String,
+    /// What the runs differ in.
+    pub varied: Varied,
+    /// Instants marked on the time axis (s), with their label.
+    pub events: Vec<(f64, String)>,
+    /// One series per run.
+    pub series: Vec<Series>,
+}
 
 /// APRC-NDO tuned with the same optimiser and budget as the baselines.
 const APRC_NDO_TUNED: &str = include_str!("../../../../models/gains/aprc-ndo-tuned.toml");
@@ -181,41 +206,11 @@ pub fn compute(plant: &PlantConfig, spec: &RunSpec) -> Result<(PaperResults, Vec
     let (amplitudes, s_amp) = super::amplitudes(&paper_cfg, plant, spec)?;
     let (load_step, s_load) = super::load_step(&paper_cfg, plant, spec)?;
     let (equal_activity, s_activity) = equal_activity(plant, spec)?;
-    let plots = vec![
-        (
-            "table2",
-            format!("Sine 0.25 Hz, {} plant", plant.name),
-            s_table2,
-        ),
-        (
-            "chirp",
-            format!("Chirp 0.1-0.5 Hz, {} plant", plant.name),
-            s_chirp,
-        ),
-        (
-            "mp_sweep",
-            format!("APRC-NDO, fixed gain {MP_SWEEP_GAIN}, proxy masses"),
-            s_mp,
-        ),
-        (
-            "amplitudes",
-            "APRC-NDO (paper gains), amplitudes".to_owned(),
-            s_amp,
-        ),
-        (
-            "load_step",
-            "APRC-NDO (paper gains), load added at 10 s".to_owned(),
-            s_load,
-        ),
-        (
-            "equal_activity",
-            format!(
-                "Sine 0.25 Hz, {} plant, every controller tuned within {} bar/s",
-                plant.name, EQUAL_ACTIVITY[1].0
-            ),
-            s_activity,
-        ),
-    ];
+    let plots = plots(
+        plant,
+        spec,
+        [s_table2, s_chirp, s_mp, s_amp, s_load, s_activity],
+    );
     Ok((
         PaperResults {
             plant: plant.name.clone(),
@@ -229,4 +224,102 @@ pub fn compute(plant: &PlantConfig, spec: &RunSpec) -> Result<(PaperResults, Vec
         },
         plots,
     ))
+}
+
+/// The six plots, in the order of `compute`'s series: table2, chirp, m_p sweep,
+/// amplitudes, load step, equal activity.
+fn plots(plant: &PlantConfig, spec: &RunSpec, series: [Vec<Series>; 6]) -> Vec<Plot> {
+    let sine = SineReference::paper();
+    let sine_text = format!(
+        "sine {} Hz, A = B = {} mm",
+        sine.frequency_hz,
+        sine.amplitude_m * 1e3
+    );
+    let setting = |reference: &str| {
+        format!(
+            "{reference}; {} plant, {} s per run at {} ms",
+            plant.name,
+            spec.duration_s,
+            spec.period_s * 1e3
+        )
+    };
+    let chirp = super::chirp();
+    let chirp_text = format!(
+        "chirp {} to {} Hz in {} s, A = B = {} mm",
+        chirp.f0_hz,
+        chirp.f1_hz,
+        chirp.sweep_s,
+        chirp.amplitude_m * 1e3
+    );
+    let [s_table2, s_chirp, s_mp, s_amp, s_load, s_activity] = series;
+    let plot = |name, title: String, setting: String, legend_title: &str, varied, series| Plot {
+        name,
+        title,
+        setting,
+        legend_title: legend_title.to_owned(),
+        varied,
+        events: Vec::new(),
+        series,
+    };
+    vec![
+        plot(
+            "table2",
+            "Table II: the controllers on the sine".to_owned(),
+            setting(&sine_text),
+            "controller (gains)",
+            Varied::Controller,
+            s_table2,
+        ),
+        plot(
+            "chirp",
+            "Fig. 7: the controllers on the chirp".to_owned(),
+            setting(&chirp_text),
+            "controller (gains)",
+            Varied::Controller,
+            s_chirp,
+        ),
+        plot(
+            "mp_sweep",
+            format!(
+                "Fig. 4: APRC-NDO (paper gains), adaptive gain held at {MP_SWEEP_GAIN}, proxy mass m_p"
+            ),
+            setting(&sine_text),
+            "proxy mass m_p\n(dimensionless, eq. 11)",
+            Varied::Setting,
+            s_mp,
+        ),
+        plot(
+            "amplitudes",
+            "Fig. 5: APRC-NDO (paper gains) on sines of several amplitudes".to_owned(),
+            setting(&format!("sine {} Hz, offset B = A", sine.frequency_hz)),
+            "sine amplitude A",
+            Varied::Setting,
+            s_amp,
+        ),
+        Plot {
+            events: vec![(super::LOAD_STEP_TIME_S, "load added".to_owned())],
+            ..plot(
+                "load_step",
+                format!(
+                    "Fig. 8: APRC-NDO (paper gains), load added at {} s",
+                    super::LOAD_STEP_TIME_S
+                ),
+                setting(&sine_text),
+                "added load",
+                Varied::Setting,
+                s_load,
+            )
+        },
+        plot(
+            "equal_activity",
+            format!(
+                "Not in the paper: every controller tuned within {} bar/s of command activity",
+                EQUAL_ACTIVITY[1].0
+            ),
+            setting(&sine_text),
+            "controller (budget)",
+            Varied::Controller,
+            s_activity,
+        ),
+    ]
 }
