@@ -2,7 +2,7 @@
 //! APRC-NDO, charge pump), timed over runs of 1000 periods: criterion's figure divided by
 //! 1000 is the cost of one period.
 use criterion::{criterion_group, criterion_main, Criterion};
-use pma_control::{build_controller, CommandLimits, ControllerKind};
+use pma_control::ControllerKind;
 use pma_loop::{LoopSettings, MuscleTask};
 use pma_rig::config::EMBEDDED_VIRTUAL;
 use pma_rig::{Pacing, RigBackend, RigConfig, Supervised, VirtualDaq};
@@ -16,16 +16,9 @@ fn rig(c: &mut Criterion) {
         RigBackend::configure(&cfg, Box::new(daq), Pacing::Lockstep(clock)).expect("configure");
     let reference = cfg.reference(backend.configure_reading_m());
     let mut rig = Supervised::new(backend, cfg.limits, cfg.period_s, None);
-    let limits = CommandLimits {
-        min_pa: 0.0,
-        max_pa: cfg.limits.pressure_max_pa,
-    };
-    let controller = build_controller(
-        &ControllerKind::AprcNdo.default_config(),
-        cfg.nominal_model(),
-        limits,
-    )
-    .expect("controller");
+    let controller = cfg
+        .build_controller(&ControllerKind::AprcNdo.default_config())
+        .expect("controller");
     let mut task = MuscleTask::new(controller, &reference);
     let settings = LoopSettings::new(cfg.period_s, 1.0).expect("settings");
     c.bench_function("rig_lockstep_supervised_x1000", |b| {

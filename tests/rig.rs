@@ -1,6 +1,6 @@
 //! The hardware backend on the virtual rig: the shared loop, tracking, every fault path,
 //! signals, panics, replay and bad configurations.
-use pma_control::{build_controller, CommandLimits, ControllerKind};
+use pma_control::ControllerKind;
 use pma_loop::{FnRecorder, LoopSettings, MuscleStep, MuscleTask, Period};
 use pma_rig::config::{ClockMode, EMBEDDED_VIRTUAL};
 use pma_rig::{
@@ -147,16 +147,9 @@ fn the_virtual_rig_and_the_bench_run_the_same_loop_command_for_command() {
     let plant = PlantConfig::preset("mismatch").expect("preset");
     let mut bench = MuscleBench::vented(&plant).expect("bench");
     let reference = cfg.reference(bench.position());
-    let limits = CommandLimits {
-        min_pa: 0.0,
-        max_pa: cfg.limits.pressure_max_pa,
-    };
-    let controller = build_controller(
-        &ControllerKind::AprcNdo.default_config(),
-        cfg.nominal_model(),
-        limits,
-    )
-    .expect("controller");
+    let controller = cfg
+        .build_controller(&ControllerKind::AprcNdo.default_config())
+        .expect("controller");
     let mut task = MuscleTask::new(controller, &reference);
     let mut bench_commands = Vec::new();
     let mut rec = FnRecorder(|p: &Period<'_, MuscleBench, MuscleStep>| {

@@ -428,6 +428,23 @@ impl RigConfig {
         Ok(())
     }
 
+    /// The controller of `gains` with this rig's nominal model and pressure limit: the one
+    /// the run, the replay and the benchmarks all build.
+    pub fn build_controller(
+        &self,
+        gains: &ControllerConfig,
+    ) -> Result<Box<dyn pma_control::Controller>, RigError> {
+        let limits = pma_control::CommandLimits {
+            min_pa: 0.0,
+            max_pa: self.limits.pressure_max_pa,
+        };
+        Ok(pma_control::build_controller(
+            gains,
+            self.nominal_model(),
+            limits,
+        )?)
+    }
+
     /// The controller's model.
     pub fn nominal_model(&self) -> NominalModel {
         let n = &self.control.nominal;

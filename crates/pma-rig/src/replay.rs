@@ -4,7 +4,7 @@
 use crate::config::RigConfig;
 use crate::error::RigError;
 use crate::log::LOG_FORMAT;
-use pma_control::{build_controller, CommandLimits, ControllerConfig, Measurement, RefSample};
+use pma_control::{ControllerConfig, Measurement, RefSample};
 use std::path::Path;
 
 /// Markers of the header's sections.
@@ -83,11 +83,7 @@ pub fn replay(path: &Path) -> Result<ReplayReport, RigError> {
         .ok_or_else(|| log_error(path, "the header has no gains section"))?;
     let config = RigConfig::from_toml_str(&config_text, &format!("{} (header)", path.display()))?;
     let gains = ControllerConfig::from_toml_str(&gains_text)?;
-    let limits = CommandLimits {
-        min_pa: 0.0,
-        max_pa: config.limits.pressure_max_pa,
-    };
-    let mut controller = build_controller(&gains, config.nominal_model(), limits)?;
+    let mut controller = config.build_controller(&gains)?;
     let mut rows = csv::ReaderBuilder::new()
         .comment(Some(b'#'))
         .from_reader(text.as_bytes());

@@ -9,10 +9,7 @@ use crate::replay::{format_line, CONFIG_BEGIN, CONFIG_END, GAINS_BEGIN, GAINS_EN
 use crate::supervisor::{Fault, Supervised, VentAction, WatchdogFactory};
 use crate::timing::{enter_realtime, RealtimeStatus, TimingSummary};
 use crate::virtual_daq::{InjectedFault, Injection, VirtualDaq};
-use pma_control::{
-    build_controller, CommandLimits, ControlOutput, Controller, ControllerConfig, Measurement,
-    RefSample,
-};
+use pma_control::{ControlOutput, Controller, ControllerConfig, Measurement, RefSample};
 use pma_loop::{
     End, LoopSettings, MuscleStep, MuscleTask, Period, Recorder, Start, TrackingMetrics,
 };
@@ -320,11 +317,7 @@ where
             .controller_config(cfg.control_kind()?, config_dir)?,
     };
     let settings = LoopSettings::new(cfg.period_s, cfg.duration_s)?.with_stop_flag(stop);
-    let limits = CommandLimits {
-        min_pa: 0.0,
-        max_pa: cfg.limits.pressure_max_pa,
-    };
-    let mut controller = build_controller(&gains, cfg.nominal_model(), limits)?;
+    let mut controller = cfg.build_controller(&gains)?;
     let panic_at = options
         .injections
         .iter()

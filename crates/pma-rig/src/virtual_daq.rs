@@ -182,9 +182,28 @@ impl Hardware {
         }
     }
 
-    fn command_volts(&mut self, volts: f64) {
-        self.valve_v = volts;
-        self.bench.command(self.calibration.valve_pa(volts));
+    /// Sets the valve at `volts` (as the output converter delivers them) at `steps`.
+    fn write_valve(
+        &mut self,
+        channel: &AnalogChannel,
+        volts: f64,
+        steps: u64,
+    ) -> Result<(), DaqError> {
+        let range = (self.output.min_v, self.output.max_v);
+        let v = self
+            .output
+            .output(volts)
+            .ok_or_else(|| DaqError::OutOfRange {
+                device: VIRTUAL_DEVICE.into(),
+                channel: channel.output_name(),
+                volts,
+                min_v: range.0,
+                max_v: range.1,
+            })?;
+        self.integrate_to(steps);
+        self.valve_v = v;
+        self.bench.command(self.calibration.valve_pa(v));
+        Ok(())
     }
 }
 
@@ -195,6 +214,16 @@ enum TimeSource {
     Lockstep(Arc<AtomicU64>),
     /// Wall time since creation.
     Wall(Instant),
+}
+
+impl TimeSource {
+    /// Plant steps of `step_s` that have passed: periods in lockstep, wall time otherwise.
+    fn steps(&self, step_s: f64) -> u64 {
+        match self {
+            TimeSource::Lockstep(c) => c.load(Ordering::Relaxed),
+            TimeSource::Wall(t0) => (t0.elapsed().as_secs_f64() / step_s) as u64,
+        }
+    }
 }
 
 /// The lockstep clock of a virtual rig: one tick per control period.
@@ -334,10 +363,7 @@ impl VirtualDaq {
     }
 
     fn steps_now(&self, step_s: f64) -> u64 {
-        match &self.time {
-            TimeSource::Lockstep(c) => c.load(Ordering::Relaxed),
-            TimeSource::Wall(t0) => (t0.elapsed().as_secs_f64() / step_s) as u64,
-        }
+        self.time.steps(step_s)
     }
 
     fn active(&self, fault: InjectedFault) -> bool {
@@ -437,21 +463,8 @@ impl Daq for VirtualDaq {
             return Err(self.wrong_channel(channel.output_name()));
         }
         let mut hw = lock(&self.hw);
-        let range = (hw.output.min_v, hw.output.max_v);
-        let v = hw
-            .output
-            .output(volts)
-            .ok_or_else(|| DaqError::OutOfRange {
-                device: VIRTUAL_DEVICE.into(),
-                channel: channel.output_name(),
-                volts,
-                min_v: range.0,
-                max_v: range.1,
-            })?;
         let steps = self.steps_now(hw.step_s);
-        hw.integrate_to(steps);
-        hw.command_volts(v);
-        Ok(())
+        hw.write_valve(channel, volts, steps)
     }
 
     fn write_digital(&mut self, line: &DigitalLine, high: bool) -> Result<(), DaqError> {
@@ -488,24 +501,8 @@ struct VirtualOutput {
 impl OutputHandle for VirtualOutput {
     fn write(&self, volts: f64) -> Result<(), DaqError> {
         let mut hw = lock(&self.hw);
-        let range = (hw.output.min_v, hw.output.max_v);
-        let v = hw
-            .output
-            .output(volts)
-            .ok_or_else(|| DaqError::OutOfRange {
-                device: VIRTUAL_DEVICE.into(),
-                channel: self.channel.output_name(),
-                volts,
-                min_v: range.0,
-                max_v: range.1,
-            })?;
-        let steps = match &self.time {
-            TimeSource::Lockstep(c) => c.load(Ordering::Relaxed),
-            TimeSource::Wall(t0) => (t0.elapsed().as_secs_f64() / hw.step_s) as u64,
-        };
-        hw.integrate_to(steps);
-        hw.command_volts(v);
-        Ok(())
+        let steps = self.time.steps(hw.step_s);
+        hw.write_valve(&self.channel, volts, steps)
     }
 }
 
