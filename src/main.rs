@@ -8,8 +8,9 @@ mod commands;
 mod output;
 mod paper;
 mod plot;
+mod studies;
 
-use commands::{rig, simulate, single, tune};
+use commands::{rig, simulate, single, sweep, tune};
 
 /// Every controller's command-line name, as shown in usage lines and errors.
 pub(crate) const CONTROLLERS: &str = "aprc-ndo|aprc|psmc|ndo-smc|sta|pid";
@@ -43,6 +44,9 @@ enum Command {
     /// Tune a leg scenario's shared APRC-NDO gains with the same firefly search
     /// (objective: hip + knee RMS error plus 0.01 deg per bar/s of command variation).
     TuneLeg(tune::LegArgs),
+    /// A grid of bench runs (controllers x gains x plants x references x events x seeds)
+    /// in parallel, one JSON line per run; `--shard I/N` for job arrays; `sweep merge`.
+    Sweep(sweep::Args),
     /// The hardware backend: one muscle on a DAQ rig (or the virtual rig).
     Rig {
         #[command(subcommand)]
@@ -101,6 +105,7 @@ fn run(cli: Cli) -> Result<i32> {
         Command::Paper { out } => paper::run(&out).map(|()| 0),
         Command::Tune(a) => tune::run(a),
         Command::TuneLeg(a) => tune::run_leg(a),
+        Command::Sweep(a) => sweep::run(a),
         Command::Rig { command } => rig::run(command),
     }
 }

@@ -18,9 +18,16 @@ pub fn run(out: &Path) -> Result<()> {
     let json_file = OutFile::create(&out.join("results.json"))?;
     let report_file = OutFile::create(&out.join("report.md"))?;
     let (results, plots) = compute(&plant, &spec)?;
-    json_file.finish_with(&serde_json::to_string_pretty(&results)?)?;
-    report_file.finish_with(&report(&results))?;
     crate::plot::register_font()?;
+    let studies = crate::studies::run_all(out)?;
+    let mut json = serde_json::to_value(&results)?;
+    if let Some(map) = json.as_object_mut() {
+        for (key, summary) in &studies.summaries {
+            map.insert((*key).to_owned(), serde_json::to_value(summary)?);
+        }
+    }
+    json_file.finish_with(&serde_json::to_string_pretty(&json)?)?;
+    report_file.finish_with(&format!("{}{}", report(&results), studies.report))?;
     for plot in &plots {
         let path = out.join(format!("{}.png", plot.name));
         crate::plot::draw(&path, plot)
@@ -52,9 +59,10 @@ pub fn run(out: &Path) -> Result<()> {
         }
     }
     say!(
-        "wrote {}/results.json, report.md and {} plots",
+        "wrote {}/results.json, report.md and {} plots; the sweeps' runs in {}/sweeps/",
         out.display(),
-        plots.len()
+        plots.len() + studies.plots,
+        out.display()
     );
     Ok(())
 }

@@ -412,6 +412,238 @@ fn legend_sample(area: &Area, (x, y): (i32, i32), e: &LegendEntry) -> DrawResult
     Ok(())
 }
 
+/// A sweep's RTE distributions: one panel per reference, the empirical CDF of RTE (log
+/// scale) of each controller and gain set, so that median, tail and worst read at once.
+pub fn rte_distributions(
+    path: &Path,
+    name: &str,
+    runs: &std::collections::BTreeMap<usize, pma_sim::sweep::RunRecord>,
+) -> DrawResult {
+    let mut groups: Vec<(String, String, Vec<f64>)> = Vec::new();
+    for r in runs.values() {
+        let label = format!("{} ({})", r.controller, r.gains);
+        match groups
+            .iter_mut()
+            .find(|g| g.0 == r.reference && g.1 == label)
+        {
+            Some(g) => g.2.push(r.rte_percent),
+            None => groups.push((r.reference.clone(), label, vec![r.rte_percent])),
+        }
+    }
+    let unique = |v: Vec<String>| {
+        v.into_iter().fold(Vec::new(), |mut out: Vec<String>, x| {
+            if !out.contains(&x) {
+                out.push(x);
+            }
+            out
+        })
+    };
+    let references = unique(groups.iter().map(|g| g.0.clone()).collect());
+    let labels = unique(groups.iter().map(|g| g.1.clone()).collect());
+    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (head, body) = root.split_vertically(TITLE_HEIGHT);
+    title_block(
+        &head,
+        &format!("Sweep `{name}`: RTE of every run"),
+        "empirical cumulative distribution per controller (gains); RTE = mean |x_d - x| / 30 mm",
+    )?;
+    let (panels, legend) = body.split_horizontally(SIZE.0 - LEGEND_WIDTH);
+    let cells = panels.split_evenly((references.len().max(1), 1));
+    let finite = groups
+        .iter()
+        .flat_map(|g| g.2.iter())
+        .filter(|v| v.is_finite() && **v > 0.0);
+    let (lo, hi) = finite.fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(*v), b.max(*v)));
+    let (lo, hi) = if lo <= hi {
+        (
+            10f64.powf(lo.log10().floor()),
+            10f64.powf(hi.log10().ceil()),
+        )
+    } else {
+        (1e-3, 1e3)
+    };
+    for (cell, reference) in cells.iter().zip(&references) {
+        let mut chart = ChartBuilder::on(cell)
+            .caption(reference.as_str(), (FONT, LEGEND_PX))
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d((lo..hi).log_scale(), 0.0..1.0)?;
+        chart
+            .configure_mesh()
+            .x_desc("RTE (%)")
+            .y_desc("share of runs")
+            .axis_desc_style((FONT, AXIS_DESC_PX))
+            .label_style((FONT, TICK_PX))
+            .x_label_formatter(&|v| format!("{v}"))
+            .draw()?;
+        for (reference_name, label, values) in &groups {
+            if reference_name != reference {
+                continue;
+            }
+            let i = labels.iter().position(|l| l == label).unwrap_or(0);
+            let mut v: Vec<f64> = values
+                .iter()
+                .map(|x| if x.is_finite() { x.clamp(lo, hi) } else { hi })
+                .collect();
+            v.sort_by(f64::total_cmp);
+            let n = v.len() as f64;
+            let steps = v
+                .iter()
+                .enumerate()
+                .flat_map(|(k, x)| [(*x, k as f64 / n), (*x, (k + 1) as f64 / n)]);
+            chart.draw_series(LineSeries::new(steps, colour(i).stroke_width(LINE_PX)))?;
+        }
+    }
+    let entries: Vec<LegendEntry> = labels
+        .iter()
+        .enumerate()
+        .map(|(i, l)| LegendEntry {
+            label: l.clone(),
+            style: colour(i).stroke_width(3),
+        })
+        .collect();
+    legend_column(&legend, "controller (gains)", &entries)?;
+    root.present()?;
+    Ok(())
+}
+
+/// A shock experiment: one small panel per run with its reference (grey band), position
+/// (colour) and proxy (black, dashed) in mm on the left axis, its pressure command (bar,
+/// light) on the right axis, and the events marked.
+pub fn shock(
+    path: &Path,
+    title: &str,
+    setting: &str,
+    traces: &[pma_sim::sweep::Trace],
+    events: &[(f64, String)],
+) -> DrawResult {
+    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (head, body) = root.split_vertically(TITLE_HEIGHT);
+    title_block(&head, title, setting)?;
+    let (grid, legend) = body.split_horizontally(SIZE.0 - LEGEND_WIDTH);
+    let cols = 3usize.min(traces.len().max(1));
+    let rows = traces.len().div_ceil(cols).max(1);
+    let cells = grid.split_evenly((rows, cols));
+    let t = traces.iter().flat_map(|tr| tr.t_s.iter().copied());
+    let (t0, t1) = t.fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
+    let mm = traces.iter().flat_map(|tr| {
+        tr.reference_m
+            .iter()
+            .chain(&tr.position_m)
+            .copied()
+            .filter(|v| v.is_finite())
+            .map(|v| v * 1e3)
+    });
+    let y = padded_range(mm);
+    for (k, (cell, tr)) in cells.iter().zip(traces).enumerate() {
+        shock_cell(
+            cell,
+            tr,
+            colour(k),
+            (t0..t1, y.clone()),
+            events,
+            k / cols == rows - 1,
+        )?;
+    }
+    let entries = vec![
+        LegendEntry {
+            label: "reference x_d".into(),
+            style: REFERENCE_GREY.stroke_width(REFERENCE_PX),
+        },
+        LegendEntry {
+            label: "position x (run colour)".into(),
+            style: colour(0).stroke_width(3),
+        },
+        LegendEntry {
+            label: "proxy x_p (dashed)".into(),
+            style: BLACK.stroke_width(1),
+        },
+        LegendEntry {
+            label: "command (bar, right axis)".into(),
+            style: COMMAND_COLOUR.stroke_width(1),
+        },
+    ];
+    legend_column(
+        &legend,
+        "each panel: one run\n(controller, gains)",
+        &entries,
+    )?;
+    root.present()?;
+    Ok(())
+}
+
+/// The command's line: light, so the positions stay in front.
+const COMMAND_COLOUR: RGBColor = RGBColor(150, 150, 210);
+
+fn shock_cell(
+    area: &Area,
+    tr: &pma_sim::sweep::Trace,
+    col: RGBColor,
+    (x, y): (Range<f64>, Range<f64>),
+    events: &[(f64, String)],
+    bottom: bool,
+) -> DrawResult {
+    let caption = (FONT, SMALL_TICK_PX + 1).into_font().color(&col);
+    let mut chart = ChartBuilder::on(area)
+        .margin(4)
+        .caption(&tr.label, caption)
+        .x_label_area_size(if bottom { 30 } else { 18 })
+        .y_label_area_size(44)
+        .right_y_label_area_size(36)
+        .build_cartesian_2d(x.clone(), y.clone())?
+        .set_secondary_coord(x.clone(), 0.0..6.0);
+    let (x_span, y_span) = (x.end - x.start, y.end - y.start);
+    let x_fmt = move |v: &f64| tick_label(*v, x_span);
+    let y_fmt = move |v: &f64| tick_label(*v, y_span);
+    chart
+        .configure_mesh()
+        .x_labels(5)
+        .y_labels(5)
+        .x_label_formatter(&x_fmt)
+        .y_label_formatter(&y_fmt)
+        .y_desc("mm")
+        .label_style((FONT, SMALL_TICK_PX))
+        .axis_desc_style((FONT, SMALL_TICK_PX))
+        .bold_line_style(BLACK.mix(0.12))
+        .light_line_style(BLACK.mix(0.03))
+        .draw()?;
+    chart
+        .configure_secondary_axes()
+        .y_labels(4)
+        .y_desc("bar")
+        .label_style((FONT, SMALL_TICK_PX))
+        .axis_desc_style((FONT, SMALL_TICK_PX))
+        .draw()?;
+    chart.draw_secondary_series(LineSeries::new(
+        points(&tr.t_s, &tr.command_pa, 1e-5),
+        COMMAND_COLOUR.stroke_width(1),
+    ))?;
+    chart.draw_series(LineSeries::new(
+        points(&tr.t_s, &tr.reference_m, 1e3),
+        REFERENCE_GREY.stroke_width(5),
+    ))?;
+    chart.draw_series(LineSeries::new(
+        points(&tr.t_s, &tr.position_m, 1e3),
+        col.stroke_width(2),
+    ))?;
+    let proxy: Vec<(f64, f64)> = points(&tr.t_s, &tr.proxy_m, 1e3)
+        .filter(|p| p.1.is_finite())
+        .collect();
+    chart.draw_series(DashedLineSeries::new(proxy, 4, 3, BLACK.stroke_width(1)))?;
+    for (t, _) in events {
+        chart.draw_series(DashedLineSeries::new(
+            vec![(*t, y.start), (*t, y.end)],
+            3,
+            3,
+            BLACK.mix(0.5).stroke_width(1),
+        ))?;
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

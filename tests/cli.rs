@@ -188,6 +188,25 @@ fn tune_keeps_the_activity_budget_or_says_it_cannot() {
     );
 }
 
+/// A group of a study's summary in results.json.
+fn group<'a>(v: &'a serde_json::Value, study: &str, m: &[(&str, &str)]) -> &'a serde_json::Value {
+    v[study]["groups"]
+        .as_array()
+        .and_then(|g| {
+            g.iter()
+                .find(|x| m.iter().all(|(k, want)| x[*k].as_str() == Some(*want)))
+        })
+        .unwrap_or_else(|| panic!("{study}: no group {m:?}"))
+}
+
+/// An event's figures in a group.
+fn event<'a>(g: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
+    g["events"]
+        .as_array()
+        .and_then(|e| e.iter().find(|x| x["name"] == name))
+        .unwrap_or_else(|| panic!("no event {name} in {g}"))
+}
+
 #[test]
 fn paper_writes_results_report_and_plots() {
     let dir = std::env::temp_dir().join(format!("pma-exo-paper-{}", std::process::id()));
@@ -216,6 +235,101 @@ fn paper_writes_results_report_and_plots() {
     }
     let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
     assert!(md.contains("Table II") && md.contains("| aprc-ndo | paper |"));
+    for section in [
+        "## Not in the paper: shocks",
+        "## Fig. 9",
+        "## Not in the paper: robustness",
+    ] {
+        assert!(md.contains(section), "{section}");
+    }
+    let pngs = [
+        "robustness",
+        "shock_jump_mismatch",
+        "shock_block_mismatch",
+        "shock_impact-up_mismatch",
+        "shock_impact-down_mismatch",
+        "shock_jump_realistic",
+        "shock_block_realistic",
+        "shock_impact-up_realistic",
+        "shock_impact-down_realistic",
+    ];
+    for p in pngs {
+        let png = std::fs::read(dir.join(format!("{p}.png"))).unwrap();
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{p}.png");
+    }
+    // The studies' shape: 80 shock runs, 36 Fig. 9 runs, 2400 Monte Carlo runs, all finite.
+    for (study, runs) in [("shocks", 80), ("fig9", 36), ("robustness", 2400)] {
+        assert_eq!(v[study]["runs"], runs, "{study}");
+        for g in v[study]["groups"].as_array().unwrap() {
+            assert_eq!(g["all_finite"], true, "{study}: {g}");
+        }
+    }
+    // Shocks, measured (docs/results.md), with margins. PSMC recovers from the release
+    // without overshoot, as Kikuuwe et al. claim; PID's wound-up integral overshoots.
+    let on = |c: &str, gains: &str, plant: &str, ev: &str| {
+        group(
+            &v,
+            "shocks",
+            &[
+                ("controller", c),
+                ("gains", gains),
+                ("plant_group", plant),
+                ("event", ev),
+            ],
+        )
+    };
+    let psmc = event(
+        on("psmc", "equal-activity/3", "mismatch", "block"),
+        "release",
+    );
+    assert!(psmc["overshoot_worst_m"].as_f64().unwrap() < 1e-3, "{psmc}");
+    assert!(
+        psmc["settling_worst_s"].as_f64().is_some_and(|s| s < 1.5),
+        "{psmc}"
+    );
+    let pid = event(
+        on("pid", "equal-activity/3", "mismatch", "block"),
+        "release",
+    );
+    assert!(pid["overshoot_worst_m"].as_f64().unwrap() > 0.010, "{pid}");
+    let aprc = event(
+        on("aprc-ndo", "aprc-ndo@paper", "mismatch", "block"),
+        "release",
+    );
+    let o = aprc["overshoot_worst_m"].as_f64().unwrap();
+    assert!((0.003..0.015).contains(&o), "{aprc}");
+    // Fig. 9: APRC-NDO with the paper's gains barely notices 5 kg more; NDO-SMC's default
+    // gains do.
+    let fig9 = |c: &str, plant: &str| {
+        group(
+            &v,
+            "fig9",
+            &[
+                ("controller", c),
+                ("gains", "default"),
+                ("plant_group", plant),
+            ],
+        )["rte_median"]
+            .as_f64()
+            .unwrap()
+    };
+    assert!(fig9("aprc-ndo", "mismatch+5kg") < 1.2 * fig9("aprc-ndo", "mismatch"));
+    assert!(fig9("ndo-smc", "mismatch+5kg") > 5.0 * fig9("ndo-smc", "mismatch"));
+    // Robustness over 200 plants with lag and noise: gains tuned on the clean plant do not
+    // carry the model-based controllers; PID and PSMC keep working.
+    let mc = |c: &str, what: &str| {
+        group(
+            &v,
+            "robustness",
+            &[("controller", c), ("reference", "sine")],
+        )[what]
+            .as_f64()
+            .unwrap()
+    };
+    assert!(mc("pid", "rte_median") < 1.5 && mc("psmc", "rte_p95") < 10.0);
+    assert!(mc("aprc-ndo", "rte_median") > 10.0 && mc("ndo-smc", "rte_median") > 10.0);
+    assert!(mc("sta", "rte_worst") > 100.0);
+    std::fs::remove_dir_all(dir).ok();
 }
 
 #[test]

@@ -6,6 +6,7 @@ use std::path::Path;
 pub mod rig;
 pub mod simulate;
 pub mod single;
+pub mod sweep;
 pub mod tune;
 
 /// The reference trajectories of the bench.
@@ -96,6 +97,19 @@ pub fn load_gains(kind: ControllerKind, path: Option<&Path>) -> Result<Controlle
         (ControllerConfig::Aprc(g), ControllerKind::AprcNdo) => ControllerConfig::AprcNdo(g),
         (c, _) => c,
     })
+}
+
+/// Runs `f` on a rayon pool of `threads` threads (`None`: one per core).
+pub fn with_threads<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> Result<T> {
+    match threads {
+        None => Ok(f()),
+        Some(0) => bail!("--threads must be at least 1"),
+        Some(n) => Ok(rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .context("cannot start the worker threads")?
+            .install(f)),
+    }
 }
 
 /// Rejects a duration that is not a finite number of seconds > 0.

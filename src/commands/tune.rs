@@ -34,6 +34,9 @@ pub struct Args {
     /// Write the gain file here (created before the search; printed otherwise).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Worker threads (default: one per core); the result does not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
     /// Run even if it would take over an hour.
     #[arg(long)]
     yes: bool,
@@ -97,7 +100,10 @@ pub fn run(a: Args) -> Result<i32> {
         duration_s: a.duration,
         max_variation_pa_per_s: a.max_variation.map(|v| v * 1e5),
     };
-    let Some(res) = pma_sim::tune::tune(a.controller, &plant, &opts, &objective) else {
+    let found = super::with_threads(a.threads, || {
+        pma_sim::tune::tune(a.controller, &plant, &opts, &objective)
+    })?;
+    let Some(res) = found else {
         bail!(
             "{} has no search space here (pass --gains to change its gains)",
             a.controller
@@ -146,6 +152,9 @@ pub struct LegArgs {
     /// Optimiser seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Worker threads (default: one per core); the result does not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
     /// Run even if it would take over an hour.
     #[arg(long)]
     yes: bool,
@@ -176,7 +185,9 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
         seed: a.seed,
         ..Default::default()
     };
-    let (gains, best, runs) = pma_leg::tune::tune(&loaded, &opts, a.duration);
+    let (gains, best, runs) = super::with_threads(a.threads, || {
+        pma_leg::tune::tune(&loaded, &opts, a.duration)
+    })?;
     if best >= pma_leg::tune::FAILED_RUN {
         bail!("every one of the {runs} runs failed or went non-finite: no gains to report");
     }

@@ -155,6 +155,14 @@ pub enum ConfigError {
         /// The offending quantity.
         value: f64,
     },
+    /// No gain of that name.
+    #[error("{controller} has no gain `{field}`")]
+    UnknownGain {
+        /// Controller.
+        controller: &'static str,
+        /// The name.
+        field: String,
+    },
     /// The gain file could not be parsed (the caller names the file).
     #[error("{0}")]
     Parse(String),
@@ -258,6 +266,76 @@ impl ControllerConfig {
             ControllerConfig::NdoSmc(_) => ControllerKind::NdoSmc,
             ControllerConfig::Sta(_) => ControllerKind::Sta,
             ControllerConfig::Pid(_) => ControllerKind::Pid,
+        }
+    }
+
+    /// The gain named `field` (as in gain files), if this controller has it.
+    pub fn gain_mut(&mut self, field: &str) -> Option<&mut f64> {
+        Some(match self {
+            ControllerConfig::AprcNdo(g) | ControllerConfig::Aprc(g) => match field {
+                "c1_per_s" => &mut g.c1_per_s,
+                "c2_per_s2" => &mut g.c2_per_s2,
+                "kp_per_s2" => &mut g.kp_per_s2,
+                "ki_per_s3" => &mut g.ki_per_s3,
+                "kd_per_s" => &mut g.kd_per_s,
+                "kappa_per_s" => &mut g.kappa_per_s,
+                "gamma" => &mut g.gamma,
+                "proxy_mass" => &mut g.proxy_mass,
+                "boundary_layer_m_s" => &mut g.boundary_layer_m_s,
+                "gain_initial" => &mut g.gain_initial,
+                "estimator_bandwidth_rad_s" => &mut g.estimator_bandwidth_rad_s,
+                _ => return None,
+            },
+            ControllerConfig::Psmc(g) => match field {
+                "kp_pa_per_m" => &mut g.kp_pa_per_m,
+                "ki_pa_per_m_s" => &mut g.ki_pa_per_m_s,
+                "kd_pa_s_per_m" => &mut g.kd_pa_s_per_m,
+                "h_s" => &mut g.h_s,
+                "force_max_pa" => &mut g.force_max_pa,
+                "bias_pa" => &mut g.bias_pa,
+                "estimator_bandwidth_rad_s" => &mut g.estimator_bandwidth_rad_s,
+                _ => return None,
+            },
+            ControllerConfig::NdoSmc(g) => match field {
+                "c1_per_s" => &mut g.c1_per_s,
+                "c2_per_s2" => &mut g.c2_per_s2,
+                "k_per_s" => &mut g.k_per_s,
+                "eta_m_s2" => &mut g.eta_m_s2,
+                "phi_m_s" => &mut g.phi_m_s,
+                "kappa_per_s" => &mut g.kappa_per_s,
+                "estimator_bandwidth_rad_s" => &mut g.estimator_bandwidth_rad_s,
+                _ => return None,
+            },
+            ControllerConfig::Sta(g) => match field {
+                "c1_per_s" => &mut g.c1_per_s,
+                "k1" => &mut g.k1,
+                "k2" => &mut g.k2,
+                "estimator_bandwidth_rad_s" => &mut g.estimator_bandwidth_rad_s,
+                _ => return None,
+            },
+            ControllerConfig::Pid(g) => match field {
+                "kp_pa_per_m" => &mut g.kp_pa_per_m,
+                "ki_pa_per_m_s" => &mut g.ki_pa_per_m_s,
+                "kd_pa_s_per_m" => &mut g.kd_pa_s_per_m,
+                "bias_pa" => &mut g.bias_pa,
+                "estimator_bandwidth_rad_s" => &mut g.estimator_bandwidth_rad_s,
+                _ => return None,
+            },
+        })
+    }
+
+    /// Sets the gain named `field`; an unknown name is an error naming it.
+    pub fn set_gain(&mut self, field: &str, value: f64) -> Result<(), ConfigError> {
+        let kind = self.kind();
+        match self.gain_mut(field) {
+            Some(g) => {
+                *g = value;
+                Ok(())
+            }
+            None => Err(ConfigError::UnknownGain {
+                controller: kind.as_str(),
+                field: field.to_owned(),
+            }),
         }
     }
 

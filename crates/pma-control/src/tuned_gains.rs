@@ -5,36 +5,36 @@
 use crate::{NdoSmcGains, PidGains, PsmcGains, StaGains};
 
 pub const PSMC: PsmcGains = PsmcGains {
-    kp_pa_per_m: 1214129535.9374182,
-    ki_pa_per_m_s: 51194410363.493576,
-    kd_pa_s_per_m: 713.0095616894467,
-    h_s: 0.016185093315847776,
-    force_max_pa: 133958.60632044208,
-    bias_pa: 94787.6753117676,
-    estimator_bandwidth_rad_s: 632.5012140239695,
+    kp_pa_per_m: 505618338.85082376,
+    ki_pa_per_m_s: 17498350718.0908,
+    kd_pa_s_per_m: 2077625.7090530156,
+    h_s: 0.06111720275485294,
+    force_max_pa: 448244.74660211307,
+    bias_pa: 82960.61192788072,
+    estimator_bandwidth_rad_s: 679.0019383855173,
 };
 
 pub const NDO_SMC: NdoSmcGains = NdoSmcGains {
-    c1_per_s: 3224.783216476779,
-    c2_per_s2: 93536.10385502796,
-    k_per_s: 612.2226085917005,
-    eta_m_s2: 0.12159228018950873,
-    phi_m_s: 0.006471092776862117,
-    kappa_per_s: 74.81295679788342,
-    estimator_bandwidth_rad_s: 999.9999999999998,
+    c1_per_s: 1013.5476544326593,
+    c2_per_s2: 202.43747793715485,
+    k_per_s: 2.478735556217931,
+    eta_m_s2: 67.61821286289195,
+    phi_m_s: 0.02547440502880739,
+    kappa_per_s: 130.9650013168088,
+    estimator_bandwidth_rad_s: 927.9027446036076,
 };
 
 pub const STA: StaGains = StaGains {
-    c1_per_s: 1385.2371374264603,
+    c1_per_s: 1539.7386484396695,
     k1: 100.00000000000013,
-    k2: 174.56488325878965,
+    k2: 170.12005953607198,
     estimator_bandwidth_rad_s: 999.9999999999998,
 };
 
 pub const PID: PidGains = PidGains {
-    kp_pa_per_m: 1001584173.4889897,
-    ki_pa_per_m_s: 19106305415.976295,
-    kd_pa_s_per_m: 24572.817109839347,
-    bias_pa: 156017.25824267318,
-    estimator_bandwidth_rad_s: 449.08738650222045,
+    kp_pa_per_m: 1228049836.6796277,
+    ki_pa_per_m_s: 26366270155.216225,
+    kd_pa_s_per_m: 2267.703875934215,
+    bias_pa: 76156.58607941808,
+    estimator_bandwidth_rad_s: 543.4150358349519,
 };

@@ -1,54 +1,36 @@
-/// Seeded Gaussian noise source (xoshiro256** with Box-Muller). Small and dependency-free
-/// so that a simulated run is reproducible from its seed on every platform.
+use rand::{Rng, SeedableRng};
+use rand_distr::{Distribution, StandardNormal};
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+/// Seeded random source of the simulations: xoshiro256++ (`rand_xoshiro`) with
+/// `rand_distr`'s standard normal (ziggurat). Both are portable, value-stable
+/// implementations, so a run is reproducible from its seed on every platform.
 #[derive(Debug, Clone)]
 pub struct GaussianRng {
-    s: [u64; 4],
-    spare: Option<f64>,
+    rng: Xoshiro256PlusPlus,
 }
 
 impl GaussianRng {
-    /// A generator from a 64-bit seed (expanded with SplitMix64).
+    /// A generator from a 64-bit seed (expanded by `seed_from_u64`).
     pub fn new(seed: u64) -> Self {
-        let mut z = seed;
-        let mut next = || {
-            z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut x = z;
-            x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            x ^ (x >> 31)
-        };
         Self {
-            s: [next(), next(), next(), next()],
-            spare: None,
+            rng: Xoshiro256PlusPlus::seed_from_u64(seed),
         }
-    }
-
-    fn next_u64(&mut self) -> u64 {
-        let result = self.s[1].wrapping_mul(5).rotate_left(7).wrapping_mul(9);
-        let t = self.s[1] << 17;
-        self.s[2] ^= self.s[0];
-        self.s[3] ^= self.s[1];
-        self.s[1] ^= self.s[2];
-        self.s[0] ^= self.s[3];
-        self.s[2] ^= t;
-        self.s[3] = self.s[3].rotate_left(45);
-        result
     }
 
     /// Uniform in `(0, 1]`.
     pub fn uniform(&mut self) -> f64 {
-        ((self.next_u64() >> 11) as f64 + 1.0) / (1u64 << 53) as f64
+        1.0 - self.rng.random::<f64>()
+    }
+
+    /// Uniform in `[lo, hi]`.
+    pub fn between(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.rng.random::<f64>()
     }
 
     /// Standard normal sample.
     pub fn standard_normal(&mut self) -> f64 {
-        if let Some(z) = self.spare.take() {
-            return z;
-        }
-        let r = (-2.0 * self.uniform().ln()).sqrt();
-        let th = std::f64::consts::TAU * self.uniform();
-        self.spare = Some(r * th.sin());
-        r * th.cos()
+        StandardNormal.sample(&mut self.rng)
     }
 }
 

@@ -15,6 +15,10 @@ pub struct BenchState {
     pub pressure_pa: f64,
     /// Muscle force (N).
     pub force_n: f64,
+    /// Force of the obstacle on the load (N, >= 0, pushing it down).
+    pub contact_force_n: f64,
+    /// External force on the load (N, positive lifting).
+    pub external_force_n: f64,
 }
 
 /// One muscle holding a hanging load (the paper's Fig. 3 rig):
@@ -36,6 +40,59 @@ pub struct MuscleBench {
     x: f64,
     v: f64,
     t: f64,
+    disturbance: Disturbance,
+    stop_m: Option<f64>,
+    contact_force_n: f64,
+}
+
+/// What else acts on the load: nothing, an external force pulse, or an obstacle.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Disturbance {
+    /// Nothing.
+    #[default]
+    None,
+    /// A constant force on the load over `[start_s, start_s + duration_s)` (N, positive
+    /// in the direction of contraction, i.e. lifting the load).
+    ForcePulse {
+        /// Start (s).
+        start_s: f64,
+        /// Duration (s).
+        duration_s: f64,
+        /// Force (N).
+        force_n: f64,
+    },
+    /// A one-sided stop over `[start_s, start_s + duration_s)`: the load cannot contract
+    /// beyond where it was at `start_s` (it is held from rising; it may still fall away).
+    /// The stop is inelastic; its contact force is in [`BenchState::contact_force_n`].
+    Obstacle {
+        /// Start (s).
+        start_s: f64,
+        /// Duration (s).
+        duration_s: f64,
+    },
+}
+
+impl Disturbance {
+    fn active(start_s: f64, duration_s: f64, t: f64) -> bool {
+        t >= start_s && t < start_s + duration_s
+    }
+
+    /// External force on the load at `t` (N).
+    pub fn force_n(&self, t: f64) -> f64 {
+        match *self {
+            Disturbance::ForcePulse {
+                start_s,
+                duration_s,
+                force_n,
+            } if Self::active(start_s, duration_s, t) => force_n,
+            _ => 0.0,
+        }
+    }
+
+    /// Whether an obstacle is in place at `t`.
+    pub fn blocks(&self, t: f64) -> bool {
+        matches!(*self, Disturbance::Obstacle { start_s, duration_s } if Self::active(start_s, duration_s, t))
+    }
 }
 
 impl MuscleBench {
@@ -59,6 +116,9 @@ impl MuscleBench {
             x: x0_m,
             v: 0.0,
             t: 0.0,
+            disturbance: Disturbance::None,
+            stop_m: None,
+            contact_force_n: 0.0,
         })
     }
 
@@ -76,6 +136,12 @@ impl MuscleBench {
             source,
         })?;
         Ok(bench)
+    }
+
+    /// With a disturbance (a force pulse, an obstacle) acting on the load.
+    pub fn with_disturbance(mut self, disturbance: Disturbance) -> Self {
+        self.disturbance = disturbance;
+        self
     }
 
     /// Overrides the substep count (for convergence studies).
@@ -104,8 +170,12 @@ impl MuscleBench {
         // over it), so both ends of the trapezoid use it; taking the previous mode at the
         // left end makes the scheme first order wherever the pressure turns.
         let mu = &self.muscle;
+        let (ext0, ext1) = (
+            self.disturbance.force_n(self.t),
+            self.disturbance.force_n(self.t + h),
+        );
         let f_start = mu.force(p0, self.x, self.v, mode);
-        let a0 = f_start * inv_m - GRAVITY_M_S2;
+        let a0 = (f_start + ext0) * inv_m - GRAVITY_M_S2;
         let (c, k, b) = (
             mu.contractile_force(p1),
             mu.stiffness(p1),
@@ -114,13 +184,17 @@ impl MuscleBench {
         // Trapezoid: x1 = x0 + h/2 (v0 + v1), v1 = v0 + h/2 (a0 + a1),
         // a1 = (c - k x1 - b v1)/m - g, solved for v1.
         let hh = 0.5 * h;
-        let rhs = self.v + hh * a0 + hh * ((c - k * (self.x + hh * self.v)) * inv_m - GRAVITY_M_S2);
+        let rhs = self.v
+            + hh * a0
+            + hh * ((c + ext1 - k * (self.x + hh * self.v)) * inv_m - GRAVITY_M_S2);
         let mut v1 = rhs / (1.0 + hh * (k * hh + b) * inv_m);
         let mut x1 = self.x + hh * (self.v + v1);
         if c - k * x1 - b * v1 < 0.0 {
-            v1 = self.v + hh * (a0 - GRAVITY_M_S2);
+            v1 = self.v + hh * (a0 + ext1 * inv_m - GRAVITY_M_S2);
             x1 = self.x + hh * (self.v + v1);
         }
+        self.contact_force_n = 0.0;
+        self.apply_stop(&mut x1, &mut v1, p1, ext1);
         self.x = x1;
         self.v = v1;
         self.t += h;
@@ -128,6 +202,24 @@ impl MuscleBench {
 }
 
 impl MuscleBench {
+    /// The obstacle: set where the load is when it appears, it holds the load there
+    /// (inelastic: the velocity towards it is lost) and pushes with what the muscle pulls
+    /// beyond the load's weight.
+    fn apply_stop(&mut self, x1: &mut f64, v1: &mut f64, p1: f64, ext1: f64) {
+        if !self.disturbance.blocks(self.t) {
+            self.stop_m = None;
+            return;
+        }
+        let stop = *self.stop_m.get_or_insert(self.x);
+        if *x1 > stop {
+            *x1 = stop;
+            *v1 = v1.min(0.0);
+            let weight = self.load.mass_at(self.t) * GRAVITY_M_S2;
+            let pull = self.muscle.force(p1, stop, 0.0, self.valve.mode());
+            self.contact_force_n = (pull + ext1 - weight).max(0.0);
+        }
+    }
+
     /// Sensor reading at the current time (draws the sensor's noise).
     pub fn measure(&mut self) -> Measurement {
         Measurement {
@@ -177,6 +269,8 @@ impl MuscleBench {
             velocity_m_s: self.v,
             pressure_pa: self.valve.pressure(),
             force_n: self.force(),
+            contact_force_n: self.contact_force_n,
+            external_force_n: self.disturbance.force_n(self.t),
         }
     }
 }

@@ -18,10 +18,13 @@ mod error;
 pub mod experiments;
 pub mod gait;
 mod plant;
+pub mod population;
 mod run;
+pub mod shock;
+pub mod sweep;
 pub mod tune;
 
-pub use bench::{BenchState, MuscleBench};
+pub use bench::{BenchState, Disturbance, MuscleBench};
 pub use error::SimError;
 pub use plant::{MuscleScale, NominalSpec, PlantConfig, PRESET_NAMES};
 pub use run::{run_single, run_single_until, RunResult, RunSpec, Sample, Samples};

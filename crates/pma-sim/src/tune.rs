@@ -6,10 +6,7 @@
 //! decades), so that one step size suits every gain.
 
 use crate::{run_single, PlantConfig, RunSpec};
-use pma_control::{
-    AprcGains, ControllerConfig, ControllerKind, NdoSmcGains, PidGains, PsmcGains, SineReference,
-    StaGains,
-};
+use pma_control::{ControllerConfig, ControllerKind, SineReference};
 use pma_model::GaussianRng;
 
 /// One tuned gain: its range and whether it is searched on a log scale.
@@ -105,62 +102,15 @@ pub fn search_space(kind: ControllerKind) -> Option<Vec<Param>> {
     Some(p)
 }
 
-/// The configuration at point `u` of the unit cube.
+/// The configuration at point `u` of the unit cube: the controller's defaults with each
+/// searched gain, by name, set from its coordinate.
 pub fn config_at(kind: ControllerKind, u: &[f64]) -> Option<ControllerConfig> {
     let space = search_space(kind)?;
-    let v: Vec<f64> = space.iter().zip(u).map(|(p, &x)| p.map(x)).collect();
-    Some(match kind {
-        ControllerKind::Psmc => ControllerConfig::Psmc(PsmcGains {
-            kp_pa_per_m: v[0],
-            ki_pa_per_m_s: v[1],
-            kd_pa_s_per_m: v[2],
-            h_s: v[3],
-            force_max_pa: v[4],
-            bias_pa: v[5],
-            estimator_bandwidth_rad_s: v[6],
-        }),
-        ControllerKind::Pid => ControllerConfig::Pid(PidGains {
-            kp_pa_per_m: v[0],
-            ki_pa_per_m_s: v[1],
-            kd_pa_s_per_m: v[2],
-            bias_pa: v[3],
-            estimator_bandwidth_rad_s: v[4],
-        }),
-        ControllerKind::NdoSmc => ControllerConfig::NdoSmc(NdoSmcGains {
-            c1_per_s: v[0],
-            c2_per_s2: v[1],
-            k_per_s: v[2],
-            eta_m_s2: v[3],
-            phi_m_s: v[4],
-            kappa_per_s: v[5],
-            estimator_bandwidth_rad_s: v[6],
-        }),
-        ControllerKind::Sta => ControllerConfig::Sta(StaGains {
-            c1_per_s: v[0],
-            k1: v[1],
-            k2: v[2],
-            estimator_bandwidth_rad_s: v[3],
-        }),
-        ControllerKind::AprcNdo | ControllerKind::Aprc => {
-            let g = AprcGains {
-                c1_per_s: v[0],
-                c2_per_s2: v[1],
-                kp_per_s2: v[2],
-                ki_per_s3: v[3],
-                kd_per_s: v[4],
-                kappa_per_s: v[5],
-                gamma: v[6],
-                proxy_mass: v[7],
-                estimator_bandwidth_rad_s: v[8],
-                ..AprcGains::PAPER
-            };
-            if kind == ControllerKind::AprcNdo {
-                ControllerConfig::AprcNdo(g)
-            } else {
-                ControllerConfig::Aprc(g)
-            }
-        }
-    })
+    let mut config = kind.default_config();
+    for (p, &x) in space.iter().zip(u) {
+        config.set_gain(p.name, p.map(x)).ok()?;
+    }
+    Some(config)
 }
 
 /// Firefly algorithm settings; the budget is `population * (generations + 1)` runs.
@@ -193,19 +143,28 @@ impl Default for FireflyOptions {
     }
 }
 
+/// Evaluates every position, in parallel on rayon's pool (the caller's `install` sets
+/// its size). Each evaluation depends on its position only, so the result is the same
+/// for any number of threads.
+fn evaluate_all(pos: &[Vec<f64>], objective: &(impl Fn(&[f64]) -> f64 + Sync)) -> Vec<f64> {
+    use rayon::prelude::*;
+    pos.par_iter().map(|p| objective(p)).collect()
+}
+
 /// Minimises `objective` over the unit cube `[0, 1]^dims`. Returns the best point, its
-/// value and the number of evaluations.
+/// value and the number of evaluations. The random moves are drawn in one sequence; the
+/// evaluations of a generation run in parallel.
 pub fn firefly(
     dims: usize,
     opts: &FireflyOptions,
-    mut objective: impl FnMut(&[f64]) -> f64,
+    objective: impl Fn(&[f64]) -> f64 + Sync,
 ) -> (Vec<f64>, f64, usize) {
     let mut rng = GaussianRng::new(opts.seed);
     let n = opts.population.max(2);
     let mut pos: Vec<Vec<f64>> = (0..n)
         .map(|_| (0..dims).map(|_| rng.uniform()).collect())
         .collect();
-    let mut cost: Vec<f64> = pos.iter().map(|p| objective(p)).collect();
+    let mut cost = evaluate_all(&pos, &objective);
     let mut evals = n;
     let decay = 0.1f64.powf(1.0 / opts.generations.max(1) as f64);
     let mut alpha = opts.alpha0;
@@ -234,9 +193,9 @@ pub fn firefly(
                 }
             }
         }
-        for i in 0..n {
-            let c = objective(&pos[i]);
-            evals += 1;
+        let new_cost = evaluate_all(&pos, &objective);
+        evals += n;
+        for (i, c) in new_cost.into_iter().enumerate() {
             // Elitism per firefly: keep the better of old and new position.
             if c < cost[i] {
                 cost[i] = c;
@@ -362,6 +321,39 @@ mod tests {
         });
         assert_eq!(evals, 20 * 41);
         assert!(f < 1e-3, "f = {f}, x = {x:?}");
+    }
+
+    #[test]
+    fn every_searched_gain_exists_by_name() {
+        for kind in ControllerKind::ALL {
+            let space = search_space(kind).unwrap_or_default();
+            let u = vec![0.5; space.len()];
+            let c = config_at(kind, &u).expect("every name is a gain");
+            assert_eq!(c.kind(), kind);
+        }
+    }
+
+    #[test]
+    fn the_same_seed_tunes_the_same_gains_on_one_thread_and_on_two() {
+        let plant = PlantConfig::preset("mismatch").expect("preset");
+        let opts = FireflyOptions {
+            population: 4,
+            generations: 2,
+            seed: 5,
+            ..FireflyOptions::default()
+        };
+        let objective = Objective {
+            duration_s: 2.0,
+            max_variation_pa_per_s: None,
+        };
+        let run = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("pool")
+                .install(|| tune(ControllerKind::Pid, &plant, &opts, &objective))
+        };
+        assert_eq!(run(1), run(2));
     }
 
     #[test]

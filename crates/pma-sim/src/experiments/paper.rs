@@ -74,6 +74,29 @@ const EQUAL_ACTIVITY: [ActivityBudget; 3] = [
     activity_budget!(6.0, "6"),
 ];
 
+/// The gain file of `controller` tuned within `budget` bar/s (`"1.5"`, `"3"`, `"6"`), if
+/// the comparison has one; APRC (the ablation) runs APRC-NDO's.
+pub(crate) fn equal_activity_file(budget: &str, controller: &str) -> Option<&'static str> {
+    let b: f64 = budget.parse().ok()?;
+    let name = if controller == "aprc" {
+        "aprc-ndo"
+    } else {
+        controller
+    };
+    EQUAL_ACTIVITY
+        .iter()
+        .find(|(bar, _)| *bar == b)?
+        .1
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, text)| *text)
+}
+
+/// APRC-NDO's gains tuned like the baselines (`models/gains/aprc-ndo-tuned.toml`).
+pub(crate) fn aprc_ndo_tuned() -> &'static str {
+    APRC_NDO_TUNED
+}
+
 /// One budget of the equal-activity comparison.
 #[derive(Debug, Serialize)]
 pub struct ActivityTable {

@@ -1,0 +1,166 @@
+//! `pma-exo sweep`: a grid of bench runs in parallel, sharded, resumable; `sweep merge`.
+use crate::output;
+use crate::say;
+use anyhow::{bail, Context, Result};
+use pma_sim::sweep::{self, Shard, Sweep};
+use std::path::{Path, PathBuf};
+
+/// `sweep`'s arguments.
+#[derive(clap::Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct Args {
+    #[command(subcommand)]
+    merge: Option<MergeCommand>,
+    /// A sweep file, or a shipped one: shocks, fig9, monte_carlo.
+    #[arg(required = true)]
+    file: Option<String>,
+    /// Output directory (runs.jsonl, sweep.json; summary.json and summary.md when the
+    /// whole sweep is there). Run again with the same --out to resume.
+    #[arg(long, required = true)]
+    out: Option<PathBuf>,
+    /// Run only part I of N (1-based), e.g. for a cluster job array.
+    #[arg(long, default_value = "1/1", value_name = "I/N")]
+    shard: Shard,
+    /// Worker threads (default: one per core); the results do not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Run even if it would take over an hour.
+    #[arg(long)]
+    yes: bool,
+}
+
+#[derive(clap::Subcommand)]
+enum MergeCommand {
+    /// Join shards (the output directories of one sweep) and summarise them.
+    Merge {
+        /// The shards' output directories.
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// Where the merged runs.jsonl and the summary go.
+        #[arg(long, default_value = "sweep-merged")]
+        out: PathBuf,
+    },
+}
+
+/// The shipped sweeps (`models/sweeps/`).
+pub const SHIPPED: [(&str, &str); 3] = [
+    ("shocks", include_str!("../../models/sweeps/shocks.toml")),
+    ("fig9", include_str!("../../models/sweeps/fig9.toml")),
+    (
+        "monte_carlo",
+        include_str!("../../models/sweeps/monte_carlo.toml"),
+    ),
+];
+
+/// A shipped sweep by name, or a file.
+pub fn load(name_or_path: &str) -> Result<Sweep> {
+    if let Some((name, text)) = SHIPPED.iter().find(|(n, _)| *n == name_or_path) {
+        return Ok(Sweep::from_toml_str(
+            text,
+            &format!("models/sweeps/{name}.toml"),
+            Path::new("."),
+        )?);
+    }
+    if !name_or_path.ends_with(".toml") {
+        let names: Vec<&str> = SHIPPED.iter().map(|(n, _)| *n).collect();
+        bail!(
+            "unknown sweep `{name_or_path}` (expected {} or a .toml file)",
+            names.join(", ")
+        );
+    }
+    Ok(Sweep::load(Path::new(name_or_path))?)
+}
+
+/// Runs `sweep`.
+pub fn run(a: Args) -> Result<i32> {
+    if let Some(MergeCommand::Merge { dirs, out }) = a.merge {
+        return merge(&dirs, &out);
+    }
+    let (Some(file), Some(out)) = (a.file, a.out) else {
+        bail!("a sweep file and --out are required (or `sweep merge DIR...`)");
+    };
+    let sweep = load(&file)?;
+    let selected = sweep
+        .points
+        .iter()
+        .filter(|p| a.shard.contains(p.index))
+        .count();
+    let periods = sweep.file.duration_s / sweep.file.period_s * selected as f64;
+    let threads = a.threads.unwrap_or_else(rayon::current_num_threads).max(1);
+    output::check_wall_time("this sweep", periods, 1e-6 / threads as f64, a.yes)?;
+    let bar = output::progress_bar(selected as u64, "runs");
+    let progress = |done: usize, _total: usize| bar.set_position(done as u64);
+    let start = std::time::Instant::now();
+    let exec = super::with_threads(a.threads, || {
+        sweep::execute(&sweep, &out, a.shard, &progress)
+    })??;
+    bar.finish_and_clear();
+    let wall = start.elapsed().as_secs_f64();
+    eprintln!(
+        "sweep `{}` shard {}: {} runs now ({:.1} runs/s), {} already in `{}`",
+        sweep.file.name,
+        a.shard,
+        exec.run_now,
+        exec.run_now as f64 / wall.max(1e-9),
+        exec.already_done,
+        out.display()
+    );
+    if a.shard == Shard::default() {
+        summarise_dirs(std::slice::from_ref(&out), &out)?;
+    }
+    Ok(0)
+}
+
+fn merge(dirs: &[PathBuf], out: &Path) -> Result<i32> {
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create `{}`", out.display()))?;
+    let (manifest, runs, missing) = sweep::merge(dirs)?;
+    sweep::write_runs(&out.join("runs.jsonl"), &runs)?;
+    let merged = pma_sim::sweep::Manifest {
+        shard: Shard::default(),
+        ..manifest
+    };
+    let path = out.join("sweep.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&merged)?)
+        .with_context(|| format!("cannot write `{}`", path.display()))?;
+    summarise_dirs(&[out.to_path_buf()], out)?;
+    if !missing.is_empty() {
+        bail!(
+            "{} of {} runs are missing (first: run {}): merge every shard",
+            missing.len(),
+            merged.runs,
+            missing[0]
+        );
+    }
+    Ok(0)
+}
+
+/// Writes `summary.json`, `summary.md` and `rte.png` of the runs in `dirs` into `out`.
+fn summarise_dirs(dirs: &[PathBuf], out: &Path) -> Result<()> {
+    let (manifest, runs, missing) = sweep::merge(dirs)?;
+    let summary = sweep::summarise(&manifest.name, &runs, missing.len());
+    let json = out.join("summary.json");
+    std::fs::write(&json, serde_json::to_string_pretty(&summary)?)
+        .with_context(|| format!("cannot write `{}`", json.display()))?;
+    let md = out.join("summary.md");
+    std::fs::write(&md, sweep::markdown(&summary))
+        .with_context(|| format!("cannot write `{}`", md.display()))?;
+    let png = out.join("rte.png");
+    crate::plot::register_font()?;
+    crate::plot::rte_distributions(&png, &summary.name, &runs)
+        .map_err(|e| anyhow::anyhow!("cannot draw `{}`: {e}", png.display()))?;
+    say!(
+        "sweep `{}`: {} runs in {} groups{}; wrote {}, {} and {}",
+        summary.name,
+        summary.runs,
+        summary.groups.len(),
+        if missing.is_empty() {
+            String::new()
+        } else {
+            format!(" ({} missing)", missing.len())
+        },
+        json.display(),
+        md.display(),
+        png.display()
+    );
+    Ok(())
+}

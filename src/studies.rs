@@ -1,0 +1,145 @@
+//! The studies `paper` adds to the paper's experiments, run as the shipped sweeps
+//! (`models/sweeps/`): shocks, Fig. 9 (added loads) and a Monte Carlo population.
+use crate::commands::sweep::load;
+use anyhow::Result;
+use pma_sim::shock::{BLOCK_S, BLOCK_START_S, IMPACT_START_S, JUMP_DOWN_S, JUMP_UP_S};
+use pma_sim::sweep::{self, Shard, Summary, Sweep};
+use std::path::Path;
+
+/// What the studies produced.
+pub struct Studies {
+    /// `(results.json key, summary)`.
+    pub summaries: Vec<(&'static str, Summary)>,
+    /// The report's sections.
+    pub report: String,
+    /// PNGs written.
+    pub plots: usize,
+}
+
+/// Runs one shipped sweep into `out/sweeps/<name>` (resuming what is there).
+fn run_sweep(
+    name: &str,
+    out: &Path,
+) -> Result<(
+    Sweep,
+    Summary,
+    std::collections::BTreeMap<usize, sweep::RunRecord>,
+)> {
+    let s = load(name)?;
+    let dir = out.join("sweeps").join(name);
+    sweep::execute(&s, &dir, Shard::default(), &|_, _| {})?;
+    let (manifest, runs, missing) = sweep::merge(&[dir])?;
+    let summary = sweep::summarise(&manifest.name, &runs, missing.len());
+    Ok((s, summary, runs))
+}
+
+/// Markdown of a sweep's summary as a section of the report (headings one level down).
+fn section(title: &str, intro: &str, summary: &Summary) -> String {
+    let md = sweep::markdown(summary)
+        .lines()
+        .skip(1)
+        .map(|l| {
+            if l.starts_with('#') {
+                format!("#{l}")
+            } else {
+                l.to_owned()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    format!("\n## {title}\n\n{intro}\n{md}\n")
+}
+
+/// The shocks' figures: one PNG per plant and experiment, every run of it.
+fn shock_plots(s: &Sweep, out: &Path) -> Result<usize> {
+    let mut n = 0;
+    let experiments = [
+        (
+            "jump",
+            "none",
+            "Reference jump 5 -> 25 mm at 4 s, back at 10 s",
+            (3.5, 13.5),
+            vec![
+                (JUMP_UP_S, "up".to_owned()),
+                (JUMP_DOWN_S, "down".to_owned()),
+            ],
+        ),
+        (
+            "sine",
+            "block",
+            "Load held by an obstacle from 8 s, released at 9 s",
+            (7.5, 12.5),
+            vec![
+                (BLOCK_START_S, "block".to_owned()),
+                (BLOCK_START_S + BLOCK_S, "release".to_owned()),
+            ],
+        ),
+        (
+            "sine",
+            "impact-up",
+            "150 N lifting the load for 30 ms at 8.5 s",
+            (8.0, 11.5),
+            vec![(IMPACT_START_S, "impact".to_owned())],
+        ),
+        (
+            "sine",
+            "impact-down",
+            "150 N pushing the load down for 30 ms at 8.5 s",
+            (8.0, 11.5),
+            vec![(IMPACT_START_S, "impact".to_owned())],
+        ),
+    ];
+    for plant in ["mismatch", "realistic"] {
+        for (reference, event, title, window, marks) in &experiments {
+            let mut traces = Vec::new();
+            for p in &s.points {
+                let (_, name, _) = p.resolve_plant()?;
+                if name == plant && p.reference.name() == *reference && p.event.name() == *event {
+                    traces.push(p.trace(s.file.duration_s, s.file.period_s, *window, 2)?);
+                }
+            }
+            let path = out.join(format!("shock_{event}_{plant}.png").replace("none", "jump"));
+            crate::plot::shock(&path, title, &format!("{plant} plant; every controller at equal activity (3 bar/s), APRC-NDO also with the paper's gains and m_p 0.5-15"), &traces, marks)
+                .map_err(|e| anyhow::anyhow!("cannot draw `{}`: {e}", path.display()))?;
+            n += 1;
+        }
+    }
+    Ok(n)
+}
+
+/// Runs the three studies, writes their plots, and returns their summaries and sections.
+pub fn run_all(out: &Path) -> Result<Studies> {
+    let (shocks, shock_summary, _) = run_sweep("shocks", out)?;
+    let mut plots = shock_plots(&shocks, out)?;
+    let (_, fig9, _) = run_sweep("fig9", out)?;
+    let (_, mc, mc_runs) = run_sweep("monte_carlo", out)?;
+    let png = out.join("robustness.png");
+    crate::plot::rte_distributions(&png, "monte_carlo", &mc_runs)
+        .map_err(|e| anyhow::anyhow!("cannot draw `{}`: {e}", png.display()))?;
+    plots += 1;
+    let mut report = String::new();
+    report.push_str(&section(
+        "Not in the paper: shocks",
+        "`models/sweeps/shocks.toml` (14 s per run): the reference jumps 5 -> 25 mm at 4 s and back at 10 s; on the sine, an obstacle holds the load from 8 s to 9 s; or 150 N for 30 ms at 8.5 s, up or down. Every controller at equal activity (3 bar/s), APRC-NDO also with the paper's gains and m_p in {0.5, 1, 5, 15}; plants `mismatch` and `realistic`. Plots: `shock_<event>_<plant>.png`.",
+        &shock_summary,
+    ));
+    report.push_str(&section(
+        "Fig. 9: the chirp with added loads",
+        "`models/sweeps/fig9.toml`: 0, 2.5 and 5 kg added to the `mismatch` load (2.5 kg), gains unchanged (the controllers assume 2 kg).",
+        &fig9,
+    ));
+    report.push_str(&section(
+        "Not in the paper: robustness over 200 plants",
+        "`models/sweeps/monte_carlo.toml`: every Table I parameter independently within +-20 %, load 1-5 kg, valve lag 0-30 ms, sensor noise 0-20 um RMS; equal-activity (3 bar/s) gains. Plot: `robustness.png`.",
+        &mc,
+    ));
+    Ok(Studies {
+        summaries: vec![
+            ("shocks", shock_summary),
+            ("fig9", fig9),
+            ("robustness", mc),
+        ],
+        report,
+        plots,
+    })
+}

@@ -1,0 +1,268 @@
+//! Sweeps through the binary: the same lines for any thread count and any sharding, a
+//! killed sweep resumed losing nothing, bad files as one-line errors, and (where a Slurm
+//! cluster is up, as in CI) a job array.
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const SMALL: &str = r#"
+name = "small"
+duration_s = 3.0
+[[grid]]
+controllers = ["aprc-ndo", "pid"]
+gains = ["default"]
+references = ["sine", "jump"]
+[grid.plants]
+presets = ["realistic"]
+[[grid]]
+controllers = ["psmc", "ndo-smc"]
+gains = ["equal-activity/3"]
+references = ["sine"]
+events = ["impact-down"]
+[grid.plants.population]
+size = 3
+seed = 7
+muscle_scale = [0.8, 1.2]
+load_kg = [1.0, 5.0]
+valve_lag_s = [0.0, 0.03]
+noise_rms_m = [0.0, 2e-5]
+"#;
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pma-exo-sweep-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("temp dir");
+    d
+}
+
+fn pma_exo(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args(args)
+        .output()
+        .expect("run pma-exo")
+}
+
+fn ok(args: &[&str]) {
+    let out = pma_exo(args);
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn sorted_lines(path: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(path).expect("runs.jsonl");
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    let index = |l: &String| -> u64 {
+        let v: serde_json::Value = serde_json::from_str(l).expect("json line");
+        v["run"].as_u64().expect("run")
+    };
+    lines.sort_by_key(index);
+    lines
+}
+
+fn write_sweep(dir: &Path, text: &str) -> String {
+    let p = dir.join("sweep.toml");
+    std::fs::write(&p, text).expect("write");
+    p.display().to_string()
+}
+
+#[test]
+fn threads_and_shards_give_the_same_lines() {
+    let dir = temp("determinism");
+    let file = write_sweep(&dir, SMALL);
+    let s = |p: &Path| p.display().to_string();
+    let (one, two) = (dir.join("one"), dir.join("two"));
+    ok(&["sweep", &file, "--out", &s(&one), "--threads", "1"]);
+    ok(&["sweep", &file, "--out", &s(&two), "--threads", "2"]);
+    let whole = sorted_lines(&one.join("runs.jsonl"));
+    assert_eq!(whole.len(), 2 * 2 + 2 * 3);
+    assert_eq!(whole, sorted_lines(&two.join("runs.jsonl")));
+    // Two shards, merged, are the whole.
+    let (a, b, merged) = (dir.join("a"), dir.join("b"), dir.join("merged"));
+    ok(&["sweep", &file, "--out", &s(&a), "--shard", "1/2"]);
+    ok(&["sweep", &file, "--out", &s(&b), "--shard", "2/2"]);
+    let na = sorted_lines(&a.join("runs.jsonl")).len();
+    assert!(na > 0 && na < whole.len(), "shard 1/2 ran {na} runs");
+    ok(&["sweep", "merge", &s(&a), &s(&b), "--out", &s(&merged)]);
+    let m = std::fs::read_to_string(merged.join("runs.jsonl")).expect("merged");
+    assert_eq!(m.lines().map(str::to_owned).collect::<Vec<_>>(), whole);
+    for f in ["summary.json", "summary.md", "rte.png"] {
+        assert!(merged.join(f).exists(), "{f}");
+    }
+    // A merge with a shard missing says so and fails.
+    let out = pma_exo(&["sweep", "merge", &s(&a), "--out", &s(&dir.join("half"))]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("missing"));
+    // Every run's events carry their figures; the physics stayed finite.
+    for line in &whole {
+        let v: serde_json::Value = serde_json::from_str(line).expect("json");
+        assert_eq!(v["finite"], true, "{line}");
+        if v["event"] == "impact-down" || v["reference"] == "jump" {
+            assert!(
+                !v["events"].as_array().expect("events").is_empty(),
+                "{line}"
+            );
+        }
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[cfg(unix)]
+#[test]
+fn a_killed_sweep_resumes_and_loses_nothing() {
+    let dir = temp("resume");
+    // Enough runs to kill it half way.
+    let text = SMALL
+        .replace("duration_s = 3.0", "duration_s = 6.0")
+        .replace("size = 3", "size = 30");
+    let file = write_sweep(&dir, &text);
+    let (full, killed) = (dir.join("full"), dir.join("killed"));
+    ok(&[
+        "sweep",
+        &file,
+        "--out",
+        &full.display().to_string(),
+        "--threads",
+        "2",
+    ]);
+    let runs = killed.join("runs.jsonl");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args([
+            "sweep",
+            &file,
+            "--out",
+            &killed.display().to_string(),
+            "--threads",
+            "1",
+        ])
+        .spawn()
+        .expect("spawn");
+    let t0 = std::time::Instant::now();
+    while std::fs::read_to_string(&runs).map_or(0, |t| t.lines().count()) < 10 {
+        assert!(t0.elapsed().as_secs() < 120, "no progress");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().expect("SIGKILL");
+    let _ = child.wait();
+    let partial = std::fs::read_to_string(&runs).expect("partial");
+    let total = sorted_lines(&full.join("runs.jsonl")).len();
+    assert!(partial.lines().count() < total, "killed too late");
+    // And a torn last line, as a kill in the middle of a write leaves.
+    let mut torn = partial.clone();
+    if !torn.ends_with('\n') {
+        torn.push('\n');
+    }
+    torn.push_str("{\"run\":999,\"controller\":\"pi");
+    std::fs::write(&runs, torn).expect("tear");
+    ok(&["sweep", &file, "--out", &killed.display().to_string()]);
+    assert_eq!(sorted_lines(&runs), sorted_lines(&full.join("runs.jsonl")));
+    std::fs::remove_dir_all(dir).ok();
+}
+
+fn one_line_error(args: &[&str], needle: &str) {
+    let out = pma_exo(args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} succeeded");
+    assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+    assert!(err.contains(needle), "{args:?}: {err}");
+}
+
+#[test]
+fn bad_sweeps_are_one_line_errors() {
+    let dir = temp("bad");
+    let out = dir.join("out").display().to_string();
+    let cases = [
+        (
+            SMALL.replace("duration_s = 3.0", "duration_s = 3.0\nthreads = 2"),
+            "threads",
+        ),
+        (
+            SMALL.replace("\"aprc-ndo\", \"pid\"", "\"aprc-ndo\", \"lqr\""),
+            "lqr",
+        ),
+        (
+            SMALL.replace("references = [\"sine\", \"jump\"]", "references = []"),
+            "references",
+        ),
+        (
+            SMALL
+                .replace("gains = [\"default\"]", "gains = [\"paper\"]")
+                .replace("\"aprc-ndo\", \"pid\"", "\"pid\"")
+                .replace("gains = [\"equal-activity/3\"]", "gains = [\"paper\"]"),
+            "empty",
+        ),
+        (SMALL.replace("size = 3", "size = 0"), "population.size"),
+    ];
+    for (i, (text, needle)) in cases.iter().enumerate() {
+        let f = dir.join(format!("bad{i}.toml"));
+        std::fs::write(&f, text).expect("write");
+        one_line_error(&["sweep", &f.display().to_string(), "--out", &out], needle);
+    }
+    let good = write_sweep(&dir, SMALL);
+    one_line_error(&["sweep", &good, "--out", &out, "--shard", "3/2"], "3/2");
+    one_line_error(&["sweep", &good, "--out", &out, "--shard", "0/2"], "0/2");
+    one_line_error(&["sweep", "nonexistent", "--out", &out], "nonexistent");
+    // Another sweep's directory is not resumed into.
+    let first = dir.join("first").display().to_string();
+    ok(&["sweep", &good, "--out", &first, "--shard", "1/4"]);
+    one_line_error(
+        &["sweep", &good, "--out", &first, "--shard", "2/4"],
+        "another --out",
+    );
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// Runs only where a Slurm cluster is up (`.ci/run` starts a one-node cluster on
+/// localhost and sets `SLURM_CONF`): a job array of two shards, merged.
+#[test]
+fn a_slurm_job_array_runs_the_shards() {
+    let Ok(conf) = std::env::var("SLURM_CONF") else {
+        eprintln!("SLURM_CONF is not set: no Slurm cluster to submit to (CI starts one)");
+        return;
+    };
+    let dir = temp("slurm");
+    let file = write_sweep(&dir, SMALL);
+    let bin = env!("CARGO_BIN_EXE_pma-exo");
+    let script = format!(
+        "#!/bin/sh\nexec {bin} sweep {file} --out {}/shard-$SLURM_ARRAY_TASK_ID --shard $((SLURM_ARRAY_TASK_ID + 1))/2 --threads 1\n",
+        dir.display()
+    );
+    let job = dir.join("job.sh");
+    std::fs::write(&job, script).expect("job");
+    let out = Command::new("sbatch")
+        .args(["--parsable", "--array=0-1", "-o"])
+        .arg(dir.join("slurm-%A_%a.out"))
+        .arg(&job)
+        .env("SLURM_CONF", &conf)
+        .output()
+        .expect("sbatch");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let id = String::from_utf8_lossy(&out.stdout).trim().to_owned();
+    let waited = Command::new("bash")
+        .args([".ci/slurm-ci.sh", "wait", &id, "300"])
+        .env("SLURM_CONF", &conf)
+        .status()
+        .expect("wait");
+    assert!(waited.success(), "job {id} did not complete");
+    let merged = dir.join("merged");
+    ok(&[
+        "sweep",
+        "merge",
+        &dir.join("shard-0").display().to_string(),
+        &dir.join("shard-1").display().to_string(),
+        "--out",
+        &merged.display().to_string(),
+    ]);
+    let whole = dir.join("whole");
+    ok(&["sweep", &file, "--out", &whole.display().to_string()]);
+    assert_eq!(
+        sorted_lines(&merged.join("runs.jsonl")),
+        sorted_lines(&whole.join("runs.jsonl"))
+    );
+    std::fs::remove_dir_all(dir).ok();
+}
