@@ -10,7 +10,7 @@ mod paper;
 mod plot;
 mod studies;
 
-use commands::{rig, simulate, single, sweep, tune};
+use commands::{compare_leg, pendulum, rig, simulate, single, sweep, tune};
 
 /// Every controller's command-line name, as shown in usage lines and errors.
 pub(crate) const CONTROLLERS: &str = "aprc-ndo|aprc|psmc|ndo-smc|sta|pid";
@@ -41,9 +41,15 @@ enum Command {
     },
     /// Tune a controller's gains with the firefly algorithm on the sine (IAE objective).
     Tune(tune::Args),
-    /// Tune a leg scenario's shared APRC-NDO gains with the same firefly search
+    /// Tune a controller's gains on a leg scenario with the same firefly search
     /// (objective: hip + knee RMS error plus 0.01 deg per bar/s of command variation).
     TuneLeg(tune::LegArgs),
+    /// APRC-NDO, PSMC, NDO-SMC, STA and PID (leg gains tuned with one budget) on the
+    /// patient scenarios: tracking, spasm deviation and recovery, pressure rates, safety.
+    CompareLeg(compare_leg::Args),
+    /// The Wartenberg pendulum test: thigh horizontal, knee released, muscles vented;
+    /// R2, first swing, oscillations of the scenario's patient.
+    Pendulum(pendulum::Args),
     /// A grid of bench runs (controllers x gains x plants x references x events x seeds)
     /// in parallel, one JSON line per run; `--shard I/N` for job arrays; `sweep merge`.
     Sweep(sweep::Args),
@@ -101,10 +107,12 @@ fn run(cli: Cli) -> Result<i32> {
         .unwrap_or_else(|| Command::Simulate(simulate::Args::default()))
     {
         Command::Simulate(a) => simulate::run(a),
+        Command::Pendulum(a) => pendulum::run(a),
         Command::Single(a) => single::run(a),
         Command::Paper { out } => paper::run(&out).map(|()| 0),
         Command::Tune(a) => tune::run(a),
         Command::TuneLeg(a) => tune::run_leg(a),
+        Command::CompareLeg(a) => compare_leg::run(a),
         Command::Sweep(a) => sweep::run(a),
         Command::Rig { command } => rig::run(command),
     }

@@ -2,10 +2,11 @@
 //! bench, the leg and the rig, the mapping of their periods onto frames, and one
 //! [`Recorder`] for each (a viewer's error is kept and reported after the run).
 use anyhow::Result;
+use pma_leg::patient::SpasmEvent;
 use pma_leg::{LegOutput, LegPlant, LegSample, LegSim, VisualShape};
 use pma_loop::{MuscleStep, Period, Recorder};
 use pma_sim::{MuscleBench, Sample};
-use pma_viz::{Frame, Shape, Sink, Viz, VizError};
+use pma_viz::{Frame, Marker, Shape, Sink, Viz, VizError};
 
 /// Per-muscle series, in this order, under `muscles/<name>/`.
 pub const MUSCLE_SERIES: [(&str, &str); 10] = [
@@ -22,11 +23,19 @@ pub const MUSCLE_SERIES: [(&str, &str); 10] = [
 ];
 
 /// Per-joint series under `joints/<name>/`.
-pub const JOINT_SERIES: [(&str, &str); 3] = [
+pub const JOINT_SERIES: [(&str, &str); 5] = [
     ("reference_deg", "reference (deg)"),
     ("angle_deg", "angle (deg)"),
     ("error_deg", "error (deg)"),
+    ("patient_torque_nm", "patient torque (N m, flexion +)"),
+    ("spasm_torque_nm", "spasm torque (N m, flexion +)"),
 ];
+
+/// The text log of the leg's events (spasm onsets and ends).
+pub const EVENTS_PATH: &str = "events";
+
+/// The joints' names and the links they move, in the leg's joint order.
+const JOINT_LINKS: [(&str, &str); 2] = [("hip", "thigh"), ("knee", "shank")];
 
 const PALETTE: [[u8; 3]; 10] = [
     [31, 119, 180],
@@ -141,7 +150,7 @@ pub fn leg_layout(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<()> {
     for m in sim.muscles() {
         viz.muscle(&m.geometry.name, p_max)?;
     }
-    for j in ["hip", "knee"] {
+    for (j, _) in JOINT_LINKS {
         for (k, (leaf, legend)) in JOINT_SERIES.iter().enumerate() {
             viz.series(
                 &format!("joints/{j}/{leaf}"),
@@ -164,7 +173,7 @@ pub fn leg_scalars(s: &LegSample, out: &mut [f64; LEG_SCALARS]) {
     let mut k = 0;
     for j in 0..2 {
         let (r, a) = (s.reference_rad[j].to_degrees(), s.angle_rad[j].to_degrees());
-        for v in [r, a, r - a] {
+        for v in [r, a, r - a, s.patient_nm[j], s.spasm_nm[j]] {
             out[k] = v;
             k += 1;
         }
@@ -224,6 +233,16 @@ pub struct VizRecorder {
     viz: Viz,
     step: i64,
     error: Option<VizError>,
+    /// Per planned spasm, how far it has been shown.
+    spasms: Vec<Shown>,
+}
+
+/// How far an event has been shown.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Shown {
+    Not,
+    Started,
+    Ended,
 }
 
 impl VizRecorder {
@@ -233,6 +252,7 @@ impl VizRecorder {
             viz,
             step: 0,
             error: None,
+            spasms: Vec::new(),
         }
     }
 
@@ -312,5 +332,64 @@ impl Recorder<LegPlant, LegOutput> for VizRecorder {
             &mut scalars,
         );
         self.keep(r);
+        if let Some(patient) = p.backend.patient() {
+            let r = mark_spasms(
+                &self.viz,
+                patient.events(),
+                &mut self.spasms,
+                p.t_s,
+                self.step,
+            );
+            self.keep(r);
+        }
     }
+}
+
+/// The entity marking a spasm on `joint`: a child of the link the joint moves, so that it
+/// sits on the joint and moves with the leg.
+pub fn spasm_marker_path(joint: usize) -> String {
+    format!("world/{}/spasm", JOINT_LINKS[joint].1)
+}
+
+/// Logs the spasms that start or end by `t_s`: a line in [`EVENTS_PATH`] each time, and a
+/// red labelled ball on the joint while the spasm acts.
+fn mark_spasms(
+    viz: &Viz,
+    events: &[SpasmEvent],
+    shown: &mut Vec<Shown>,
+    t_s: f64,
+    step: i64,
+) -> Result<()> {
+    // Events are planned before the run: this grows once.
+    shown.resize(events.len(), Shown::Not);
+    for (e, state) in events.iter().zip(shown.iter_mut()) {
+        let joint = JOINT_LINKS[e.joint].0;
+        if *state == Shown::Not && t_s >= e.t_s {
+            let text = format!(
+                "{joint} spasm: {} {:.1} N m for {:.2} s",
+                e.direction, e.amplitude_nm, e.duration_s
+            );
+            viz.event(t_s, step, EVENTS_PATH, &text, "WARN")?;
+            let marker = Marker {
+                position_m: [0.0; 3],
+                radius_m: 0.045,
+                rgb: [230, 30, 30],
+                label: text,
+            };
+            viz.marker(t_s, step, &spasm_marker_path(e.joint), &marker)?;
+            *state = Shown::Started;
+        }
+        if *state == Shown::Started && t_s >= e.end_s() {
+            viz.event(
+                t_s,
+                step,
+                EVENTS_PATH,
+                &format!("{joint} spasm ends"),
+                "INFO",
+            )?;
+            viz.clear(t_s, step, &spasm_marker_path(e.joint))?;
+            *state = Shown::Ended;
+        }
+    }
+    Ok(())
 }

@@ -8,6 +8,17 @@ fn pma_exo(args: &[&str]) -> std::process::Output {
         .expect("run pma-exo")
 }
 
+/// Runs `pma-exo` and asserts it succeeded, showing its stderr if not.
+fn pma_exo_ok(args: &[&str]) -> std::process::Output {
+    let out = pma_exo(args);
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
 fn assert_one_line_error(args: &[&str], needle: &str) {
     let out = pma_exo(args);
     assert!(!out.status.success(), "{args:?} succeeded");
@@ -19,7 +30,7 @@ fn assert_one_line_error(args: &[&str], needle: &str) {
 
 #[test]
 fn single_prints_the_metrics_as_json() {
-    let out = pma_exo(&[
+    let out = pma_exo_ok(&[
         "single",
         "--controller",
         "aprc-ndo",
@@ -31,11 +42,6 @@ fn single_prints_the_metrics_as_json() {
         "2",
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     for key in [
         "controller",
@@ -78,7 +84,7 @@ fn single_writes_the_csv_time_series() {
     let dir = std::env::temp_dir().join(format!("pma-exo-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let csv = dir.join("run.csv");
-    let out = pma_exo(&[
+    pma_exo_ok(&[
         "single",
         "--controller",
         "pid",
@@ -87,7 +93,6 @@ fn single_writes_the_csv_time_series() {
         "--csv",
         csv.to_str().unwrap(),
     ]);
-    assert!(out.status.success());
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
     assert_eq!(
@@ -210,12 +215,7 @@ fn event<'a>(g: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
 #[test]
 fn paper_writes_results_report_and_plots() {
     let dir = std::env::temp_dir().join(format!("pma-exo-paper-{}", std::process::id()));
-    let out = pma_exo(&["paper", "--out", dir.to_str().unwrap()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    pma_exo_ok(&["paper", "--out", dir.to_str().unwrap()]);
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap();
     for key in [
@@ -334,12 +334,7 @@ fn paper_writes_results_report_and_plots() {
 
 #[test]
 fn simulate_prints_the_gait_metrics_as_json() {
-    let out = pma_exo(&["simulate", "--duration", "3.2", "--json"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = pma_exo_ok(&["simulate", "--duration", "3.2", "--json"]);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["scenario"], "gait_training");
     assert_eq!(v["duration_s"], 3.2);
@@ -449,7 +444,7 @@ fn a_stuck_viewer_is_a_warning_after_the_flush_timeout_not_a_hang() {
         }
     });
     let t = std::time::Instant::now();
-    let out = pma_exo(&[
+    let out = pma_exo_ok(&[
         "single",
         "--duration",
         "1",
@@ -733,4 +728,154 @@ fn regression_11_help_warnings_and_file_names() {
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(err.matches("gain file").count(), 1, "{err}");
+}
+
+/// `gait_training` with `extra` appended, in a temporary file.
+fn scenario_with(name: &str, extra: &str) -> std::path::PathBuf {
+    let path = temp(name).join("scenario.toml");
+    let base = include_str!("../models/scenarios/gait_training.toml");
+    std::fs::write(&path, format!("{base}\n{extra}\n")).unwrap();
+    path
+}
+
+fn pendulum_json(args: &[&str]) -> serde_json::Value {
+    let mut all = vec!["pendulum"];
+    all.extend_from_slice(args);
+    all.push("--json");
+    let out = pma_exo_ok(&all);
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn pendulum_without_patient_or_damping_conserves_energy() {
+    let path = temp("undamped").join("scenario.toml");
+    let base = include_str!("../models/scenarios/gait_training.toml");
+    let undamped = base.replace("damping_nm_s_per_rad = 0.5", "damping_nm_s_per_rad = 0.0");
+    assert_ne!(undamped, base);
+    std::fs::write(&path, undamped).unwrap();
+    let v = pendulum_json(&[
+        path.to_str().unwrap(),
+        "--knee-deg",
+        "45",
+        "--duration",
+        "2",
+    ]);
+    let drift = v["energy_drift_relative"].as_f64().unwrap();
+    assert!(drift.abs() < 0.01, "energy drift {drift}");
+    // Released at 45 deg from the hanging 90 deg, it swings to about 135 deg.
+    let peak = v["first_peak_deg"].as_f64().unwrap();
+    assert!((peak - 135.0).abs() < 2.0, "first peak {peak} deg");
+}
+
+#[test]
+fn pendulum_severe_spasticity_lowers_r2() {
+    let r2 = |preset: &str| {
+        pendulum_json(&["--spasticity", preset])["r2"]
+            .as_f64()
+            .unwrap()
+    };
+    let (none, severe) = (r2("none"), r2("severe"));
+    assert!(severe < none, "R2 severe {severe} vs none {none}");
+    assert!((none - 1.678).abs() < 0.18, "healthy R2 {none}");
+}
+
+#[test]
+fn bad_patient_input_is_a_one_line_error_naming_the_field() {
+    for (name, extra, field) in [
+        (
+            "preset.toml",
+            "[patient.knee.spasticity]\npreset = \"extreme\"",
+            "patient.knee.spasticity.preset",
+        ),
+        (
+            "rate.toml",
+            "[patient.hip.spasms]\nrate_per_min = -1.0",
+            "patient.hip.spasms.rate_per_min",
+        ),
+        (
+            "amplitude.toml",
+            "[patient.knee.spasms]\nrate_per_min = 4.0\namplitude_nm = [30.0, 10.0]",
+            "patient.knee.spasms.amplitude_nm",
+        ),
+        (
+            "field.toml",
+            "[patient.knee.effort]\nfracton = 0.3",
+            "fracton",
+        ),
+    ] {
+        let path = scenario_with(name, extra);
+        assert_one_line_error(&["simulate", path.to_str().unwrap()], field);
+        assert_one_line_error(&["pendulum", path.to_str().unwrap()], field);
+    }
+}
+
+#[test]
+fn simulate_any_controller_on_a_patient_reports_spasms_and_safety() {
+    let out = pma_exo(&[
+        "simulate",
+        "gait_spasms",
+        "--controller",
+        "psmc",
+        "--duration",
+        "8",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let spasms = v["spasms"].as_array().unwrap();
+    assert!(!spasms.is_empty(), "{v}");
+    for key in [
+        "peak_deviation_deg",
+        "peak_joint_speed_deg_s",
+        "peak_pressure_rate_bar_s",
+        "recovery_s",
+    ] {
+        assert!(spasms[0].get(key).is_some(), "{key}");
+    }
+    for j in ["hip", "knee"] {
+        assert!(v["patient"][j]["torque_rms_nm"].as_f64().unwrap() > 0.0);
+        assert!(v["safety"]["joints"][j]["time_outside_s"].is_number());
+    }
+    let m = &v["safety"]["muscles"]["knee_flexor"];
+    assert_eq!(m["rated_force_n"], 1500.0);
+    assert!(m["peak_over_rated"].as_f64().unwrap() > 0.0);
+    // The summary prints a line per spasm.
+    let out = pma_exo_ok(&["simulate", "gait_spasms", "--duration", "8"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        text.lines().filter(|l| l.contains("spasm at")).count(),
+        spasms.len(),
+        "{text}"
+    );
+}
+
+#[test]
+fn compare_leg_writes_one_row_per_controller_and_scenario() {
+    let dir = temp("compare-leg");
+    pma_exo_ok(&[
+        "compare-leg",
+        "--out",
+        dir.to_str().unwrap(),
+        "--scenarios",
+        "gait_spasms,gait_resistive",
+        "--duration",
+        "8",
+    ]);
+    let rows: Vec<serde_json::Value> =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("compare-leg.json")).unwrap())
+            .unwrap();
+    assert_eq!(rows.len(), 10);
+    assert_eq!(rows[0]["scenario"], "gait_spasms");
+    assert_eq!(rows[0]["controller"], "aprc-ndo");
+    assert_eq!(rows[9]["controller"], "pid");
+    assert!(rows.iter().all(|r| r["finite"] == true));
+    assert!(rows[0]["spasms"].as_u64().unwrap() > 0);
+    let md = std::fs::read_to_string(dir.join("compare-leg.md")).unwrap();
+    assert!(
+        md.contains("## gait_resistive") && md.contains("| sta |"),
+        "{md}"
+    );
+    assert_one_line_error(
+        &["compare-leg", "--out", "/proc/x", "--duration", "8"],
+        "/proc/x",
+    );
 }

@@ -193,3 +193,76 @@ fn recorded_error_gives_the_reported_rms() {
         );
     }
 }
+
+/// The `sim_time` of every temporal row logged at `path`.
+fn row_times(msgs: &[LogMsg], path: &str) -> Vec<f64> {
+    let mut out = Vec::new();
+    for msg in msgs {
+        let LogMsg::ArrowMsg(_, arrow) = msg else {
+            continue;
+        };
+        let chunk = Chunk::from_arrow_msg(arrow).expect("chunk");
+        if chunk.is_static() || chunk.entity_path().to_string() != path {
+            continue;
+        }
+        if let Some(times) = chunk.timelines().get(&"sim_time".into()) {
+            out.extend(times.times_raw().iter().map(|ns| *ns as f64 * 1e-9));
+        }
+    }
+    out.sort_by(f64::total_cmp);
+    out
+}
+
+#[test]
+fn spasms_are_logged_as_events_markers_and_torque_series() {
+    let loaded = Scenario::load("gait_spasms").unwrap();
+    let mut sim = LegSim::new(&loaded).unwrap();
+    let (mut v, storage) = Viz::memory("test", loaded.scenario.period_s, None).unwrap();
+    viz::leg_layout(&mut v, &sim, "# test").unwrap();
+    let mut samples = Vec::new();
+    let mut keep = FnRecorder(|p: &Period<'_, LegPlant, LegOutput>| {
+        samples.push(LegSample::of(p));
+    });
+    let mut rec = viz::VizRecorder::new(v);
+    let duration = 20.0;
+    let report = sim.run(duration, &mut (&mut keep, &mut rec)).unwrap();
+    rec.finish().unwrap();
+    let msgs = storage.take();
+    let (series, _) = decode(&msgs);
+    let events = &report.spasms;
+    assert!(events.len() >= 2, "{events:?}");
+    // Onsets and the ends reached within the run.
+    let times = |e: &pma_leg::SpasmReport| {
+        let end = e.t_s + e.duration_s;
+        [Some(e.t_s), (end <= duration).then_some(end)]
+    };
+    // The torque series are the simulation's own values, spasms included.
+    let (knee, spasm) = (
+        &series["/joints/knee/patient_torque_nm"].1,
+        &series["/joints/knee/spasm_torque_nm"].1,
+    );
+    assert_eq!(knee.len(), samples.len());
+    for (k, s) in samples.iter().enumerate() {
+        assert_eq!((knee[k], spasm[k]), (s.patient_nm[1], s.spasm_nm[1]));
+    }
+    assert!(spasm.iter().any(|x| *x != 0.0));
+    // A log line at each onset and end, within a period of the event's times.
+    let logged = row_times(&msgs, "/events");
+    let period = loaded.scenario.period_s;
+    let mut expected: Vec<f64> = events.iter().flat_map(times).flatten().collect();
+    expected.sort_by(f64::total_cmp);
+    assert_eq!(logged.len(), expected.len(), "{logged:?} vs {expected:?}");
+    for (l, e) in logged.iter().zip(&expected) {
+        assert!(*l >= *e - 1e-9 && *l < e + period + 1e-9, "{l} vs {e}");
+    }
+    // The joint's marker appears at the onset and is cleared at the end.
+    for (joint, link) in [("hip", "thigh"), ("knee", "shank")] {
+        let n: usize = events
+            .iter()
+            .filter(|e| e.joint == joint)
+            .map(|e| times(e).iter().flatten().count())
+            .sum();
+        let marks = row_times(&msgs, &format!("/world/{link}/spasm"));
+        assert_eq!(marks.len(), n, "{joint}");
+    }
+}

@@ -3,6 +3,8 @@ use anyhow::{bail, Context, Result};
 use pma_control::{ChirpReference, ControllerConfig, ControllerKind, Reference, SineReference};
 use std::path::Path;
 
+pub mod compare_leg;
+pub mod pendulum;
 pub mod rig;
 pub mod simulate;
 pub mod single;
@@ -118,6 +120,32 @@ pub fn check_duration(duration: f64) -> Result<()> {
         bail!("--duration must be a finite number of seconds > 0 (got {duration})");
     }
     Ok(())
+}
+
+/// The end of a run with optional CSV and Rerun outputs: the CSV completed, the viewer
+/// closed, a non-finite run refused (`non_finite` says what went), the report printed as
+/// JSON or by `summary`, and only then the viewer's error, so a failed viewer never hides
+/// the figures.
+pub fn conclude<R: serde::Serialize>(
+    (csv, viz): (Option<crate::output::CsvOut>, Option<viz::Recorder>),
+    report: &R,
+    non_finite: Option<String>,
+    json: bool,
+    summary: impl FnOnce(&R) -> Result<()>,
+) -> Result<()> {
+    if let Some(c) = csv {
+        c.finish()?;
+    }
+    let viz_result = viz::finish(viz);
+    if let Some(what) = non_finite {
+        bail!("{what} went non-finite");
+    }
+    if json {
+        crate::say!("{}", serde_json::to_string(report)?);
+    } else {
+        summary(report)?;
+    }
+    viz_result
 }
 
 /// Rerun recorders, or nothing when the binary is built without the `rerun` feature.

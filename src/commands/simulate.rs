@@ -3,6 +3,7 @@ use super::{viz, RerunArgs};
 use crate::output::{self, CsvOut, INTERRUPTED};
 use crate::say;
 use anyhow::{bail, Result};
+use pma_control::{ControllerConfig, ControllerKind};
 use pma_leg::{LegOutput, LegPlant, LegReport, LegSample, LegSim, Scenario};
 use pma_loop::{Period, Recorder};
 use std::path::PathBuf;
@@ -13,9 +14,16 @@ pub const LEG_PERIOD_S: f64 = 20e-6;
 /// `simulate`'s arguments.
 #[derive(clap::Args)]
 pub struct Args {
-    /// gait_training (default), gait_realistic, or a scenario .toml file.
+    /// An embedded scenario (gait_training, gait_realistic, gait_spastic, gait_spasms,
+    /// gait_resistive) or a scenario .toml file.
     #[arg(default_value = "gait_training")]
     scenario: String,
+    /// Controller on every muscle (default: APRC-NDO with the scenario's gains).
+    #[arg(long, value_name = crate::CONTROLLERS)]
+    controller: Option<ControllerKind>,
+    /// Gain file of the controller (default: its shipped leg gains, see models/gains/leg).
+    #[arg(long, requires = "controller")]
+    gains: Option<PathBuf>,
     /// Simulated seconds (default: the scenario's); at least two strides.
     #[arg(long, allow_negative_numbers = true)]
     duration: Option<f64>,
@@ -37,6 +45,8 @@ impl Default for Args {
     fn default() -> Self {
         Self {
             scenario: "gait_training".into(),
+            controller: None,
+            gains: None,
             duration: None,
             csv: None,
             json: false,
@@ -132,7 +142,8 @@ pub fn run(a: Args) -> Result<i32> {
             "a simulation of {duration} s is shorter than two strides ({two_strides} s): its tracking figures start after the first stride"
         );
     }
-    let mut sim = LegSim::new(&loaded)?;
+    let config = leg_config(a.controller, a.gains.as_deref(), &loaded)?;
+    let mut sim = LegSim::with_controller(&loaded, &config)?;
     let settings = sim.settings(duration)?;
     output::check_wall_time(
         "this simulation",
@@ -153,13 +164,14 @@ pub fn run(a: Args) -> Result<i32> {
         None => None,
     };
     let meta = format!(
-        "# {}\n\n{}\n\ngait `{}` at a {} s stride; co-contraction {} bar; APRC-NDO gains:\n\n```\n{:#?}\n```\n",
+        "# {}\n\n{}\n\ngait `{}` at a {} s stride; co-contraction {} bar; {} gains:\n\n```\n{:#?}\n```\n",
         sc.name,
         sc.description,
         sc.gait.speed,
         sc.gait.stride_period_s,
         sc.control.cocontraction_pa / 1e5,
-        sc.control.gains
+        config.kind(),
+        config
     );
     let viz = viz::leg(&a.rerun, &sim, &meta)?;
     let bar = output::progress_bar(settings.periods(), "periods");
@@ -174,23 +186,15 @@ pub fn run(a: Args) -> Result<i32> {
     bar.finish_and_clear();
     let report = report?;
     let (csv, viz, _) = recorders;
-    if let Some(c) = csv {
-        c.out.finish()?;
-    }
-    // The results are printed even if the viewer failed; its error comes after them.
-    let viz_result = viz::finish(viz);
-    if !report.finite {
-        bail!(
-            "the simulation went non-finite (scenario {})",
-            report.scenario
-        );
-    }
-    if a.json {
-        say!("{}", serde_json::to_string(&report)?);
-    } else {
-        print_summary(&report)?;
-    }
-    viz_result?;
+    let non_finite =
+        (!report.finite).then(|| format!("the simulation (scenario {})", report.scenario));
+    super::conclude(
+        (csv.map(|c| c.out), viz),
+        &report,
+        non_finite,
+        a.json,
+        print_summary,
+    )?;
     if report.interrupted {
         eprintln!(
             "interrupted after {} s: the figures and the CSV cover the run so far",
@@ -199,6 +203,22 @@ pub fn run(a: Args) -> Result<i32> {
         return Ok(INTERRUPTED);
     }
     Ok(0)
+}
+
+/// The controller of every muscle: the scenario's APRC-NDO by default, a gain file, or
+/// the controller's gains tuned for the leg (`models/gains/leg/`).
+pub fn leg_config(
+    kind: Option<ControllerKind>,
+    gains: Option<&std::path::Path>,
+    loaded: &pma_leg::LoadedScenario,
+) -> Result<ControllerConfig> {
+    Ok(match (kind, gains) {
+        (None, _) => pma_leg::tune::base_config(loaded, ControllerKind::AprcNdo),
+        (Some(k), Some(path)) => super::load_gains(k, Some(path))?,
+        // APRC has no leg gain file of its own: the scenario's APRC-NDO gains without NDO.
+        (Some(k @ ControllerKind::Aprc), None) => pma_leg::tune::base_config(loaded, k),
+        (Some(k), None) => pma_leg::gains::leg_gains(k)?,
+    })
 }
 
 fn print_summary(r: &LegReport) -> Result<()> {
@@ -229,5 +249,65 @@ fn print_summary(r: &LegReport) -> Result<()> {
         r.cocontraction_pa.end / 1e5,
         r.command_variation_bar_per_s
     );
+    print_patient(r)?;
+    print_safety(&r.safety)
+}
+
+/// The patient's torques and one line per spasm (nothing for a passive limb).
+fn print_patient(r: &LegReport) -> Result<()> {
+    let p = &r.patient;
+    if p.hip.torque_peak_nm == 0.0 && p.knee.torque_peak_nm == 0.0 {
+        return Ok(());
+    }
+    say!(
+        "  patient torque: hip RMS {:.2} N m (peak {:.1}), knee RMS {:.2} N m (peak {:.1})",
+        p.hip.torque_rms_nm,
+        p.hip.torque_peak_nm,
+        p.knee.torque_rms_nm,
+        p.knee.torque_peak_nm
+    );
+    for e in &r.spasms {
+        let recovery = match e.recovery_s {
+            Some(s) => format!("back within 1 deg {s:.2} s after its end"),
+            None => format!("not back within 1 deg by {:.2} s", e.followed_until_s),
+        };
+        say!(
+            "  spasm at {:7.2} s: {:4} {} {:.1} N m for {:.2} s -> deviation {:.2} deg, joint speed {:.0} deg/s, pressure rate {:.0} bar/s, {recovery}",
+            e.t_s,
+            e.joint,
+            e.direction,
+            e.amplitude_nm,
+            e.duration_s,
+            e.peak_deviation_deg,
+            e.peak_joint_speed_deg_s,
+            e.peak_pressure_rate_bar_s
+        );
+    }
+    Ok(())
+}
+
+/// Joint limits, muscle forces against their rating, valve saturation.
+fn print_safety(s: &pma_leg::SafetyReport) -> Result<()> {
+    let limits: Vec<String> = s
+        .joints
+        .iter()
+        .map(|(j, l)| {
+            format!(
+                "{j} {:.3} s (max {:.2} deg)",
+                l.time_outside_s, l.max_beyond_deg
+            )
+        })
+        .collect();
+    say!("  beyond the URDF limits: {}", limits.join(", "));
+    for (name, m) in &s.muscles {
+        say!(
+            "  {name:13} peak force {:.0} N = {:.2}x its {:.0} N rating, valve at a limit {:.2} s, peak pressure rate {:.0} bar/s",
+            m.peak_force_n,
+            m.peak_over_rated,
+            m.rated_force_n,
+            m.valve_saturated_s,
+            m.peak_pressure_rate_bar_s
+        );
+    }
     Ok(())
 }

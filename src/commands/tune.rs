@@ -3,7 +3,7 @@ use super::check_duration;
 use super::simulate::LEG_PERIOD_S;
 use crate::output::{self, OutFile};
 use crate::say;
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use pma_control::ControllerKind;
 use std::path::PathBuf;
 
@@ -123,10 +123,7 @@ pub fn run(a: Args) -> Result<i32> {
         res.evaluations,
         res.config.to_toml_string()
     );
-    match out {
-        Some(f) => f.finish_with(&text)?,
-        None => say!("{}", text.trim_end()),
-    }
+    write_gain_file(out, &text)?;
     eprintln!(
         "{}: IAE {iae:.4e} m, {var:.3} bar/s after {} runs",
         a.controller, res.evaluations
@@ -137,9 +134,12 @@ pub fn run(a: Args) -> Result<i32> {
 /// `tune-leg`'s arguments.
 #[derive(clap::Args)]
 pub struct LegArgs {
-    /// gait_training, gait_realistic, or a scenario .toml file.
+    /// An embedded scenario or a scenario .toml file.
     #[arg(default_value = "gait_training")]
     scenario: String,
+    /// The controller to tune (one gain set for the four muscles).
+    #[arg(long, value_name = crate::CONTROLLERS, default_value = "aprc-ndo")]
+    controller: ControllerKind,
     /// Fireflies.
     #[arg(long, default_value_t = 20)]
     population: usize,
@@ -152,6 +152,9 @@ pub struct LegArgs {
     /// Optimiser seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Write the gain file here (created before the search; printed otherwise).
+    #[arg(long)]
+    out: Option<PathBuf>,
     /// Worker threads (default: one per core); the result does not depend on it.
     #[arg(long)]
     threads: Option<usize>,
@@ -179,27 +182,55 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
         LEG_PERIOD_S,
         a.yes,
     )?;
+    let out = a.out.as_deref().map(OutFile::create).transpose()?;
     let opts = pma_sim::tune::FireflyOptions {
         population: a.population,
         generations: a.generations,
         seed: a.seed,
         ..Default::default()
     };
-    let (gains, best, runs) = super::with_threads(a.threads, || {
-        pma_leg::tune::tune(&loaded, &opts, a.duration)
+    let found = super::with_threads(a.threads, || {
+        pma_leg::tune::tune(&loaded, a.controller, &opts, a.duration)
     })?;
-    if best >= pma_leg::tune::FAILED_RUN {
-        bail!("every one of the {runs} runs failed or went non-finite: no gains to report");
+    let Some(t) = found else {
+        bail!(
+            "{} has no search space here (pass --gains to simulate to change its gains)",
+            a.controller
+        );
+    };
+    if t.objective >= pma_leg::tune::FAILED_RUN {
+        bail!(
+            "every one of the {} runs failed or went non-finite: no gains to report",
+            t.evaluations
+        );
     }
-    let table = toml::to_string(&gains).context("serialising the gains")?;
-    say!(
-        "# `pma-exo tune-leg {} --population {} --generations {} --duration {} --seed {}`:\n# {runs} runs, objective {best:.4} (hip RMS + knee RMS in deg + 0.01 x bar/s)\n[control.gains]\n{}",
+    let text = format!(
+        "# Tuned by `pma-exo tune-leg {} --controller {} --population {} --generations {} --duration {} --seed {}`\n# ({} runs, objective {:.4}: hip RMS + knee RMS in deg + 0.01 x bar/s)\n{}",
         a.scenario,
+        a.controller,
         a.population,
         a.generations,
         a.duration,
         a.seed,
-        table.trim_end()
+        t.evaluations,
+        t.objective,
+        t.config.to_toml_string()
+    );
+    write_gain_file(out, &text)?;
+    eprintln!(
+        "{}: objective {:.4} after {} runs",
+        a.controller, t.objective, t.evaluations
     );
     Ok(0)
+}
+
+/// The gain file's text to `out`, or to stdout without `--out`.
+fn write_gain_file(out: Option<OutFile>, text: &str) -> Result<()> {
+    match out {
+        Some(f) => f.finish_with(text),
+        None => {
+            say!("{}", text.trim_end());
+            Ok(())
+        }
+    }
 }

@@ -1,5 +1,6 @@
 //! Scenario and muscle-geometry files (TOML, `deny_unknown_fields`, units in the names).
 use crate::error::{finite_non_negative, finite_positive, LegError};
+use crate::patient::PatientSettings;
 use pma_control::AprcGains;
 use pma_model::{SensorParams, ValveParams};
 use pma_sim::gait::GaitSpeed;
@@ -18,6 +19,35 @@ pub const EMBEDDED_GAIT_TRAINING: &str =
 /// The embedded realistic scenario (`models/scenarios/gait_realistic.toml`).
 pub const EMBEDDED_GAIT_REALISTIC: &str =
     include_str!("../../../models/scenarios/gait_realistic.toml");
+
+/// Every embedded scenario: name and text (`models/scenarios/<name>.toml`).
+pub const EMBEDDED_SCENARIOS: [(&str, &str); 5] = [
+    ("gait_training", EMBEDDED_GAIT_TRAINING),
+    ("gait_realistic", EMBEDDED_GAIT_REALISTIC),
+    (
+        "gait_spastic",
+        include_str!("../../../models/scenarios/gait_spastic.toml"),
+    ),
+    (
+        "gait_spasms",
+        include_str!("../../../models/scenarios/gait_spasms.toml"),
+    ),
+    (
+        "gait_resistive",
+        include_str!("../../../models/scenarios/gait_resistive.toml"),
+    ),
+];
+
+/// The embedded scenarios' names, for help texts and messages.
+pub const EMBEDDED_SCENARIO_NAMES: &str =
+    "gait_training, gait_realistic, gait_spastic, gait_spasms, gait_resistive";
+
+fn embedded_text(name: &str) -> Option<&'static str> {
+    EMBEDDED_SCENARIOS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, t)| *t)
+}
 
 /// Which way a muscle pulls the joint.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -178,6 +208,18 @@ pub struct PlantSettings {
     /// Per-muscle factors on Table I (muscle name -> factors); absent = nominal.
     #[serde(default)]
     pub muscle_scale: BTreeMap<String, MuscleScale>,
+    /// Rated pulling force of every muscle (N), against which the run's peak force is
+    /// reported. Default 1500 N: Festo's maximum for the paper's DMSP-20 (at 6 bar and no
+    /// contraction).
+    #[serde(default = "default_rated_force")]
+    pub muscle_rated_force_n: f64,
+}
+
+/// Festo DMSP-20's rated (maximum) force (N).
+pub const DMSP20_RATED_FORCE_N: f64 = 1500.0;
+
+fn default_rated_force() -> f64 {
+    DMSP20_RATED_FORCE_N
 }
 
 fn default_encoder() -> EncoderSettings {
@@ -246,6 +288,31 @@ pub struct Scenario {
     pub plant: PlantSettings,
     /// Controllers.
     pub control: ControlSettings,
+    /// The patient in the exoskeleton (absent: the URDF's passive limb).
+    #[serde(default)]
+    pub patient: PatientSettings,
+}
+
+/// Parses TOML text into `T`; an error names the line and the field's path
+/// (`patient.knee.spasticity.preset`) on one line.
+fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, file: &str) -> Result<T, LegError> {
+    let parse_error = |e: &toml::de::Error| LegError::Parse {
+        file: file.to_owned(),
+        message: pma_control::text::toml_error(text, e),
+    };
+    let de = toml::Deserializer::parse(text).map_err(|e| parse_error(&e))?;
+    serde_path_to_error::deserialize(de).map_err(|e| {
+        let path = e.path().to_string();
+        let message = pma_control::text::toml_error(text, e.inner());
+        LegError::Parse {
+            file: file.to_owned(),
+            message: if path == "." || message.contains(&path) {
+                message
+            } else {
+                format!("{path}: {message}")
+            },
+        }
+    })
 }
 
 /// A scenario with its URDF and muscle geometry loaded.
@@ -271,10 +338,7 @@ fn read(path: &Path) -> Result<String, LegError> {
 impl Scenario {
     /// Parses and validates scenario text; `file` names it in errors.
     pub fn from_toml_str(text: &str, file: &str) -> Result<Self, LegError> {
-        let s: Scenario = toml::from_str(text).map_err(|e| LegError::Parse {
-            file: file.to_owned(),
-            message: pma_control::text::toml_error(text, &e),
-        })?;
+        let s: Scenario = parse_toml(text, file)?;
         s.validate().map_err(|e| LegError::Parse {
             file: file.to_owned(),
             message: e.to_string(),
@@ -303,6 +367,10 @@ impl Scenario {
             finite_non_negative(&format!("joints.{n}.friction_nm"), j.friction_nm)?;
         }
         self.plant.valve.validate()?;
+        finite_positive(
+            "plant.muscle_rated_force_n",
+            self.plant.muscle_rated_force_n,
+        )?;
         self.plant.encoder.sensor(0).validate()?;
         finite_positive("control.cocontraction_pa", self.control.cocontraction_pa)?;
         finite_positive(
@@ -326,17 +394,13 @@ impl Scenario {
             self.control.nominal_valve_time_constant_s,
         )?;
         pma_control::ControllerConfig::AprcNdo(self.control.gains).validate()?;
+        self.patient.validate()?;
         Ok(())
     }
 
-    /// The embedded default (`gait_training`) or realistic scenario by name.
+    /// An embedded scenario by name (see [`EMBEDDED_SCENARIOS`]).
     pub fn embedded(name: &str) -> Option<LoadedScenario> {
-        let text = match name {
-            "gait_training" => EMBEDDED_GAIT_TRAINING,
-            "gait_realistic" => EMBEDDED_GAIT_REALISTIC,
-            _ => return None,
-        };
-        Self::load_embedded(text, name).ok()
+        Self::load_embedded(embedded_text(name)?, name).ok()
     }
 
     fn load_embedded(text: &str, name: &str) -> Result<LoadedScenario, LegError> {
@@ -349,18 +413,17 @@ impl Scenario {
         })
     }
 
-    /// Loads a scenario: an embedded name (`gait_training`, `gait_realistic`) or a file,
-    /// with the URDF and muscle geometry it refers to (relative to its directory).
+    /// Loads a scenario: an embedded name (see [`EMBEDDED_SCENARIOS`]) or a file, with
+    /// the URDF and muscle geometry it refers to (relative to its directory).
     pub fn load(name_or_path: &str) -> Result<LoadedScenario, LegError> {
         if !name_or_path.ends_with(".toml") {
-            return match name_or_path {
-                "gait_training" => Self::load_embedded(EMBEDDED_GAIT_TRAINING, "gait_training"),
-                "gait_realistic" => Self::load_embedded(EMBEDDED_GAIT_REALISTIC, "gait_realistic"),
-                other => Err(LegError::Parse {
-                    file: other.to_owned(),
-                    message:
-                        "unknown scenario (expected gait_training, gait_realistic or a .toml file)"
-                            .into(),
+            return match embedded_text(name_or_path) {
+                Some(text) => Self::load_embedded(text, name_or_path),
+                None => Err(LegError::Parse {
+                    file: name_or_path.to_owned(),
+                    message: format!(
+                        "unknown scenario (expected one of {EMBEDDED_SCENARIO_NAMES}, or a .toml file)"
+                    ),
                 }),
             };
         }

@@ -271,3 +271,59 @@ impl Task for LegControllers {
         self.commands = *written;
     }
 }
+
+/// Every muscle vented, the reference followed by nothing: the gait (or a pose) is only
+/// reported, for the metrics and the logs. The limb moves under gravity and its patient.
+pub struct Vented {
+    gait: Option<GaitReference>,
+    pose: [f64; 2],
+}
+
+impl Vented {
+    /// Reports `gait` as the reference.
+    pub fn gait(gait: GaitReference) -> Self {
+        Self {
+            gait: Some(gait),
+            pose: [0.0; 2],
+        }
+    }
+
+    /// Reports a constant pose (rad) as the reference.
+    pub fn pose(pose: [f64; 2]) -> Self {
+        Self { gait: None, pose }
+    }
+
+    fn output(&self, t_s: f64) -> LegOutput {
+        let reference_rad = match &self.gait {
+            Some(g) => {
+                let s = g.sample(t_s);
+                [s.hip.angle_rad, s.knee.angle_rad]
+            }
+            None => self.pose,
+        };
+        LegOutput {
+            reference_rad,
+            length_ref_m: [f64::NAN; 4],
+            pressure_cmd_pa: [0.0; 4],
+            diagnostics: [Diagnostics::NONE; 4],
+        }
+    }
+}
+
+impl Task for Vented {
+    type Reading = [f64; 2];
+    type Command = [f64; 4];
+    type Output = LegOutput;
+
+    fn start(&mut self, t_s: f64, _: &[f64; 2], _: &[f64; 4], _: f64) -> Option<LegOutput> {
+        Some(self.output(t_s))
+    }
+
+    fn update(&mut self, t_s: f64, _: &[f64; 2], _: f64) -> LegOutput {
+        self.output(t_s)
+    }
+
+    fn command(output: &LegOutput) -> [f64; 4] {
+        output.pressure_cmd_pa
+    }
+}

@@ -45,6 +45,26 @@ pub enum LegError {
         /// Requirement.
         expected: &'static str,
     },
+    /// A `[low, high]` range is inverted or out of bounds.
+    #[error("{name} = [{low}, {high}] is invalid: {expected}")]
+    Range {
+        /// Parameter.
+        name: String,
+        /// Low end.
+        low: f64,
+        /// High end.
+        high: f64,
+        /// Requirement.
+        expected: &'static str,
+    },
+    /// A parameter is needed and absent.
+    #[error("{name} is missing: {hint}")]
+    Missing {
+        /// Parameter.
+        name: String,
+        /// What to give.
+        hint: &'static str,
+    },
     /// A controller gain set is invalid.
     #[error(transparent)]
     Controller(#[from] pma_control::ConfigError),

@@ -8,6 +8,9 @@ use std::path::Path;
 /// Standard gravity (m/s^2), the same as the muscle bench's.
 const G: f64 = pma_model::GRAVITY_M_S2;
 
+/// Solver iterations of a leg with a held joint (see [`Leg::hold`]).
+pub const HOLD_SOLVER_ITERATIONS: usize = 8;
+
 /// Names of the two joints the leg needs, in index order.
 pub const JOINT_NAMES: [&str; 2] = ["hip", "knee"];
 
@@ -42,6 +45,9 @@ pub struct LegInertia {
     pub shank: LinkInertia,
     /// Hip-to-knee distance (m).
     pub thigh_length_m: f64,
+    /// Backward pitch of the fixed pelvis (rad, about the hip's flexion axis): 0 standing,
+    /// pi/2 for a thigh lying horizontal at zero hip flexion (the seated pendulum test).
+    pub pelvis_pitch_rad: f64,
 }
 
 impl LegInertia {
@@ -64,7 +70,7 @@ impl LegInertia {
     /// angles `q` (rad) and rates `qd` (rad/s), potential measured from the hip height.
     pub fn energy(&self, q: [f64; 2], qd: [f64; 2]) -> f64 {
         let (t, s, l) = (&self.thigh, &self.shank, self.thigh_length_m);
-        let (h, k, hd, kd) = (q[0], q[1], qd[0], qd[1]);
+        let (h, k, hd, kd) = (q[0] + self.pelvis_pitch_rad, q[1], qd[0], qd[1]);
         let (phi, phid) = (h - k, hd - kd);
         let thigh_ke = 0.5 * (t.inertia_kg_m2 + t.mass_kg * t.com_below_joint_m.powi(2)) * hd * hd;
         let vx = l * h.cos() * hd + s.com_below_joint_m * phi.cos() * phid;
@@ -79,6 +85,7 @@ impl LegInertia {
     /// Gravity torques (N m, flexion positive) at hip and knee flexion `(h, k)` (rad).
     pub fn gravity_torques(&self, h: f64, k: f64) -> [f64; 2] {
         let (t, s) = (&self.thigh, &self.shank);
+        let h = h + self.pelvis_pitch_rad;
         let shank_angle = h - k;
         let hip = -G
             * (t.mass_kg * t.com_below_joint_m * h.sin()
@@ -86,6 +93,27 @@ impl LegInertia {
                     * (self.thigh_length_m * h.sin() + s.com_below_joint_m * shank_angle.sin()));
         let knee = G * s.mass_kg * s.com_below_joint_m * shank_angle.sin();
         [hip, knee]
+    }
+
+    /// Joint torques (N m, flexion positive) that move the rigid leg with accelerations
+    /// `qdd` (rad/s^2) at angles `q` (rad) and rates `qd` (rad/s): `M(q) qdd + C(q, qd) qd`
+    /// minus gravity, the two-link pendulum's Lagrange equations. In absolute link angles
+    /// (thigh `a = h + pitch`, shank `b = a - k`) the mass matrix is `[[A, B cos k], [B cos
+    /// k, D]]` with `A = I_t + m_t c_t^2 + m_s l^2`, `B = m_s l c_s`, `D = I_s + m_s c_s^2`;
+    /// the joint torques are `tau_hip = Q_a + Q_b` and `tau_knee = -Q_b` (virtual work).
+    pub fn inverse_dynamics(&self, q: [f64; 2], qd: [f64; 2], qdd: [f64; 2]) -> [f64; 2] {
+        let (t, s, l) = (&self.thigh, &self.shank, self.thigh_length_m);
+        let a_coef = t.inertia_kg_m2 + t.mass_kg * t.com_below_joint_m.powi(2) + s.mass_kg * l * l;
+        let b_coef = s.mass_kg * l * s.com_below_joint_m;
+        let d_coef = self.knee_inertia();
+        let k = q[1];
+        let (ad, bd) = (qd[0], qd[0] - qd[1]);
+        let (add, bdd) = (qdd[0], qdd[0] - qdd[1]);
+        let (c, sn) = (k.cos(), k.sin());
+        let gravity = self.gravity_torques(q[0], q[1]);
+        let q_a = a_coef * add + b_coef * c * bdd + b_coef * sn * bd * bd;
+        let q_b = b_coef * c * add + d_coef * bdd - b_coef * sn * ad * ad;
+        [q_a + q_b - gravity[0], -q_b - gravity[1]]
     }
 }
 
@@ -140,6 +168,7 @@ pub struct Leg {
     visuals: Vec<Vec<VisualShape>>,
     inertia: LegInertia,
     substeps: u32,
+    limits_rad: [[f64; 2]; 2],
 }
 
 fn urdf_err(file: &str, message: impl Into<String>) -> LegError {
@@ -163,6 +192,16 @@ fn link_inertia(robot: &urdf_rs::Robot, name: &str, file: &str) -> Result<LinkIn
     })
 }
 
+/// How the leg is mounted: the treadmill's upright pelvis, or the seat of a pendulum test.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Mount {
+    /// Backward pitch of the fixed pelvis about the hip's flexion axis (rad).
+    pub pelvis_pitch_rad: f64,
+    /// Knee limits replacing the URDF's `[lower, upper]` (rad): the exoskeleton's stop
+    /// removed for a test of the limb alone.
+    pub knee_limits_rad: Option<[f64; 2]>,
+}
+
 impl Leg {
     /// Loads the URDF (text; `file` names it in errors) with the pelvis fixed, sets each
     /// joint's damping and friction explicitly, Z up, and `substeps` physics steps of
@@ -174,7 +213,25 @@ impl Leg {
         period_s: f64,
         substeps: u32,
     ) -> Result<Self, LegError> {
+        Self::mounted(text, file, settings, period_s, substeps, Mount::default())
+    }
+
+    /// As [`Leg::from_urdf_str`], mounted as `mount` says.
+    pub fn mounted(
+        text: &str,
+        file: &str,
+        settings: [JointSettings; 2],
+        period_s: f64,
+        substeps: u32,
+        mount: Mount,
+    ) -> Result<Self, LegError> {
         let options = UrdfLoaderOptions {
+            // Pitching the fixed root pitches the whole leg about the hip axis (the URDF's
+            // hip lies on the pelvis frame's Y axis), flexion-wise for a positive angle.
+            shift: Pose::from_rotation(Rotation::from_axis_angle(
+                -Vector::Y,
+                mount.pelvis_pitch_rad as Real,
+            )),
             make_roots_fixed: true,
             // Nothing touches the leg (fixed pelvis, no ground) and self-contacts are off,
             // so colliders would only cost broad- and narrow-phase work (~10 % of a step).
@@ -197,6 +254,7 @@ impl Leg {
                     .ok_or_else(|| urdf_err(file, "no joint named `knee`"))?;
                 -knee.origin.xyz[2]
             },
+            pelvis_pitch_rad: mount.pelvis_pitch_rad,
         };
         // Which URDF joint and link each rapier element came from, before `robot` moves.
         let joint_names: Vec<String> = robot
@@ -281,9 +339,63 @@ impl Leg {
             visuals,
             inertia,
             substeps,
+            limits_rad: [[f64::NEG_INFINITY, f64::INFINITY]; 2],
         };
+        if let Some([lo, hi]) = mount.knee_limits_rad {
+            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                return Err(urdf_err(
+                    file,
+                    format!("knee limits [{lo}, {hi}] rad: need finite lower < upper"),
+                ));
+            }
+            leg.with_joint(1, |j| {
+                j.data.set_limits(JointAxis::AngX, [lo as Real, hi as Real]);
+            });
+        }
+        leg.limits_rad = [0, 1].map(|k| leg.read_limits(k));
         leg.set_joint_dynamics(settings);
         Ok(leg)
+    }
+
+    fn with_joint(&mut self, k: usize, f: impl FnOnce(&mut rapier3d::dynamics::MultibodyJoint)) {
+        let j = self.joints[k];
+        if let Some((mb, id)) = self.world.multibody_joints.get_mut(j.handle) {
+            if let Some(link) = mb.link_mut(id) {
+                f(&mut link.joint);
+            }
+        }
+    }
+
+    fn read_limits(&self, k: usize) -> [f64; 2] {
+        let j = self.joints[k];
+        self.world
+            .multibody_joints
+            .get(j.handle)
+            .and_then(|(mb, id)| mb.link(id))
+            .and_then(|l| l.joint().data.limits(JointAxis::AngX).copied())
+            .map_or([f64::NEG_INFINITY, f64::INFINITY], |l| {
+                [f64::from(l.min), f64::from(l.max)]
+            })
+    }
+
+    /// Each joint's `[lower, upper]` limit (rad), as rapier enforces them.
+    pub fn limits_rad(&self) -> [[f64; 2]; 2] {
+        self.limits_rad
+    }
+
+    /// Holds joint `k` (0 hip, 1 knee) still at `angle_rad`, as a seat holds the thigh:
+    /// both of its limits at that angle. (A kinematic multibody joint would do it too, but
+    /// rapier 0.36 then solves the other joint's limit with the wrong dimension and panics.)
+    pub fn hold(&mut self, k: usize, angle_rad: f64) {
+        self.with_joint(k, |j| {
+            j.data
+                .set_limits(JointAxis::AngX, [angle_rad as Real, angle_rad as Real]);
+        });
+        self.limits_rad[k] = [angle_rad, angle_rad];
+        // The hold is a constraint the solver works on every substep; with one iteration
+        // it bleeds ~1 % of the swing's energy per second (measured: 2.1 % over 2 s at 1,
+        // 0.52 % at 4, 0.26 % at 8 iterations), so a held leg gets eight.
+        self.world.integration_parameters.num_solver_iterations = HOLD_SOLVER_ITERATIONS;
     }
 
     /// Sets each joint's viscous damping and Coulomb friction, replacing rapier's default
@@ -484,6 +596,67 @@ mod tests {
         l.step(|_, _| [50.0, -20.0]);
         let v = l.velocities();
         assert!(v[0] > 0.0 && v[1] < 0.0, "{v:?}");
+    }
+
+    #[test]
+    fn inverse_dynamics_torques_give_rapier_the_asked_accelerations() {
+        // Forward dynamics (rapier) of the inverse dynamics (Lagrange, by hand): at states
+        // with large Coriolis and coupling terms, one step under tau = ID(q, qd, qdd)
+        // changes the velocities by qdd * h.
+        let h = 1e-3;
+        for (q, qd, qdd) in [
+            ([0.3, 0.9], [2.0, -3.0], [5.0, -8.0]),
+            ([-0.2, 0.2], [-1.5, 4.0], [-3.0, 10.0]),
+            ([0.6, 1.2], [0.0, 0.0], [0.0, 0.0]),
+        ] {
+            let mut l = leg(0.0, 1);
+            l.set_state(q, qd);
+            let tau = l.inertia().inverse_dynamics(q, qd, qdd);
+            l.step(|_, _| tau);
+            let v = l.velocities();
+            for j in 0..2 {
+                let a = (v[j] - qd[j]) / h;
+                assert!(
+                    (a - qdd[j]).abs() < 0.02 * qdd[j].abs().max(5.0),
+                    "joint {j} at q {q:?}, qd {qd:?}: asked {} rad/s^2, got {a} (tau {tau:?})",
+                    qdd[j]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_pitched_pelvis_turns_gravity_about_the_hip() {
+        // Pitched by 90 deg, the straight leg lies horizontal: the full static moment at the
+        // hip, and the torques the formula gives hold it.
+        let j = JointSettings {
+            damping_nm_s_per_rad: 0.0,
+            friction_nm: 0.0,
+        };
+        let mount = Mount {
+            pelvis_pitch_rad: std::f64::consts::FRAC_PI_2,
+            knee_limits_rad: None,
+        };
+        let mut l = Leg::mounted(EMBEDDED_URDF, "exo_leg.urdf", [j, j], 1e-3, 2, mount).unwrap();
+        let i = *l.inertia();
+        let g = i.gravity_torques(0.0, 0.0);
+        let static_moment = G
+            * (i.thigh.mass_kg * i.thigh.com_below_joint_m
+                + i.shank.mass_kg * (i.thigh_length_m + i.shank.com_below_joint_m));
+        assert!(
+            (g[0] + static_moment).abs() < 1e-9,
+            "{g:?} vs {static_moment}"
+        );
+        l.set_state([0.1, 0.3], [0.0, 0.0]);
+        let g = i.gravity_torques(0.1, 0.3);
+        for _ in 0..300 {
+            l.step(|_, _| [-g[0], -g[1]]);
+        }
+        let a = l.angles();
+        assert!(
+            (a[0] - 0.1).abs() < 1e-3 && (a[1] - 0.3).abs() < 1e-3,
+            "{a:?}"
+        );
     }
 
     #[test]

@@ -4,19 +4,26 @@
 //! tracking length references derived from normative gait.
 #![warn(missing_docs)]
 
+pub mod compare;
 pub mod config;
 pub mod control;
 mod error;
+pub mod gains;
 pub mod leg;
 pub mod metrics;
+pub mod patient;
+pub mod pendulum;
 pub mod plant;
+pub mod safety;
 pub mod sim;
 pub mod tune;
 
 pub use config::{LoadedScenario, MuscleGeometry, Scenario, Side};
-pub use control::{LegControllers, LegOutput};
+pub use control::{LegControllers, LegOutput, Vented};
 pub use error::LegError;
-pub use leg::{Leg, LegInertia, VisualShape};
+pub use leg::{Leg, LegInertia, Mount, VisualShape};
 pub use metrics::{JointStats, LegMetrics, LegReport, MuscleStats};
+pub use patient::{Patient, PatientSettings, PatientTorques, SpasmEvent};
 pub use plant::{LegPlant, LegState, MuscleActuator};
+pub use safety::{PatientMetrics, PatientReport, SafetyReport, SpasmReport};
 pub use sim::{balanced_pressures, LegSample, LegSim};

@@ -3,6 +3,7 @@
 use crate::control::LegOutput;
 use crate::leg::JOINT_NAMES;
 use crate::plant::LegPlant;
+use crate::safety::{PatientReport, SafetyReport, SpasmReport};
 use pma_loop::{Period, Recorder, Start};
 use std::collections::BTreeMap;
 
@@ -57,6 +58,12 @@ pub struct LegReport {
     pub real_time_factor: f64,
     /// Whether the run was stopped early (SIGINT, SIGTERM).
     pub interrupted: bool,
+    /// The patient's torques.
+    pub patient: PatientReport,
+    /// Each spasm of the run and what it did.
+    pub spasms: Vec<SpasmReport>,
+    /// Joint limits, muscle forces, valve saturation.
+    pub safety: SafetyReport,
 }
 
 /// Accumulates the [`LegReport`] figures period by period.
@@ -193,6 +200,9 @@ impl LegMetrics {
             finite: self.finite,
             real_time_factor: duration_s / wall_s.max(1e-12),
             interrupted: false,
+            patient: PatientReport::default(),
+            spasms: Vec::new(),
+            safety: SafetyReport::default(),
         }
     }
 }

@@ -3,6 +3,7 @@
 use crate::config::{MuscleGeometry, Scenario};
 use crate::error::LegError;
 use crate::leg::{Leg, JOINT_NAMES};
+use crate::patient::{Patient, PatientTorques};
 use pma_loop::{Backend, Started};
 use pma_model::{MuscleParams, PositionSensor, Valve};
 
@@ -70,6 +71,8 @@ pub struct LegState {
     pub length_m: [f64; 4],
     /// Time each muscle spent slack during the last period (s).
     pub slack_s: [f64; 4],
+    /// The patient's torques at the last substep (N m, flexion positive).
+    pub patient: PatientTorques,
 }
 
 /// The leg in the closed loop: reads two encoder angles, takes four pressure commands.
@@ -80,6 +83,8 @@ pub struct LegPlant {
     period_s: f64,
     periods: u64,
     slack_s: [f64; 4],
+    patient: Option<Patient>,
+    muscles_attached: bool,
 }
 
 impl LegPlant {
@@ -98,7 +103,34 @@ impl LegPlant {
             period_s: scenario.period_s,
             periods: 0,
             slack_s: [0.0; 4],
+            patient: None,
+            muscles_attached: true,
         })
+    }
+
+    /// Puts a patient in the leg (`None`: the passive limb).
+    pub(crate) fn set_patient(&mut self, patient: Option<Patient>) {
+        self.patient = patient;
+    }
+
+    /// The patient, if any.
+    pub fn patient(&self) -> Option<&Patient> {
+        self.patient.as_ref()
+    }
+
+    pub(crate) fn patient_mut(&mut self) -> Option<&mut Patient> {
+        self.patient.as_mut()
+    }
+
+    /// Unhooks the muscles' cables (`false`): they pull on nothing, as for a test of the
+    /// limb alone whose range the cables and the muscles' stroke would not allow.
+    pub(crate) fn attach_muscles(&mut self, attached: bool) {
+        self.muscles_attached = attached;
+    }
+
+    /// Mutable leg (mounting, holding a joint).
+    pub(crate) fn leg_mut(&mut self) -> &mut Leg {
+        &mut self.leg
     }
 
     /// The leg (poses, angles, energy).
@@ -150,17 +182,25 @@ impl LegPlant {
     /// advance and the muscles' torques go into rapier.
     fn advance(&mut self) {
         let muscles = &mut self.muscles;
+        let patient = &mut self.patient;
+        let attached = self.muscles_attached;
         let h = self.period_s / f64::from(self.leg.substeps());
+        let t0 = self.periods as f64 * self.period_s;
         let mut slack = [0.0; 4];
-        self.leg.step(|leg, _| {
+        self.leg.step(|leg, sub| {
             let (q, qd) = (leg.angles(), leg.velocities());
-            let mut tau = [0.0; 2];
+            let mut tau = match patient {
+                Some(p) => p.torques(t0 + sub as f64 * h, q, qd).total(),
+                None => [0.0; 2],
+            };
             for (i, m) in muscles.iter_mut().enumerate() {
                 m.valve.advance(h);
                 if m.force_unclamped(q, qd) <= 0.0 {
                     slack[i] += h;
                 }
-                tau[m.joint] += m.torque(q, qd);
+                if attached {
+                    tau[m.joint] += m.torque(q, qd);
+                }
             }
             tau
         });
@@ -190,6 +230,10 @@ impl LegPlant {
             force_n: each(&|m| m.force(q, qd)),
             length_m: each(&|m| m.contraction(q)),
             slack_s: self.slack_s,
+            patient: self
+                .patient
+                .as_ref()
+                .map_or_else(PatientTorques::default, Patient::last),
         }
     }
 
@@ -224,8 +268,12 @@ impl Backend for LegPlant {
     type Truth = LegState;
     type Error = LegError;
 
-    /// The leg as it is (built at rest); the valves hold their pressures.
+    /// The leg as it is (built at rest); the valves hold their pressures, the patient's
+    /// reflexes start from a limb at rest.
     fn start(&mut self) -> Result<Started<[f64; 2], [f64; 4]>, LegError> {
+        if let Some(p) = &mut self.patient {
+            p.reset();
+        }
         let reading = self.encoder_angles();
         Ok(Started {
             t_s: self.time(),

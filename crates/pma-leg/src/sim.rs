@@ -3,12 +3,15 @@
 use crate::config::{LoadedScenario, MuscleGeometry, Scenario};
 use crate::control::{LegControllers, LegOutput};
 use crate::error::LegError;
-use crate::leg::{Leg, JOINT_NAMES};
+use crate::leg::{Leg, Mount, JOINT_NAMES};
 use crate::metrics::{LegMetrics, LegReport};
+use crate::patient::{Patient, SpasmEvent};
 use crate::plant::{LegPlant, LegState, MuscleActuator};
+use crate::safety::PatientMetrics;
 use pma_control::{ControllerConfig, Diagnostics};
 use pma_loop::{LoopSettings, Period, Recorder};
 use pma_model::{MuscleParams, Valve};
+use pma_sim::gait::GaitReference;
 
 /// One period of the leg as logs show it: the state at the reading and what the
 /// controllers made of it.
@@ -32,6 +35,10 @@ pub struct LegSample {
     pub force_n: [f64; 4],
     /// Controller states.
     pub diagnostics: [Diagnostics; 4],
+    /// The patient's torque at hip and knee (N m, flexion positive), all parts.
+    pub patient_nm: [f64; 2],
+    /// Of which spasms (N m): non-zero while a spasm acts on the joint.
+    pub spasm_nm: [f64; 2],
 }
 
 impl LegSample {
@@ -48,6 +55,8 @@ impl LegSample {
             length_m: s.length_m,
             force_n: s.force_n,
             diagnostics: o.diagnostics,
+            patient_nm: s.patient.total(),
+            spasm_nm: s.patient.spasm_nm,
         }
     }
 }
@@ -120,19 +129,46 @@ impl LegSim {
         loaded: &LoadedScenario,
         config: &ControllerConfig,
     ) -> Result<Self, LegError> {
+        Self::mounted(loaded, config, Mount::default())
+    }
+
+    /// As [`LegSim::with_controller`] with the leg mounted as `mount` says.
+    pub fn mounted(
+        loaded: &LoadedScenario,
+        config: &ControllerConfig,
+        mount: Mount,
+    ) -> Result<Self, LegError> {
         let sc = loaded.scenario.clone();
         sc.validate()?;
-        let leg = Leg::from_urdf_str(
+        let leg = Leg::mounted(
             &loaded.urdf_text,
             &loaded.urdf_source,
             [sc.joints.hip, sc.joints.knee],
             sc.period_s,
             sc.physics_substeps,
+            mount,
         )?;
+        let patient = if sc.patient.is_passive() {
+            None
+        } else {
+            let gait =
+                GaitReference::normative(sc.gait.speed, sc.gait.stride_period_s, sc.gait.ramp_s)?;
+            Some(Patient::new(
+                &sc.patient,
+                leg.substep_s(),
+                gait,
+                *leg.inertia(),
+                [
+                    sc.joints.hip.damping_nm_s_per_rad,
+                    sc.joints.knee.damping_nm_s_per_rad,
+                ],
+            )?)
+        };
         let muscles = build_muscles(&sc, &loaded.muscles)?;
         let controllers = LegControllers::new(&sc, &muscles, leg.inertia(), config)?;
         let resting = resting_pressures(&muscles, sc.control.cocontraction_pa);
         let mut plant = LegPlant::new(leg, muscles, &sc)?;
+        plant.set_patient(patient);
         plant.set_state([0.0, 0.0], [0.0, 0.0]);
         plant.set_pressures(resting)?;
         Ok(Self {
@@ -155,6 +191,46 @@ impl LegSim {
     /// One period with the valves commanded directly (no controllers): open-loop checks.
     pub fn step_with_commands(&mut self, commands: [f64; 4]) -> LegState {
         self.plant.apply(commands)
+    }
+
+    /// Vents every muscle at once and unhooks its cable: the limb moves on its own.
+    pub fn release_muscles(&mut self) -> Result<(), LegError> {
+        self.plant.set_pressures([0.0; 4])?;
+        self.plant.attach_muscles(false);
+        Ok(())
+    }
+
+    pub(crate) fn plant_mut(&mut self) -> &mut LegPlant {
+        &mut self.plant
+    }
+
+    /// Runs `task` instead of the leg's controllers (the plant, its patient and
+    /// `recorder` as usual).
+    pub fn run_task<T, R>(
+        &mut self,
+        task: &mut T,
+        recorder: &mut R,
+        settings: &LoopSettings,
+    ) -> Result<pma_loop::Outcome<std::convert::Infallible>, LegError>
+    where
+        T: pma_loop::Task<Reading = [f64; 2], Command = [f64; 4], Output = LegOutput>,
+        R: Recorder<LegPlant, LegOutput>,
+    {
+        let t_end = self.plant.time() + settings.duration_s();
+        if let Some(p) = self.plant.patient_mut() {
+            p.plan(t_end + self.scenario.period_s);
+        }
+        pma_loop::run(&mut self.plant, task, recorder, settings).into_result()
+    }
+
+    /// The scenario's gait reference.
+    pub fn gait_reference(&self) -> Result<GaitReference, LegError> {
+        let g = &self.scenario.gait;
+        Ok(GaitReference::normative(
+            g.speed,
+            g.stride_period_s,
+            g.ramp_s,
+        )?)
     }
 
     /// The scenario.
@@ -204,11 +280,32 @@ impl LegSim {
         recorder: &mut R,
     ) -> Result<LegReport, LegError> {
         let sc = &self.scenario;
+        let t0 = self.plant.time();
+        let t_end = t0 + settings.duration_s();
+        // Every spasm of the run is drawn now, so that the loop allocates nothing.
+        let events: Vec<SpasmEvent> = match self.plant.patient_mut() {
+            Some(p) => {
+                p.plan(t_end + sc.period_s);
+                p.events()
+                    .iter()
+                    .filter(|e| e.end_s() > t0 && e.t_s <= t_end)
+                    .copied()
+                    .collect()
+            }
+            None => Vec::new(),
+        };
         let mut metrics = LegMetrics::new(sc.gait.stride_period_s, sc.period_s);
+        let mut patient = PatientMetrics::new(
+            &self.plant,
+            &events,
+            t_end,
+            sc.plant.valve.pressure_max_pa,
+            sc.plant.muscle_rated_force_n,
+        );
         let outcome = pma_loop::run(
             &mut self.plant,
             &mut self.controllers,
-            &mut (&mut metrics, recorder),
+            &mut (&mut metrics, &mut patient, recorder),
             settings,
         )
         .into_result()?;
@@ -226,6 +323,9 @@ impl LegSim {
             .collect();
         let mut report = metrics.report(&sc.name, &names, ran_s, outcome.wall_s);
         report.interrupted = interrupted;
+        report.patient = patient.patient();
+        report.spasms = patient.spasms(t0 + ran_s);
+        report.safety = patient.safety(&names);
         Ok(report)
     }
 }

@@ -1,9 +1,9 @@
 //! Gains for the leg, found by the same firefly search as the bench's baselines
-//! (`pma_sim::tune`): APRC-NDO's search space, one gain set shared by the four muscles.
+//! (`pma_sim::tune`): a controller's search space, one gain set shared by the four muscles.
 use crate::config::LoadedScenario;
 use crate::sim::LegSim;
-use pma_control::{AprcGains, ControllerConfig, ControllerKind};
-use pma_sim::tune::{config_at, firefly, search_space, FireflyOptions};
+use pma_control::{ControllerConfig, ControllerKind};
+use pma_sim::tune::{firefly, search_space, FireflyOptions};
 
 /// Weight of command activity in the objective (deg per bar/s): a chattering valve
 /// (hundreds of bar/s) must not buy tracking accuracy.
@@ -12,14 +12,12 @@ pub const VARIATION_WEIGHT_DEG_PER_BAR_S: f64 = 0.01;
 /// The objective of a run that failed or went non-finite.
 pub const FAILED_RUN: f64 = 1000.0;
 
-/// Objective of a run: hip RMS + knee RMS (deg, after the first stride) plus
-/// [`VARIATION_WEIGHT_DEG_PER_BAR_S`] times the command variation; a failed or
-/// non-finite run scores [`FAILED_RUN`].
-pub fn objective(loaded: &LoadedScenario, gains: AprcGains, duration_s: f64) -> f64 {
-    let mut l = loaded.clone();
-    l.scenario.control.gains = gains;
+/// Objective of a run of `config` on every muscle: hip RMS + knee RMS (deg, after the
+/// first stride) plus [`VARIATION_WEIGHT_DEG_PER_BAR_S`] times the command variation; a
+/// failed or non-finite run scores [`FAILED_RUN`].
+pub fn objective(loaded: &LoadedScenario, config: &ControllerConfig, duration_s: f64) -> f64 {
     let run = || -> Option<f64> {
-        let mut sim = LegSim::new(&l).ok()?;
+        let mut sim = LegSim::with_controller(loaded, config).ok()?;
         let r = sim.run(duration_s, &mut ()).ok()?;
         let j = |n: &str| r.joints.get(n).map(|s| s.rms_deg);
         let v =
@@ -29,29 +27,52 @@ pub fn objective(loaded: &LoadedScenario, gains: AprcGains, duration_s: f64) -> 
     run().unwrap_or(FAILED_RUN)
 }
 
-/// Tunes the scenario's shared APRC-NDO gains; returns them, their objective and the runs.
+/// The configuration a tuning starts from and keeps outside its search space: the
+/// scenario's APRC-NDO gains for APRC-NDO and APRC, the controller's defaults otherwise.
+pub fn base_config(loaded: &LoadedScenario, kind: ControllerKind) -> ControllerConfig {
+    let g = loaded.scenario.control.gains;
+    match kind {
+        ControllerKind::AprcNdo => ControllerConfig::AprcNdo(g),
+        ControllerKind::Aprc => ControllerConfig::Aprc(g),
+        other => other.default_config(),
+    }
+}
+
+/// A tuning's outcome.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LegTuning {
+    /// The best gains found.
+    pub config: ControllerConfig,
+    /// Their objective.
+    pub objective: f64,
+    /// Runs made.
+    pub evaluations: usize,
+}
+
+/// Tunes `kind`'s gains, shared by the four muscles, on the scenario; `None` if `kind`
+/// has no search space.
 pub fn tune(
     loaded: &LoadedScenario,
+    kind: ControllerKind,
     opts: &FireflyOptions,
     duration_s: f64,
-) -> (AprcGains, f64, usize) {
-    let kind = ControllerKind::AprcNdo;
-    let dims = search_space(kind).map_or(0, |s| s.len());
-    let gains_at = |u: &[f64]| match config_at(kind, u) {
-        Some(ControllerConfig::AprcNdo(g)) => Some(AprcGains {
-            boundary_layer_m_s: loaded.scenario.control.gains.boundary_layer_m_s,
-            ..g
-        }),
-        _ => None,
+) -> Option<LegTuning> {
+    let space = search_space(kind)?;
+    let base = base_config(loaded, kind);
+    let at = |u: &[f64]| -> Option<ControllerConfig> {
+        let mut c = base;
+        for (p, &x) in space.iter().zip(u) {
+            c.set_gain(p.name, p.map(x)).ok()?;
+        }
+        c.validate().ok()?;
+        Some(c)
     };
-    let (u, best, evals) = firefly(dims, opts, |u| {
-        gains_at(u)
-            .filter(|g| ControllerConfig::AprcNdo(*g).validate().is_ok())
-            .map_or(FAILED_RUN, |g| objective(loaded, g, duration_s))
+    let (u, best, evaluations) = firefly(space.len(), opts, |u| {
+        at(u).map_or(FAILED_RUN, |c| objective(loaded, &c, duration_s))
     });
-    (
-        gains_at(&u).unwrap_or(loaded.scenario.control.gains),
-        best,
-        evals,
-    )
+    Some(LegTuning {
+        config: at(&u).unwrap_or(base),
+        objective: best,
+        evaluations,
+    })
 }

@@ -85,12 +85,17 @@ pub struct FourierSeries {
 }
 
 impl FourierSeries {
-    /// Angle, rate and acceleration in degrees per unit phase (and its derivatives).
-    fn eval(&self, phase: f64) -> (f64, f64, f64) {
+    /// `sin` and `cos` of each harmonic's angle at `phase`, shared by the joints.
+    fn harmonics(phase: f64) -> [(f64, f64); HARMONICS] {
+        std::array::from_fn(|i| (TAU * (i + 1) as f64 * phase).sin_cos())
+    }
+
+    /// Angle, rate and acceleration in degrees per unit phase (and its derivatives), from
+    /// the harmonics of [`Self::harmonics`].
+    fn eval(&self, harmonics: &[(f64, f64); HARMONICS]) -> (f64, f64, f64) {
         let (mut y, mut dy, mut ddy) = (self.cos_deg[0], 0.0, 0.0);
-        for k in 1..=HARMONICS {
+        for (k, &(s, c)) in (1..=HARMONICS).zip(harmonics) {
             let w = TAU * k as f64;
-            let (s, c) = (w * phase).sin_cos();
             let (a, b) = (self.cos_deg[k], self.sin_deg[k]);
             y += a * c + b * s;
             dy += w * (-a * s + b * c);
@@ -219,9 +224,14 @@ impl GaitReference {
         (s, ds, dds)
     }
 
-    fn joint(&self, series: &FourierSeries, t: f64, ramp: (f64, f64, f64)) -> JointSample {
+    fn joint(
+        &self,
+        series: &FourierSeries,
+        harmonics: &[(f64, f64); HARMONICS],
+        ramp: (f64, f64, f64),
+    ) -> JointSample {
         let period = self.stride_period_s;
-        let (y, dy, ddy) = series.eval(t / period);
+        let (y, dy, ddy) = series.eval(harmonics);
         // Chain rule for the time scaling, then the product rule for the ramp.
         let (g, dg, ddg) = (y, dy / period, ddy / (period * period));
         let (s, ds, dds) = ramp;
@@ -236,9 +246,11 @@ impl GaitReference {
     /// References at time `t_s` (before 0: standing).
     pub fn sample(&self, t_s: f64) -> GaitSample {
         let ramp = self.ramp(t_s);
+        // Both joints at the same phase: one set of sines for the two.
+        let harmonics = FourierSeries::harmonics(t_s / self.stride_period_s);
         GaitSample {
-            hip: self.joint(&self.hip, t_s, ramp),
-            knee: self.joint(&self.knee, t_s, ramp),
+            hip: self.joint(&self.hip, &harmonics, ramp),
+            knee: self.joint(&self.knee, &harmonics, ramp),
         }
     }
 }

@@ -244,6 +244,19 @@ impl<T> Columns<T> {
     }
 }
 
+/// A labelled ball drawn for a while, e.g. on a joint during an event.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Marker {
+    /// Centre in the parent entity's frame (m).
+    pub position_m: [f32; 3],
+    /// Radius (m).
+    pub radius_m: f32,
+    /// Colour.
+    pub rgb: [u8; 3],
+    /// Text shown beside it.
+    pub label: String,
+}
+
 /// A muscle line's row: end points and colour.
 type LineRow = ([[f32; 3]; 2], rerun::Color);
 
@@ -445,6 +458,51 @@ impl Viz {
         self.muscles.push(Columns::new(path));
         self.pressure_max_pa = pressure_max_pa;
         Ok(())
+    }
+
+    /// Puts the stream's own clock at `t_s` and `step`, for the rows logged one at a time
+    /// (events and markers; the series go by columns with their own times).
+    fn at(&self, t_s: f64, step: i64) {
+        self.rec.set_duration_secs("sim_time", t_s);
+        self.rec.set_time_sequence("step", step);
+    }
+
+    /// A line in the text log at `path` at `t_s`, with `level` (`"INFO"`, `"WARN"` ...).
+    pub fn event(
+        &self,
+        t_s: f64,
+        step: i64,
+        path: &str,
+        text: &str,
+        level: &str,
+    ) -> Result<(), VizError> {
+        self.at(t_s, step);
+        self.rec
+            .log(path, &rerun::TextLog::new(text).with_level(level))
+            .map_err(rr)
+    }
+
+    /// Shows `marker` at `path` (in the frame of its parent) from `t_s` until
+    /// [`Self::clear`].
+    pub fn marker(&self, t_s: f64, step: i64, path: &str, marker: &Marker) -> Result<(), VizError> {
+        self.at(t_s, step);
+        let [r, g, b] = marker.rgb;
+        self.rec
+            .log(
+                path,
+                &rerun::Points3D::new([marker.position_m])
+                    .with_radii([marker.radius_m])
+                    .with_colors([rerun::Color::from_rgb(r, g, b)])
+                    .with_labels([marker.label.as_str()])
+                    .with_show_labels(true),
+            )
+            .map_err(rr)
+    }
+
+    /// Removes what `path` shows from `t_s` on.
+    pub fn clear(&self, t_s: f64, step: i64, path: &str) -> Result<(), VizError> {
+        self.at(t_s, step);
+        self.rec.log(path, &rerun::Clear::flat()).map_err(rr)
     }
 
     /// Buffers a frame if it falls on the decimation grid; sends the buffers when they

@@ -1,0 +1,1012 @@
+//! The patient in the exoskeleton: torques the limb's own muscles and tissues put on the
+//! hip and the knee. Four parts, each optional per joint (the scenario's `[patient]`):
+//!
+//! - **spasticity**, a velocity-dependent stretch reflex: above a threshold speed of
+//!   stretch, the stretched muscle group resists with a torque proportional to the excess,
+//!   after a reflex delay (Kim, Eom & Hase 2011; He, Norling & Wang 1997);
+//! - **spasms**, smooth torque pulses with a rapid rise and a slower fall (Thomas & Ross
+//!   1997), at seeded Poisson times or at given times;
+//! - **voluntary effort**, a fraction of the torque the reference gait needs (its inverse
+//!   dynamics), optionally delayed: the patient helps (positive) or resists (negative);
+//! - **joint stiffness**, the passive double-exponential moment near the ends of the range
+//!   (Anderson 1999, as used by Falisse et al. 2019).
+//!
+//! Flexion is positive at both joints; a torque is positive when it flexes. The sources and
+//! the calibration of the presets are in `docs/patient.md`.
+use crate::error::LegError;
+use crate::leg::LegInertia;
+use pma_sim::gait::GaitReference;
+use rand::{Rng, SeedableRng};
+use rand_xoshiro::Xoshiro256PlusPlus;
+use serde::Deserialize;
+
+/// Severity presets of the stretch reflex.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SpasticityPreset {
+    /// No reflex.
+    None,
+    /// Mild.
+    Mild,
+    /// Moderate.
+    Moderate,
+    /// Severe.
+    Severe,
+}
+
+/// A stretch reflex: `tau = -K_ext max(0, w(t - d) - w_th) + K_flx max(0, -w(t - d) - w_th)`
+/// with `w` the joint's flexion rate (flexion stretches the extensors).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reflex {
+    /// Gain of the extensors, stretched by flexion (N m s/rad).
+    pub extensor_gain_nm_s_per_rad: f64,
+    /// Gain of the flexors, stretched by extension (N m s/rad).
+    pub flexor_gain_nm_s_per_rad: f64,
+    /// Stretch speed above which the reflex acts (rad/s).
+    pub threshold_rad_s: f64,
+    /// Reflex delay, stretch to torque (s).
+    pub delay_s: f64,
+}
+
+impl SpasticityPreset {
+    /// The knee's reflex of this severity. Gains and thresholds are calibrated so that a
+    /// Winter shank released from full extension (pendulum test, damping 0.5 N m s/rad)
+    /// gives R2 = 1.41 (mild), 1.13 (moderate) and 1.05 (severe) against 1.66 without a
+    /// reflex (healthy 1.678 +- 0.090, Kim et al. 1996); flexors at half the extensors'
+    /// gain; a 60 ms delay (short-latency reflex plus electromechanical delay).
+    pub fn knee(self) -> Reflex {
+        let (k, th) = match self {
+            SpasticityPreset::None => (0.0, f64::INFINITY),
+            SpasticityPreset::Mild => (1.5, 2.6),
+            SpasticityPreset::Moderate => (3.5, 1.2),
+            SpasticityPreset::Severe => (7.0, 0.5),
+        };
+        Reflex {
+            extensor_gain_nm_s_per_rad: k,
+            flexor_gain_nm_s_per_rad: 0.5 * k,
+            threshold_rad_s: th,
+            delay_s: 0.06,
+        }
+    }
+
+    /// The hip's reflex: the knee's, scaled by the ratio of healthy maximal voluntary
+    /// torques (hip extensors ~ knee extensors, hip flexors ~ 1.3 x knee flexors); no
+    /// published identification of the hip was found.
+    pub fn hip(self) -> Reflex {
+        let k = self.knee();
+        Reflex {
+            flexor_gain_nm_s_per_rad: 1.3 * k.flexor_gain_nm_s_per_rad,
+            ..k
+        }
+    }
+}
+
+/// `[patient.<joint>.spasticity]`: a preset, any field of which may be overridden.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpasticitySettings {
+    /// `none`, `mild`, `moderate` or `severe` (default `none`: every field must be given).
+    pub preset: Option<SpasticityPreset>,
+    /// Overrides the extensors' gain (N m s/rad).
+    pub extensor_gain_nm_s_per_rad: Option<f64>,
+    /// Overrides the flexors' gain (N m s/rad).
+    pub flexor_gain_nm_s_per_rad: Option<f64>,
+    /// Overrides the threshold (rad/s).
+    pub threshold_rad_s: Option<f64>,
+    /// Overrides the delay (s).
+    pub delay_s: Option<f64>,
+}
+
+/// Which way a spasm pulls.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SpasmDirection {
+    /// Flexes the joint.
+    Flexor,
+    /// Extends it.
+    Extensor,
+    /// Either, with equal odds (random spasms only).
+    Either,
+}
+
+impl std::fmt::Display for SpasmDirection {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Flexor => "flexor",
+            Self::Extensor => "extensor",
+            Self::Either => "either",
+        })
+    }
+}
+
+/// One spasm at a given time.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpasmEventSettings {
+    /// Onset (s).
+    pub t_s: f64,
+    /// Peak torque (N m, > 0).
+    pub amplitude_nm: f64,
+    /// Duration (s).
+    pub duration_s: f64,
+    /// `flexor` or `extensor`.
+    pub direction: SpasmDirection,
+}
+
+/// `[patient.<joint>.spasms]`: random events, given events, or both.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpasmSettings {
+    /// Mean rate of random spasms (per minute); 0 for given events only.
+    #[serde(default)]
+    pub rate_per_min: f64,
+    /// Range of their peak torque `[low, high]` (N m).
+    #[serde(default)]
+    pub amplitude_nm: [f64; 2],
+    /// Range of their duration `[low, high]` (s).
+    #[serde(default = "default_duration")]
+    pub duration_s: [f64; 2],
+    /// Their direction (default `either`).
+    #[serde(default = "default_direction")]
+    pub direction: SpasmDirection,
+    /// Fraction of a spasm spent rising (the rest falls).
+    #[serde(default = "default_rise")]
+    pub rise_fraction: f64,
+    /// Seed of the random events.
+    #[serde(default)]
+    pub seed: u64,
+    /// Spasms at given times.
+    #[serde(default)]
+    pub events: Vec<SpasmEventSettings>,
+}
+
+fn default_duration() -> [f64; 2] {
+    [0.2, 0.8]
+}
+fn default_direction() -> SpasmDirection {
+    SpasmDirection::Either
+}
+fn default_rise() -> f64 {
+    0.3
+}
+
+/// `[patient.<joint>.effort]`: the patient's own push along the gait.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EffortSettings {
+    /// Fraction of the reference's inverse-dynamics torque: positive assists, negative
+    /// resists (-0.3: resists at 30 %).
+    pub fraction: f64,
+    /// The patient lags the reference by this much (s).
+    #[serde(default)]
+    pub delay_s: f64,
+}
+
+/// Published passive-moment sets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StiffnessPreset {
+    /// Anderson (1999), the coefficients of Falisse et al. (2019).
+    Anderson1999,
+}
+
+/// `tau = lower_nm exp(-lower_per_rad (q - lower_angle_rad)) - upper_nm exp(upper_per_rad
+/// (q - upper_angle_rad))`: a flexing moment growing below the lower angle and an extending
+/// one above the upper angle, about zero in between.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PassiveMoment {
+    /// Moment at the lower angle (N m).
+    pub lower_nm: f64,
+    /// Its exponential rate (1/rad).
+    pub lower_per_rad: f64,
+    /// Lower angle (rad).
+    pub lower_angle_rad: f64,
+    /// Moment at the upper angle (N m).
+    pub upper_nm: f64,
+    /// Its exponential rate (1/rad).
+    pub upper_per_rad: f64,
+    /// Upper angle (rad).
+    pub upper_angle_rad: f64,
+}
+
+impl StiffnessPreset {
+    /// Hip: `k = [-2.44, 5.05, 1.51, -21.88]`, `theta = [-0.6981, 1.81]` rad (flexion
+    /// positive in both conventions).
+    pub fn hip(self) -> PassiveMoment {
+        PassiveMoment {
+            lower_nm: 1.51,
+            lower_per_rad: 21.88,
+            lower_angle_rad: -0.6981,
+            upper_nm: 2.44,
+            upper_per_rad: 5.05,
+            upper_angle_rad: 1.81,
+        }
+    }
+
+    /// Knee: `k = [-6.09, 33.94, 11.03, -11.33]`, `theta = [-2.4, 0.13]` rad in OpenSim's
+    /// convention (knee angle negative in flexion), turned to flexion positive.
+    pub fn knee(self) -> PassiveMoment {
+        PassiveMoment {
+            lower_nm: 6.09,
+            lower_per_rad: 33.94,
+            lower_angle_rad: -0.13,
+            upper_nm: 11.03,
+            upper_per_rad: 11.33,
+            upper_angle_rad: 2.4,
+        }
+    }
+}
+
+/// `[patient.<joint>.stiffness]`: a preset, any field of which may be overridden.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StiffnessSettings {
+    /// `anderson1999` (default when absent: every field must be given).
+    pub preset: Option<StiffnessPreset>,
+    /// Overrides [`PassiveMoment::lower_nm`].
+    pub lower_nm: Option<f64>,
+    /// Overrides [`PassiveMoment::lower_per_rad`].
+    pub lower_per_rad: Option<f64>,
+    /// Overrides [`PassiveMoment::lower_angle_rad`].
+    pub lower_angle_rad: Option<f64>,
+    /// Overrides [`PassiveMoment::upper_nm`].
+    pub upper_nm: Option<f64>,
+    /// Overrides [`PassiveMoment::upper_per_rad`].
+    pub upper_per_rad: Option<f64>,
+    /// Overrides [`PassiveMoment::upper_angle_rad`].
+    pub upper_angle_rad: Option<f64>,
+}
+
+/// One joint's patient (every part optional).
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointPatientSettings {
+    /// Stretch reflex.
+    pub spasticity: Option<SpasticitySettings>,
+    /// Spasms.
+    pub spasms: Option<SpasmSettings>,
+    /// Voluntary effort.
+    pub effort: Option<EffortSettings>,
+    /// Passive stiffness near the range limits.
+    pub stiffness: Option<StiffnessSettings>,
+}
+
+/// The scenario's `[patient]` section (absent: the passive limb of the URDF).
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PatientSettings {
+    /// Hip.
+    #[serde(default)]
+    pub hip: JointPatientSettings,
+    /// Knee.
+    #[serde(default)]
+    pub knee: JointPatientSettings,
+}
+
+fn invalid(name: String, value: f64, expected: &'static str) -> LegError {
+    LegError::Invalid {
+        name,
+        value,
+        expected,
+    }
+}
+
+fn non_negative(name: String, v: f64) -> Result<f64, LegError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(invalid(name, v, "must be a finite number >= 0"))
+    }
+}
+
+fn positive(name: String, v: f64) -> Result<f64, LegError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(invalid(name, v, "must be a finite number > 0"))
+    }
+}
+
+fn finite(name: String, v: f64) -> Result<f64, LegError> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(invalid(name, v, "must be a finite number"))
+    }
+}
+
+fn range(name: String, r: [f64; 2], positive_low: bool) -> Result<[f64; 2], LegError> {
+    let low_ok = if positive_low {
+        r[0] > 0.0
+    } else {
+        r[0] >= 0.0
+    };
+    if r.iter().all(|v| v.is_finite()) && low_ok && r[0] <= r[1] {
+        Ok(r)
+    } else {
+        Err(LegError::Range {
+            name,
+            low: r[0],
+            high: r[1],
+            expected: if positive_low {
+                "must be [low, high] with 0 < low <= high"
+            } else {
+                "must be [low, high] with 0 <= low <= high"
+            },
+        })
+    }
+}
+
+impl SpasticitySettings {
+    /// The reflex at `joint` (0 hip, 1 knee), validated; `at` names it in errors.
+    pub fn resolve(&self, joint: usize, at: &str) -> Result<Reflex, LegError> {
+        let preset = self.preset.unwrap_or(SpasticityPreset::None);
+        let base = if joint == 0 {
+            preset.hip()
+        } else {
+            preset.knee()
+        };
+        let r = Reflex {
+            extensor_gain_nm_s_per_rad: self
+                .extensor_gain_nm_s_per_rad
+                .unwrap_or(base.extensor_gain_nm_s_per_rad),
+            flexor_gain_nm_s_per_rad: self
+                .flexor_gain_nm_s_per_rad
+                .unwrap_or(base.flexor_gain_nm_s_per_rad),
+            threshold_rad_s: self.threshold_rad_s.unwrap_or(base.threshold_rad_s),
+            delay_s: self.delay_s.unwrap_or(base.delay_s),
+        };
+        non_negative(
+            format!("{at}.extensor_gain_nm_s_per_rad"),
+            r.extensor_gain_nm_s_per_rad,
+        )?;
+        non_negative(
+            format!("{at}.flexor_gain_nm_s_per_rad"),
+            r.flexor_gain_nm_s_per_rad,
+        )?;
+        // `none` has an infinite threshold: nothing to check unless a gain was given.
+        let active = r.extensor_gain_nm_s_per_rad > 0.0 || r.flexor_gain_nm_s_per_rad > 0.0;
+        if active {
+            non_negative(format!("{at}.threshold_rad_s"), r.threshold_rad_s)?;
+        }
+        non_negative(format!("{at}.delay_s"), r.delay_s)?;
+        if r.delay_s > MAX_DELAY_S {
+            return Err(invalid(
+                format!("{at}.delay_s"),
+                r.delay_s,
+                "must be at most 1 s",
+            ));
+        }
+        Ok(r)
+    }
+}
+
+/// Longest reflex or effort delay accepted (s): the buffers are sized from it.
+pub const MAX_DELAY_S: f64 = 1.0;
+
+impl StiffnessSettings {
+    /// The passive moment at `joint`, validated; `at` names it in errors.
+    pub fn resolve(&self, joint: usize, at: &str) -> Result<PassiveMoment, LegError> {
+        let base = self
+            .preset
+            .map(|p| if joint == 0 { p.hip() } else { p.knee() });
+        let pick = |v: Option<f64>, b: Option<f64>, field: &str| -> Result<f64, LegError> {
+            v.or(b).ok_or_else(|| LegError::Missing {
+                name: format!("{at}.{field}"),
+                hint: "give it or a `preset`",
+            })
+        };
+        let m = PassiveMoment {
+            lower_nm: pick(self.lower_nm, base.map(|b| b.lower_nm), "lower_nm")?,
+            lower_per_rad: pick(
+                self.lower_per_rad,
+                base.map(|b| b.lower_per_rad),
+                "lower_per_rad",
+            )?,
+            lower_angle_rad: pick(
+                self.lower_angle_rad,
+                base.map(|b| b.lower_angle_rad),
+                "lower_angle_rad",
+            )?,
+            upper_nm: pick(self.upper_nm, base.map(|b| b.upper_nm), "upper_nm")?,
+            upper_per_rad: pick(
+                self.upper_per_rad,
+                base.map(|b| b.upper_per_rad),
+                "upper_per_rad",
+            )?,
+            upper_angle_rad: pick(
+                self.upper_angle_rad,
+                base.map(|b| b.upper_angle_rad),
+                "upper_angle_rad",
+            )?,
+        };
+        non_negative(format!("{at}.lower_nm"), m.lower_nm)?;
+        non_negative(format!("{at}.lower_per_rad"), m.lower_per_rad)?;
+        non_negative(format!("{at}.upper_nm"), m.upper_nm)?;
+        non_negative(format!("{at}.upper_per_rad"), m.upper_per_rad)?;
+        finite(format!("{at}.lower_angle_rad"), m.lower_angle_rad)?;
+        finite(format!("{at}.upper_angle_rad"), m.upper_angle_rad)?;
+        if m.lower_angle_rad >= m.upper_angle_rad {
+            return Err(LegError::Range {
+                name: format!("{at}.lower_angle_rad, upper_angle_rad"),
+                low: m.lower_angle_rad,
+                high: m.upper_angle_rad,
+                expected: "the lower angle must be below the upper one",
+            });
+        }
+        Ok(m)
+    }
+}
+
+impl PassiveMoment {
+    /// Moment (N m, flexion positive) at `q` (rad).
+    pub fn torque(&self, q: f64) -> f64 {
+        self.lower_nm * (-self.lower_per_rad * (q - self.lower_angle_rad)).exp()
+            - self.upper_nm * (self.upper_per_rad * (q - self.upper_angle_rad)).exp()
+    }
+}
+
+impl SpasmSettings {
+    fn validate(&self, at: &str) -> Result<(), LegError> {
+        non_negative(format!("{at}.rate_per_min"), self.rate_per_min)?;
+        // Checked even when no random spasm is drawn: a wrong range is a mistake either way.
+        range(format!("{at}.amplitude_nm"), self.amplitude_nm, false)?;
+        range(format!("{at}.duration_s"), self.duration_s, true)?;
+        if !(self.rise_fraction.is_finite() && self.rise_fraction > 0.0 && self.rise_fraction < 1.0)
+        {
+            return Err(invalid(
+                format!("{at}.rise_fraction"),
+                self.rise_fraction,
+                "must be between 0 and 1 (exclusive)",
+            ));
+        }
+        for (i, e) in self.events.iter().enumerate() {
+            let at = format!("{at}.events[{i}]");
+            non_negative(format!("{at}.t_s"), e.t_s)?;
+            non_negative(format!("{at}.amplitude_nm"), e.amplitude_nm)?;
+            positive(format!("{at}.duration_s"), e.duration_s)?;
+            if e.direction == SpasmDirection::Either {
+                return Err(LegError::Missing {
+                    name: format!("{at}.direction"),
+                    hint: "a given spasm is `flexor` or `extensor`",
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+impl EffortSettings {
+    fn validate(&self, at: &str) -> Result<(), LegError> {
+        finite(format!("{at}.fraction"), self.fraction)?;
+        non_negative(format!("{at}.delay_s"), self.delay_s)?;
+        if self.delay_s > MAX_DELAY_S {
+            return Err(invalid(
+                format!("{at}.delay_s"),
+                self.delay_s,
+                "must be at most 1 s",
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl PatientSettings {
+    /// Whether any part is set at any joint.
+    pub fn is_passive(&self) -> bool {
+        self.joints().iter().all(|j| {
+            j.spasticity.is_none()
+                && j.spasms.is_none()
+                && j.effort.is_none()
+                && j.stiffness.is_none()
+        })
+    }
+
+    fn joints(&self) -> [&JointPatientSettings; 2] {
+        [&self.hip, &self.knee]
+    }
+
+    /// Range checks, each error naming its field (`patient.knee.spasms.rate_per_min`).
+    pub fn validate(&self) -> Result<(), LegError> {
+        for (j, (name, s)) in ["hip", "knee"].iter().zip(self.joints()).enumerate() {
+            let at = format!("patient.{name}");
+            if let Some(sp) = &s.spasticity {
+                sp.resolve(j, &format!("{at}.spasticity"))?;
+            }
+            if let Some(sp) = &s.spasms {
+                sp.validate(&format!("{at}.spasms"))?;
+            }
+            if let Some(e) = &s.effort {
+                e.validate(&format!("{at}.effort"))?;
+            }
+            if let Some(st) = &s.stiffness {
+                st.resolve(j, &format!("{at}.stiffness"))?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One spasm of a run.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct SpasmEvent {
+    /// Joint (0 hip, 1 knee).
+    pub joint: usize,
+    /// Onset (s).
+    pub t_s: f64,
+    /// Peak torque (N m, > 0).
+    pub amplitude_nm: f64,
+    /// Duration (s).
+    pub duration_s: f64,
+    /// `flexor` or `extensor`.
+    pub direction: SpasmDirection,
+    /// Fraction of the duration spent rising.
+    pub rise_fraction: f64,
+}
+
+impl SpasmEvent {
+    /// End (s).
+    pub fn end_s(&self) -> f64 {
+        self.t_s + self.duration_s
+    }
+
+    /// Torque at `t_s` (N m, flexion positive): a `sin^2` rise over `rise_fraction` of the
+    /// duration and a `cos^2` fall over the rest, continuous with its slope, zero outside.
+    pub fn torque(&self, t_s: f64) -> f64 {
+        let u = (t_s - self.t_s) / self.duration_s;
+        if !(0.0..1.0).contains(&u) {
+            return 0.0;
+        }
+        let r = self.rise_fraction;
+        let half_pi = std::f64::consts::FRAC_PI_2;
+        let shape = if u < r {
+            (half_pi * u / r).sin().powi(2)
+        } else {
+            (half_pi * (u - r) / (1.0 - r)).cos().powi(2)
+        };
+        let sign = if self.direction == SpasmDirection::Extensor {
+            -1.0
+        } else {
+            1.0
+        };
+        sign * self.amplitude_nm * shape
+    }
+}
+
+/// The random spasms of one joint, drawn lazily in time order from their seed, so that
+/// the events up to any time are the same whatever the run's length.
+#[derive(Debug, Clone)]
+struct SpasmSource {
+    joint: usize,
+    settings: SpasmSettings,
+    rng: Xoshiro256PlusPlus,
+    next_t_s: f64,
+}
+
+impl SpasmSource {
+    fn new(joint: usize, settings: &SpasmSettings) -> Self {
+        // Hip and knee draw different streams from the same seed.
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(
+            settings.seed ^ (0x9e37_79b9_7f4a_7c15_u64.wrapping_mul(joint as u64 + 1)),
+        );
+        let next_t_s = Self::gap(&mut rng, settings.rate_per_min);
+        Self {
+            joint,
+            settings: settings.clone(),
+            rng,
+            next_t_s,
+        }
+    }
+
+    /// Exponential inter-arrival time (s) of a Poisson process of `rate_per_min`.
+    fn gap(rng: &mut Xoshiro256PlusPlus, rate_per_min: f64) -> f64 {
+        if rate_per_min <= 0.0 {
+            return f64::INFINITY;
+        }
+        let u: f64 = rng.random::<f64>();
+        -(1.0 - u).ln() * 60.0 / rate_per_min
+    }
+
+    fn uniform(rng: &mut Xoshiro256PlusPlus, r: [f64; 2]) -> f64 {
+        r[0] + (r[1] - r[0]) * rng.random::<f64>()
+    }
+
+    /// The next event if it starts before `until_s`.
+    fn next_before(&mut self, until_s: f64) -> Option<SpasmEvent> {
+        if self.next_t_s >= until_s {
+            return None;
+        }
+        let s = &self.settings;
+        let amplitude_nm = Self::uniform(&mut self.rng, s.amplitude_nm);
+        let duration_s = Self::uniform(&mut self.rng, s.duration_s);
+        let direction = match s.direction {
+            SpasmDirection::Either if self.rng.random::<bool>() => SpasmDirection::Flexor,
+            SpasmDirection::Either => SpasmDirection::Extensor,
+            d => d,
+        };
+        let e = SpasmEvent {
+            joint: self.joint,
+            t_s: self.next_t_s,
+            amplitude_nm,
+            duration_s,
+            direction,
+            rise_fraction: s.rise_fraction,
+        };
+        self.next_t_s += Self::gap(&mut self.rng, s.rate_per_min);
+        Some(e)
+    }
+}
+
+/// Delayed samples of a signal at the physics substep: a ring buffer sized once.
+#[derive(Debug, Clone)]
+struct Delay {
+    ring: Vec<f64>,
+    next: usize,
+}
+
+impl Delay {
+    /// A delay of `delay_s` rounded to whole substeps of `h_s`.
+    fn new(delay_s: f64, h_s: f64) -> Self {
+        let n = (delay_s / h_s).round() as usize;
+        Self {
+            ring: vec![0.0; n],
+            next: 0,
+        }
+    }
+
+    /// Pushes the value now and returns the one from the delay ago (0 before the start).
+    fn push(&mut self, v: f64) -> f64 {
+        if self.ring.is_empty() {
+            return v;
+        }
+        let old = std::mem::replace(&mut self.ring[self.next], v);
+        self.next = (self.next + 1) % self.ring.len();
+        old
+    }
+
+    fn clear(&mut self) {
+        self.ring.iter_mut().for_each(|v| *v = 0.0);
+        self.next = 0;
+    }
+}
+
+#[derive(Debug, Clone)]
+struct JointPatient {
+    reflex: Option<(Reflex, Delay)>,
+    stiffness: Option<PassiveMoment>,
+    effort: Option<EffortSettings>,
+}
+
+impl JointPatient {
+    fn reflex_torque(&mut self, qd: f64) -> f64 {
+        let Some((r, delay)) = &mut self.reflex else {
+            return 0.0;
+        };
+        let w = delay.push(qd);
+        -r.extensor_gain_nm_s_per_rad * (w - r.threshold_rad_s).max(0.0)
+            + r.flexor_gain_nm_s_per_rad * (-w - r.threshold_rad_s).max(0.0)
+    }
+}
+
+/// The torques of one substep, by part (N m, flexion positive).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PatientTorques {
+    /// Stretch reflex.
+    pub reflex_nm: [f64; 2],
+    /// Spasms.
+    pub spasm_nm: [f64; 2],
+    /// Voluntary effort.
+    pub effort_nm: [f64; 2],
+    /// Passive stiffness.
+    pub stiffness_nm: [f64; 2],
+}
+
+impl PatientTorques {
+    /// The sum of the parts at each joint.
+    pub fn total(&self) -> [f64; 2] {
+        std::array::from_fn(|j| {
+            self.reflex_nm[j] + self.spasm_nm[j] + self.effort_nm[j] + self.stiffness_nm[j]
+        })
+    }
+}
+
+/// The patient of a run: the resolved model, its delay lines and its spasm plan.
+#[derive(Debug, Clone)]
+pub struct Patient {
+    joints: [JointPatient; 2],
+    sources: Vec<SpasmSource>,
+    /// Every spasm drawn so far, by onset.
+    events: Vec<SpasmEvent>,
+    planned_until_s: f64,
+    /// Events before this index have ended.
+    first_open: usize,
+    gait: GaitReference,
+    inertia: LegInertia,
+    damping_nm_s_per_rad: [f64; 2],
+    last: PatientTorques,
+}
+
+impl Patient {
+    /// The patient of `settings` (validated) at physics substeps of `h_s`; the effort
+    /// follows `gait` through the leg's `inertia` and joint `damping_nm_s_per_rad`.
+    pub fn new(
+        settings: &PatientSettings,
+        h_s: f64,
+        gait: GaitReference,
+        inertia: LegInertia,
+        damping_nm_s_per_rad: [f64; 2],
+    ) -> Result<Self, LegError> {
+        settings.validate()?;
+        let mut joints = Vec::with_capacity(2);
+        let mut sources = Vec::new();
+        let mut events = Vec::new();
+        for (j, (name, s)) in ["hip", "knee"].iter().zip(settings.joints()).enumerate() {
+            let at = format!("patient.{name}");
+            let reflex = match &s.spasticity {
+                Some(sp) => {
+                    let r = sp.resolve(j, &format!("{at}.spasticity"))?;
+                    let on = r.extensor_gain_nm_s_per_rad > 0.0 || r.flexor_gain_nm_s_per_rad > 0.0;
+                    on.then(|| (r, Delay::new(r.delay_s, h_s)))
+                }
+                None => None,
+            };
+            let stiffness = match &s.stiffness {
+                Some(st) => Some(st.resolve(j, &format!("{at}.stiffness"))?),
+                None => None,
+            };
+            if let Some(sp) = &s.spasms {
+                sources.push(SpasmSource::new(j, sp));
+                events.extend(sp.events.iter().map(|e| SpasmEvent {
+                    joint: j,
+                    t_s: e.t_s,
+                    amplitude_nm: e.amplitude_nm,
+                    duration_s: e.duration_s,
+                    direction: e.direction,
+                    rise_fraction: sp.rise_fraction,
+                }));
+            }
+            joints.push(JointPatient {
+                reflex,
+                stiffness,
+                effort: s.effort,
+            });
+        }
+        events.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
+        let joints: [JointPatient; 2] = [joints.remove(0), joints.remove(0)];
+        Ok(Self {
+            joints,
+            sources,
+            events,
+            planned_until_s: 0.0,
+            first_open: 0,
+            gait,
+            inertia,
+            damping_nm_s_per_rad,
+            last: PatientTorques::default(),
+        })
+    }
+
+    /// Draws the random spasms starting before `until_s` (allocates: call it before a run
+    /// so that the loop itself does not).
+    pub fn plan(&mut self, until_s: f64) {
+        if until_s <= self.planned_until_s {
+            return;
+        }
+        let mut added = false;
+        for src in &mut self.sources {
+            while let Some(e) = src.next_before(until_s) {
+                self.events.push(e);
+                added = true;
+            }
+        }
+        if added {
+            self.events.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
+        }
+        self.planned_until_s = until_s;
+    }
+
+    /// Every spasm planned so far, by onset.
+    pub fn events(&self) -> &[SpasmEvent] {
+        &self.events
+    }
+
+    /// Clears the delay lines (the limb at rest before `t_s`).
+    pub fn reset(&mut self) {
+        for j in &mut self.joints {
+            if let Some((_, d)) = &mut j.reflex {
+                d.clear();
+            }
+        }
+        self.first_open = 0;
+    }
+
+    /// The reference gait's inverse-dynamics torque at `t_s` (N m): what it takes to move
+    /// the leg along it, joint damping included.
+    pub fn reference_torque(&self, t_s: f64) -> [f64; 2] {
+        let g = self.gait.sample(t_s.max(0.0));
+        let q = [g.hip.angle_rad, g.knee.angle_rad];
+        let qd = [g.hip.velocity_rad_s, g.knee.velocity_rad_s];
+        let qdd = [g.hip.acceleration_rad_s2, g.knee.acceleration_rad_s2];
+        let tau = self.inertia.inverse_dynamics(q, qd, qdd);
+        std::array::from_fn(|j| tau[j] + self.damping_nm_s_per_rad[j] * qd[j])
+    }
+
+    fn spasm_torques(&mut self, t_s: f64) -> [f64; 2] {
+        if t_s >= self.planned_until_s {
+            // Outside a planned run (open-loop stepping): draw a few seconds ahead.
+            self.plan(t_s + 10.0);
+        }
+        while self
+            .events
+            .get(self.first_open)
+            .is_some_and(|e| e.end_s() <= t_s)
+        {
+            self.first_open += 1;
+        }
+        let mut tau = [0.0; 2];
+        for e in self.events[self.first_open..].iter() {
+            if e.t_s > t_s {
+                break;
+            }
+            tau[e.joint] += e.torque(t_s);
+        }
+        tau
+    }
+
+    /// The patient's torques at `t_s` with the limb at `q` (rad) and `qd` (rad/s); call it
+    /// once per physics substep (the reflex delay lines advance by one substep).
+    pub fn torques(&mut self, t_s: f64, q: [f64; 2], qd: [f64; 2]) -> PatientTorques {
+        let spasm_nm = self.spasm_torques(t_s);
+        let wants_effort = self.joints.iter().any(|j| j.effort.is_some());
+        let mut out = PatientTorques {
+            spasm_nm,
+            ..PatientTorques::default()
+        };
+        for (k, j) in self.joints.iter_mut().enumerate() {
+            out.reflex_nm[k] = j.reflex_torque(qd[k]);
+            out.stiffness_nm[k] = j.stiffness.map_or(0.0, |m| m.torque(q[k]));
+        }
+        if wants_effort {
+            // One inverse-dynamics evaluation per distinct delay (usually one for both).
+            let mut cached: Option<(f64, [f64; 2])> = None;
+            for k in 0..2 {
+                if let Some(e) = self.joints[k].effort {
+                    let tau = match cached {
+                        Some((d, tau)) if d == e.delay_s => tau,
+                        _ => {
+                            let tau = self.reference_torque(t_s - e.delay_s);
+                            cached = Some((e.delay_s, tau));
+                            tau
+                        }
+                    };
+                    out.effort_nm[k] = e.fraction * tau[k];
+                }
+            }
+        }
+        self.last = out;
+        out
+    }
+
+    /// The torques of the last substep.
+    pub fn last(&self) -> PatientTorques {
+        self.last
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spasms(rate_per_min: f64, seed: u64) -> SpasmSettings {
+        SpasmSettings {
+            rate_per_min,
+            amplitude_nm: [10.0, 30.0],
+            duration_s: [0.2, 0.8],
+            direction: SpasmDirection::Either,
+            rise_fraction: 0.3,
+            seed,
+            events: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn regression_an_inverted_range_was_accepted_when_no_random_spasm_is_drawn() {
+        // Only given events, rate 0: the ranges were not checked, so a typo passed silently.
+        let mut s = spasms(0.0, 1);
+        s.amplitude_nm = [30.0, 10.0];
+        let e = s.validate("patient.knee.spasms").unwrap_err().to_string();
+        assert!(e.contains("patient.knee.spasms.amplitude_nm"), "{e}");
+        let mut s = spasms(0.0, 1);
+        s.duration_s = [0.8, 0.2];
+        let e = s.validate("patient.knee.spasms").unwrap_err().to_string();
+        assert!(e.contains("patient.knee.spasms.duration_s"), "{e}");
+        assert!(spasms(0.0, 1).validate("patient.knee.spasms").is_ok());
+    }
+
+    #[test]
+    fn random_spasms_come_at_the_set_rate_with_both_directions_and_in_range() {
+        let mut src = SpasmSource::new(1, &spasms(6.0, 3));
+        let minutes = 2000.0;
+        let mut n = 0u32;
+        let mut flexor = 0u32;
+        while let Some(e) = src.next_before(minutes * 60.0) {
+            n += 1;
+            flexor += u32::from(e.direction == SpasmDirection::Flexor);
+            assert!((10.0..=30.0).contains(&e.amplitude_nm), "{e:?}");
+            assert!((0.2..=0.8).contains(&e.duration_s), "{e:?}");
+        }
+        // Poisson: 12 000 expected, sd 110.
+        let rate = f64::from(n) / minutes;
+        assert!((rate - 6.0).abs() < 0.2, "{rate} per minute");
+        let share = f64::from(flexor) / f64::from(n);
+        assert!((share - 0.5).abs() < 0.03, "flexor share {share}");
+    }
+
+    #[test]
+    fn a_spasm_pulse_rises_to_its_amplitude_and_falls_back_smoothly() {
+        let e = SpasmEvent {
+            joint: 1,
+            t_s: 2.0,
+            amplitude_nm: 20.0,
+            duration_s: 0.5,
+            direction: SpasmDirection::Extensor,
+            rise_fraction: 0.3,
+        };
+        assert_eq!(e.torque(1.999), 0.0);
+        assert_eq!(e.torque(2.5), 0.0);
+        assert!((e.torque(2.15) + 20.0).abs() < 1e-9, "{}", e.torque(2.15));
+        // No jump anywhere: neighbouring samples 0.1 ms apart differ by little.
+        let mut t = 1.99;
+        while t < 2.51 {
+            assert!(
+                (e.torque(t + 1e-4) - e.torque(t)).abs() < 0.05,
+                "jump at {t}"
+            );
+            t += 1e-4;
+        }
+    }
+
+    #[test]
+    fn passive_moment_is_small_in_mid_range_and_pushes_back_beyond_the_ends() {
+        let knee = StiffnessPreset::Anderson1999.knee();
+        assert!(knee.torque(0.8).abs() < 0.01, "{}", knee.torque(0.8));
+        assert!(
+            knee.torque(-0.2) > 5.0,
+            "hyperextended: {}",
+            knee.torque(-0.2)
+        );
+        assert!(
+            knee.torque(2.5) < -11.0,
+            "deep flexion: {}",
+            knee.torque(2.5)
+        );
+        let hip = StiffnessPreset::Anderson1999.hip();
+        assert!((hip.torque(-0.6981) - 1.51).abs() < 0.01);
+        assert!((hip.torque(1.81) + 2.44).abs() < 1e-6 + 1.51 * (-21.88f64 * 2.5081).exp());
+    }
+
+    #[test]
+    fn presets_grow_in_gain_and_fall_in_threshold_with_severity() {
+        let p = [
+            SpasticityPreset::Mild,
+            SpasticityPreset::Moderate,
+            SpasticityPreset::Severe,
+        ];
+        for w in p.windows(2) {
+            let (a, b) = (w[0].knee(), w[1].knee());
+            assert!(b.extensor_gain_nm_s_per_rad > a.extensor_gain_nm_s_per_rad);
+            assert!(b.threshold_rad_s < a.threshold_rad_s);
+        }
+        let r = SpasticityPreset::Moderate.hip();
+        assert!(
+            r.flexor_gain_nm_s_per_rad > SpasticityPreset::Moderate.knee().flexor_gain_nm_s_per_rad
+        );
+    }
+
+    #[test]
+    fn the_delay_line_returns_each_value_after_its_length() {
+        let mut d = Delay::new(0.003, 0.001);
+        let out: Vec<f64> = (1..=6).map(|v| d.push(f64::from(v))).collect();
+        assert_eq!(out, [0.0, 0.0, 0.0, 1.0, 2.0, 3.0]);
+    }
+}

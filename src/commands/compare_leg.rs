@@ -1,0 +1,135 @@
+//! `pma-exo compare-leg`: APRC-NDO, PSMC, NDO-SMC, STA and PID, each with its gains tuned
+//! on `gait_training` by the same search and budget, on the patient scenarios.
+use crate::output::OutFile;
+use crate::say;
+use anyhow::{Context, Result};
+use pma_control::{ControllerConfig, ControllerKind};
+use pma_leg::compare::{compare, CompareRow};
+use pma_leg::Scenario;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+/// The controllers compared, each with its leg gain file.
+pub const COMPARED: [ControllerKind; 5] = [
+    ControllerKind::AprcNdo,
+    ControllerKind::Psmc,
+    ControllerKind::NdoSmc,
+    ControllerKind::Sta,
+    ControllerKind::Pid,
+];
+
+/// The scenarios compared by default: the passive baseline and the three patients.
+pub const SCENARIOS: [&str; 4] = [
+    "gait_training",
+    "gait_spastic",
+    "gait_spasms",
+    "gait_resistive",
+];
+
+/// `compare-leg`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Output directory (compare-leg.json, compare-leg.md).
+    #[arg(long, default_value = "compare-leg-out")]
+    out: PathBuf,
+    /// Scenarios, comma-separated (embedded names or .toml files).
+    #[arg(long, value_delimiter = ',', default_values_t = SCENARIOS.map(String::from))]
+    scenarios: Vec<String>,
+    /// Simulated seconds per run; at least two strides.
+    #[arg(long, default_value_t = 60.0, allow_negative_numbers = true)]
+    duration: f64,
+    /// Worker threads (default: one per core); the results do not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Run even if it would take over an hour.
+    #[arg(long)]
+    yes: bool,
+}
+
+/// Runs `compare-leg`.
+pub fn run(a: Args) -> Result<i32> {
+    super::check_duration(a.duration)?;
+    let scenarios = a
+        .scenarios
+        .iter()
+        .map(|s| Scenario::load(s))
+        .collect::<Result<Vec<_>, _>>()?;
+    for s in &scenarios {
+        let two_strides = 2.0 * s.scenario.gait.stride_period_s;
+        if a.duration < two_strides {
+            anyhow::bail!(
+                "--duration {} s is shorter than two strides of {} ({two_strides} s): its tracking figures start after the first stride",
+                a.duration,
+                s.scenario.name
+            );
+        }
+    }
+    let controllers = COMPARED
+        .iter()
+        .map(|k| pma_leg::gains::leg_gains(*k))
+        .collect::<Result<Vec<ControllerConfig>, _>>()?;
+    let periods = scenarios
+        .iter()
+        .map(|s| a.duration / s.scenario.period_s)
+        .sum::<f64>()
+        * controllers.len() as f64;
+    crate::output::check_wall_time(
+        "this comparison",
+        periods,
+        super::simulate::LEG_PERIOD_S,
+        a.yes,
+    )?;
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create `{}`", a.out.display()))?;
+    let json_file = OutFile::create(&a.out.join("compare-leg.json"))?;
+    let md_file = OutFile::create(&a.out.join("compare-leg.md"))?;
+    let rows = super::with_threads(a.threads, || compare(&scenarios, &controllers, a.duration))??;
+    let md = report(&rows, a.duration);
+    json_file.finish_with(&serde_json::to_string_pretty(&rows)?)?;
+    md_file.finish_with(&md)?;
+    say!("{md}");
+    say!(
+        "wrote {}/compare-leg.json and compare-leg.md",
+        a.out.display()
+    );
+    if let Some(r) = rows.iter().find(|r| !r.finite) {
+        anyhow::bail!("{} on {} went non-finite", r.controller, r.scenario);
+    }
+    Ok(0)
+}
+
+/// One Markdown table per scenario.
+pub fn report(rows: &[CompareRow], duration_s: f64) -> String {
+    let mut md = format!(
+        "# Controllers on the leg with a patient ({duration_s} s per run, gains tuned on gait_training with the same budget)\n"
+    );
+    let mut scenario = "";
+    for r in rows {
+        if r.scenario != scenario {
+            scenario = &r.scenario;
+            let _ = write!(
+                md,
+                "\n## {scenario}\n\n| controller | hip RMS (deg) | knee RMS (deg) | spasms | spasm deviation mean / max (deg) | worst recovery (s) | not recovered | peak dp/dt in spasms (bar/s) | peak dp/dt (bar/s) | command variation (bar/s) | peak force / rating | valve at a limit (s) | beyond limits (s) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+            );
+        }
+        let _ = writeln!(
+            md,
+            "| {} | {:.3} | {:.3} | {} | {:.2} / {:.2} | {:.2} | {} | {:.0} | {:.0} | {:.1} | {:.2} | {:.2} | {:.3} |",
+            r.controller,
+            r.hip_rms_deg,
+            r.knee_rms_deg,
+            r.spasms,
+            r.spasm_mean_deviation_deg,
+            r.spasm_max_deviation_deg,
+            r.spasm_max_recovery_s,
+            r.spasms_unrecovered,
+            r.spasm_peak_pressure_rate_bar_s,
+            r.peak_pressure_rate_bar_s,
+            r.command_variation_bar_per_s,
+            r.peak_force_over_rated,
+            r.valve_saturated_s,
+            r.time_outside_limits_s
+        );
+    }
+    md
+}

@@ -1,0 +1,179 @@
+//! `pma-exo pendulum`: the Wartenberg pendulum test on the leg's patient model.
+use super::{viz, RerunArgs};
+use crate::output::{self, CsvOut};
+use crate::say;
+use anyhow::Result;
+use pma_leg::patient::{SpasticityPreset, SpasticitySettings};
+use pma_leg::pendulum::{self, PendulumReport, PendulumSetup};
+use pma_leg::{LegOutput, LegPlant, Scenario};
+use pma_loop::{LoopSettings, Period, Recorder};
+use std::path::PathBuf;
+
+/// A spasticity preset on the command line.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum Spasticity {
+    /// No stretch reflex.
+    None,
+    /// Mild.
+    Mild,
+    /// Moderate.
+    Moderate,
+    /// Severe.
+    Severe,
+}
+
+impl Spasticity {
+    fn preset(self) -> SpasticityPreset {
+        match self {
+            Spasticity::None => SpasticityPreset::None,
+            Spasticity::Mild => SpasticityPreset::Mild,
+            Spasticity::Moderate => SpasticityPreset::Moderate,
+            Spasticity::Severe => SpasticityPreset::Severe,
+        }
+    }
+}
+
+/// `pendulum`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The scenario whose leg and patient are tested (embedded name or .toml file).
+    #[arg(default_value = "gait_training")]
+    scenario: String,
+    /// Knee flexion at release (deg); 0 is full extension, the classic test.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    knee_deg: f64,
+    /// Hip flexion, held (deg); the pelvis is pitched so that the thigh lies horizontal.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    hip_deg: f64,
+    /// Simulated seconds.
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
+    duration: f64,
+    /// Replace the scenario's spasticity at hip and knee by this preset.
+    #[arg(long, value_enum)]
+    spasticity: Option<Spasticity>,
+    /// Write the time series here (CSV).
+    #[arg(long)]
+    csv: Option<PathBuf>,
+    /// Print one JSON object instead of the summary.
+    #[arg(long)]
+    json: bool,
+    #[command(flatten)]
+    rerun: RerunArgs,
+}
+
+/// CSV columns of the test.
+pub const COLUMNS: [&str; 11] = [
+    "t_s",
+    "hip_deg",
+    "knee_deg",
+    "hip_velocity_deg_s",
+    "knee_velocity_deg_s",
+    "hip_patient_nm",
+    "knee_patient_nm",
+    "knee_reflex_nm",
+    "knee_spasm_nm",
+    "knee_stiffness_nm",
+    "knee_damping_nm",
+];
+
+struct CsvRecorder {
+    out: CsvOut,
+    damping_nm_s_per_rad: f64,
+}
+
+impl Recorder<LegPlant, LegOutput> for CsvRecorder {
+    fn record(&mut self, p: &Period<'_, LegPlant, LegOutput>) {
+        let s = p.truth;
+        let tau = s.patient.total();
+        self.out.row(&[
+            p.t_s,
+            s.angle_rad[0].to_degrees(),
+            s.angle_rad[1].to_degrees(),
+            s.velocity_rad_s[0].to_degrees(),
+            s.velocity_rad_s[1].to_degrees(),
+            tau[0],
+            tau[1],
+            s.patient.reflex_nm[1],
+            s.patient.spasm_nm[1],
+            s.patient.stiffness_nm[1],
+            -self.damping_nm_s_per_rad * s.velocity_rad_s[1],
+        ]);
+    }
+}
+
+/// Runs `pendulum`.
+pub fn run(a: Args) -> Result<i32> {
+    super::check_duration(a.duration)?;
+    let mut loaded = Scenario::load(&a.scenario)?;
+    if let Some(s) = a.spasticity {
+        let preset = SpasticitySettings {
+            preset: Some(s.preset()),
+            ..SpasticitySettings::default()
+        };
+        loaded.scenario.patient.hip.spasticity = Some(preset);
+        loaded.scenario.patient.knee.spasticity = Some(preset);
+    }
+    let setup = PendulumSetup {
+        hip_rad: a.hip_deg.to_radians(),
+        knee_rad: a.knee_deg.to_radians(),
+    };
+    let sim = pendulum::seated(&loaded, setup)?;
+    let settings = LoopSettings::new(loaded.scenario.period_s, a.duration)?;
+    let csv = match &a.csv {
+        Some(p) => Some(CsvRecorder {
+            out: CsvOut::create(p, &COLUMNS.map(str::to_owned))?,
+            damping_nm_s_per_rad: loaded.scenario.joints.knee.damping_nm_s_per_rad,
+        }),
+        None => None,
+    };
+    let meta = format!(
+        "# Pendulum test: {}\n\n{}\n\nthigh horizontal, hip held at {} deg, knee released from {} deg; muscles vented and unhooked.\n",
+        loaded.scenario.name, loaded.scenario.description, a.hip_deg, a.knee_deg
+    );
+    let viz = viz::leg(&a.rerun, &sim, &meta)?;
+    let stop = output::stop_flag()?;
+    let settings = settings.with_stop_flag(&stop);
+    let mut recorders = (csv, viz);
+    let report = pendulum::run(sim, setup, &settings, &mut recorders)?;
+    let (csv, viz) = recorders;
+    let non_finite =
+        (!report.finite).then(|| format!("the pendulum test (scenario {})", report.scenario));
+    super::conclude(
+        (csv.map(|c| c.out), viz),
+        &report,
+        non_finite,
+        a.json,
+        print_summary,
+    )?;
+    Ok(0)
+}
+
+fn print_summary(r: &PendulumReport) -> Result<()> {
+    say!(
+        "pendulum test, {} ({} s; thigh horizontal, hip held at {:.1} deg, pelvis pitched {:.1} deg)",
+        r.scenario,
+        r.duration_s,
+        r.hip_deg,
+        r.pelvis_pitch_deg
+    );
+    say!(
+        "  knee released at {:.1} deg, first flexion peak {:.1} deg (excursion {:.1} deg), rest {:.1} deg",
+        r.knee_start_deg,
+        r.first_peak_deg,
+        r.first_swing_excursion_deg,
+        r.knee_rest_deg
+    );
+    say!(
+        "  R2 {:.3} (R2n {:.3}; healthy adults 1.678 +- 0.090), {} oscillations, peak knee speed {:.0} deg/s",
+        r.r2,
+        r.r2n,
+        r.oscillations,
+        r.peak_knee_velocity_deg_s
+    );
+    say!(
+        "  peak patient torque {:.2} N m; knee still moving {:.2} deg in the last second",
+        r.peak_patient_torque_nm,
+        r.last_second_range_deg
+    );
+    Ok(())
+}
