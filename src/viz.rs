@@ -235,6 +235,8 @@ pub struct VizRecorder {
     error: Option<VizError>,
     /// Per planned spasm, how far it has been shown.
     spasms: Vec<Shown>,
+    /// Per joint, the spasms acting now (the marker stays while any does).
+    acting: [u32; 2],
 }
 
 /// How far an event has been shown.
@@ -253,6 +255,7 @@ impl VizRecorder {
             step: 0,
             error: None,
             spasms: Vec::new(),
+            acting: [0; 2],
         }
     }
 
@@ -336,7 +339,7 @@ impl Recorder<LegPlant, LegOutput> for VizRecorder {
             let r = mark_spasms(
                 &self.viz,
                 patient.events(),
-                &mut self.spasms,
+                (&mut self.spasms, &mut self.acting),
                 p.t_s,
                 self.step,
             );
@@ -352,11 +355,12 @@ pub fn spasm_marker_path(joint: usize) -> String {
 }
 
 /// Logs the spasms that start or end by `t_s`: a line in [`EVENTS_PATH`] each time, and a
-/// red labelled ball on the joint while the spasm acts.
+/// red labelled ball on the joint while a spasm acts on it (`acting` counts them per joint,
+/// so that overlapping spasms keep it until the last one ends).
 fn mark_spasms(
     viz: &Viz,
     events: &[SpasmEvent],
-    shown: &mut Vec<Shown>,
+    (shown, acting): (&mut Vec<Shown>, &mut [u32; 2]),
     t_s: f64,
     step: i64,
 ) -> Result<()> {
@@ -377,6 +381,7 @@ fn mark_spasms(
                 label: text,
             };
             viz.marker(t_s, step, &spasm_marker_path(e.joint), &marker)?;
+            acting[e.joint] += 1;
             *state = Shown::Started;
         }
         if *state == Shown::Started && t_s >= e.end_s() {
@@ -387,7 +392,10 @@ fn mark_spasms(
                 &format!("{joint} spasm ends"),
                 "INFO",
             )?;
-            viz.clear(t_s, step, &spasm_marker_path(e.joint))?;
+            acting[e.joint] = acting[e.joint].saturating_sub(1);
+            if acting[e.joint] == 0 {
+                viz.clear(t_s, step, &spasm_marker_path(e.joint))?;
+            }
             *state = Shown::Ended;
         }
     }

@@ -126,3 +126,37 @@ fn the_supervised_logged_virtual_rig_allocates_nothing_per_period() {
     assert_eq!(counter.during_periods(), 0);
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// The leg's loop is not allocation-free: rapier3d 0.36's `PhysicsWorld::step` allocates
+/// 18-25 times per 1 ms period (two substeps) in `Multibody::update_acceleration`,
+/// `update_mass_matrix` and its modification tracking (traced with backtraces from this
+/// allocator). What this project runs every substep beside it, the patient model, is.
+#[test]
+fn the_patient_model_allocates_nothing_per_substep() {
+    for scenario in ["gait_spastic", "gait_spasms", "gait_resistive"] {
+        let loaded = pma_leg::Scenario::load(scenario).expect("scenario");
+        let sim = pma_leg::LegSim::new(&loaded).expect("sim");
+        let mut patient = sim.plant().patient().expect("a patient").clone();
+        let h = sim.leg().substep_s();
+        let substeps = (60.0 / h) as u64;
+        // As a run does: every spasm drawn before the loop.
+        patient.plan(60.0);
+        let before = allocations();
+        let mut spasm_substeps = 0u64;
+        for k in 0..substeps {
+            let t = k as f64 * h;
+            let a = (4.0 * t).sin();
+            let tau = patient.torques(t, [0.3 * a, 0.6 + 0.5 * a], [1.2 * a, 4.0 * a]);
+            if tau.spasm_nm != [0.0; 2] {
+                spasm_substeps += 1;
+            }
+        }
+        assert_eq!(allocations() - before, 0, "{scenario}");
+        if scenario == "gait_spasms" {
+            assert!(
+                spasm_substeps > 1000,
+                "{spasm_substeps} substeps in a spasm"
+            );
+        }
+    }
+}

@@ -109,12 +109,12 @@ pub fn report(rows: &[CompareRow], duration_s: f64) -> String {
             scenario = &r.scenario;
             let _ = write!(
                 md,
-                "\n## {scenario}\n\n| controller | hip RMS (deg) | knee RMS (deg) | spasms | spasm deviation mean / max (deg) | worst recovery (s) | not recovered | peak dp/dt in spasms (bar/s) | peak dp/dt (bar/s) | command variation (bar/s) | peak force / rating | valve at a limit (s) | beyond limits (s) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+                "\n## {scenario}\n\n| controller | hip RMS (deg) | knee RMS (deg) | spasms | spasm deviation mean / max (deg) | worst recovery (s) | not recovered / overlapped | peak dp/dt in spasms (bar/s) | peak dp/dt (bar/s) | command variation (bar/s) | peak force / rating | valve at a limit (s) | beyond limits (s) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
             );
         }
         let _ = writeln!(
             md,
-            "| {} | {:.3} | {:.3} | {} | {:.2} / {:.2} | {:.2} | {} | {:.0} | {:.0} | {:.1} | {:.2} | {:.2} | {:.3} |",
+            "| {} | {:.3} | {:.3} | {} | {:.2} / {:.2} | {:.2} | {} / {} | {:.0} | {:.0} | {:.1} | {:.2} | {:.2} | {:.3} |",
             r.controller,
             r.hip_rms_deg,
             r.knee_rms_deg,
@@ -123,6 +123,7 @@ pub fn report(rows: &[CompareRow], duration_s: f64) -> String {
             r.spasm_max_deviation_deg,
             r.spasm_max_recovery_s,
             r.spasms_unrecovered,
+            r.spasms_overlapped,
             r.spasm_peak_pressure_rate_bar_s,
             r.peak_pressure_rate_bar_s,
             r.command_variation_bar_per_s,

@@ -145,6 +145,12 @@ pub fn run(a: Args) -> Result<i32> {
         a.json,
         print_summary,
     )?;
+    if !report.settled {
+        eprintln!(
+            "warning: the knee still moved {:.1} deg in the last second: no resting angle, so no R2; run longer (--duration)",
+            report.last_second_range_deg
+        );
+    }
     Ok(0)
 }
 
@@ -163,10 +169,14 @@ fn print_summary(r: &PendulumReport) -> Result<()> {
         r.first_swing_excursion_deg,
         r.knee_rest_deg
     );
+    let r2 = match (r.r2, r.r2n) {
+        (Some(r2), Some(r2n)) => {
+            format!("R2 {r2:.3} (R2n {r2n:.3}; healthy adults 1.678 +- 0.090)")
+        }
+        _ => "R2 not computed (the knee has not come to rest)".to_owned(),
+    };
     say!(
-        "  R2 {:.3} (R2n {:.3}; healthy adults 1.678 +- 0.090), {} oscillations, peak knee speed {:.0} deg/s",
-        r.r2,
-        r.r2n,
+        "  {r2}, {} oscillations, peak knee speed {:.0} deg/s",
         r.oscillations,
         r.peak_knee_velocity_deg_s
     );

@@ -269,6 +269,10 @@ fn print_patient(r: &LegReport) -> Result<()> {
     for e in &r.spasms {
         let recovery = match e.recovery_s {
             Some(s) => format!("back within 1 deg {s:.2} s after its end"),
+            None if e.overlapped => format!(
+                "overlapped by the next {} spasm at {:.2} s",
+                e.joint, e.followed_until_s
+            ),
             None => format!("not back within 1 deg by {:.2} s", e.followed_until_s),
         };
         say!(

@@ -26,8 +26,11 @@ pub struct CompareRow {
     pub spasm_max_deviation_deg: f64,
     /// Largest recovery time to within 1 deg of a spasm that recovered (s; 0 if none).
     pub spasm_max_recovery_s: f64,
-    /// Spasms after which the joint was not back within 1 deg before the next one, or 3 s.
+    /// Spasms after which the joint was not back within 1 deg within 3 s or before the
+    /// joint's next spasm (overlapped ones not counted).
     pub spasms_unrecovered: usize,
+    /// Spasms overlapped by the joint's next one before they ended (no recovery to time).
+    pub spasms_overlapped: usize,
     /// Largest muscle |dp/dt| during a spasm or its follow-up (bar/s; 0 if none).
     pub spasm_peak_pressure_rate_bar_s: f64,
     /// Largest muscle |dp/dt| over the run (bar/s).
@@ -64,7 +67,11 @@ impl CompareRow {
             },
             spasm_max_deviation_deg: fold(|s| s.peak_deviation_deg),
             spasm_max_recovery_s: fold(|s| s.recovery_s.unwrap_or(0.0)),
-            spasms_unrecovered: spasms.iter().filter(|s| s.recovery_s.is_none()).count(),
+            spasms_unrecovered: spasms
+                .iter()
+                .filter(|s| s.recovery_s.is_none() && !s.overlapped)
+                .count(),
+            spasms_overlapped: spasms.iter().filter(|s| s.overlapped).count(),
             spasm_peak_pressure_rate_bar_s: fold(|s| s.peak_pressure_rate_bar_s),
             peak_pressure_rate_bar_s: muscles
                 .clone()

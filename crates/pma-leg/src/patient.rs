@@ -383,6 +383,12 @@ impl SpasticitySettings {
 
 /// Longest reflex or effort delay accepted (s): the buffers are sized from it.
 pub const MAX_DELAY_S: f64 = 1.0;
+/// Largest exponential rate of a passive moment (1/rad); the stiffest published (knee,
+/// 33.94 /rad) is a third of it.
+pub const MAX_STIFFNESS_RATE_PER_RAD: f64 = 100.0;
+/// Highest random spasm rate (per minute): one a second; every spasm of a run is drawn
+/// before it.
+pub const MAX_SPASM_RATE_PER_MIN: f64 = 60.0;
 
 impl StiffnessSettings {
     /// The passive moment at `joint`, validated; `at` names it in errors.
@@ -421,9 +427,20 @@ impl StiffnessSettings {
             )?,
         };
         non_negative(format!("{at}.lower_nm"), m.lower_nm)?;
-        non_negative(format!("{at}.lower_per_rad"), m.lower_per_rad)?;
         non_negative(format!("{at}.upper_nm"), m.upper_nm)?;
-        non_negative(format!("{at}.upper_per_rad"), m.upper_per_rad)?;
+        for (field, rate) in [
+            ("lower_per_rad", m.lower_per_rad),
+            ("upper_per_rad", m.upper_per_rad),
+        ] {
+            non_negative(format!("{at}.{field}"), rate)?;
+            if rate > MAX_STIFFNESS_RATE_PER_RAD {
+                return Err(invalid(
+                    format!("{at}.{field}"),
+                    rate,
+                    "must be at most 100 /rad (the moment would overflow within the joint's range)",
+                ));
+            }
+        }
         finite(format!("{at}.lower_angle_rad"), m.lower_angle_rad)?;
         finite(format!("{at}.upper_angle_rad"), m.upper_angle_rad)?;
         if m.lower_angle_rad >= m.upper_angle_rad {
@@ -449,6 +466,19 @@ impl PassiveMoment {
 impl SpasmSettings {
     fn validate(&self, at: &str) -> Result<(), LegError> {
         non_negative(format!("{at}.rate_per_min"), self.rate_per_min)?;
+        if self.rate_per_min > MAX_SPASM_RATE_PER_MIN {
+            return Err(invalid(
+                format!("{at}.rate_per_min"),
+                self.rate_per_min,
+                "must be at most 60 (one spasm a second)",
+            ));
+        }
+        if self.rate_per_min > 0.0 && self.amplitude_nm[1] <= 0.0 {
+            return Err(LegError::Missing {
+                name: format!("{at}.amplitude_nm"),
+                hint: "random spasms need their peak torque range [low, high] in N m",
+            });
+        }
         // Checked even when no random spasm is drawn: a wrong range is a mistake either way.
         range(format!("{at}.amplitude_nm"), self.amplitude_nm, false)?;
         range(format!("{at}.duration_s"), self.duration_s, true)?;
@@ -492,7 +522,7 @@ impl EffortSettings {
 }
 
 impl PatientSettings {
-    /// Whether any part is set at any joint.
+    /// Whether no part is set at either joint (the passive limb).
     pub fn is_passive(&self) -> bool {
         self.joints().iter().all(|j| {
             j.spasticity.is_none()

@@ -32,6 +32,10 @@ pub const MIN_DROP_DEG: f64 = 10.0;
 pub const OSCILLATION_DEG: f64 = 1.0;
 /// The resting angle is the mean over the run's last this many seconds (s).
 pub const REST_WINDOW_S: f64 = 1.0;
+/// The knee has settled if it moved at most this much over the last second (deg).
+pub const SETTLED_DEG: f64 = 2.0;
+/// Longest test (s): a swing settles within about 10 s, and the trace is kept in memory.
+pub const MAX_DURATION_S: f64 = 600.0;
 
 /// How the leg is held before release.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -72,19 +76,23 @@ pub struct PendulumReport {
     pub knee_rest_deg: f64,
     /// Knee range over the last second (deg): how far from settled the run ended.
     pub last_second_range_deg: f64,
-    /// Relaxation index `R2 = A1 / (rest - start)`.
-    pub r2: f64,
-    /// `R2 / 1.6`.
-    pub r2n: f64,
+    /// Whether the knee came to rest: it moved at most [`SETTLED_DEG`] over the last second.
+    pub settled: bool,
+    /// Relaxation index `R2 = A1 / (rest - start)`; `None` if the knee has not settled
+    /// (there is no resting angle to divide by).
+    pub r2: Option<f64>,
+    /// `R2 / 1.6`; `None` if the knee has not settled.
+    pub r2n: Option<f64>,
     /// Flexion peaks more than 1 deg beyond the resting angle.
     pub oscillations: usize,
     /// Fastest knee speed (deg/s).
     pub peak_knee_velocity_deg_s: f64,
     /// Largest |knee torque of the patient| (N m).
     pub peak_patient_torque_nm: f64,
-    /// Largest |E - E0| over the swing energy `E0 - E_hanging` (conserved without damping
-    /// and patient; the joint damping and a reflex dissipate it).
-    pub energy_drift_relative: f64,
+    /// Largest |E - E0| of the leg's kinetic + gravitational energy, over the swing energy
+    /// `E0 - E_hanging`: a conservation check, about 0 only without joint damping and
+    /// patient (damping and a reflex dissipate energy, a passive moment stores some).
+    pub energy_change_relative: f64,
     /// Whether every state stayed finite.
     pub finite: bool,
 }
@@ -127,10 +135,17 @@ pub fn seated(loaded: &LoadedScenario, setup: PendulumSetup) -> Result<LegSim, L
             });
         }
     }
-    // The patient's effort follows the gait's reference: there is none to follow here.
+    // The patient's effort follows the gait's reference: there is none to follow here. A
+    // spasm during the swing would spoil the test (the clinic repeats it). The reflex and
+    // the passive joint moments stay: they are what the test measures.
     let mut loaded = loaded.clone();
-    loaded.scenario.patient.hip.effort = None;
-    loaded.scenario.patient.knee.effort = None;
+    for joint in [
+        &mut loaded.scenario.patient.hip,
+        &mut loaded.scenario.patient.knee,
+    ] {
+        joint.effort = None;
+        joint.spasms = None;
+    }
     let loaded = &loaded;
     let mount = Mount {
         pelvis_pitch_rad: std::f64::consts::FRAC_PI_2 - setup.hip_rad,
@@ -175,6 +190,13 @@ pub fn run<R: Recorder<LegPlant, LegOutput>>(
     settings: &LoopSettings,
     recorder: &mut R,
 ) -> Result<PendulumReport, LegError> {
+    if settings.duration_s() > MAX_DURATION_S {
+        return Err(LegError::Invalid {
+            name: "duration (s)".into(),
+            value: settings.duration_s(),
+            expected: "must be at most 600 s for a pendulum test (it settles within about 10 s)",
+        });
+    }
     let n = settings.periods() as usize;
     let mut trace = Trace {
         t_s: Vec::with_capacity(n),
@@ -250,7 +272,8 @@ fn indices(
     let first_peak = peaks.first().copied().unwrap_or(f64::NAN);
     let a1 = first_peak - q0;
     let r2 = a1 / (rest - q0);
-    let energy_drift =
+    let settled = range.to_degrees() <= SETTLED_DEG;
+    let energy_change =
         tr.energy.iter().fold(0.0f64, |m, e| m.max((e - e0).abs())) / (e0 - e_hanging);
     PendulumReport {
         scenario: scenario.to_owned(),
@@ -262,8 +285,9 @@ fn indices(
         first_swing_excursion_deg: a1.to_degrees(),
         knee_rest_deg: rest.to_degrees(),
         last_second_range_deg: range.to_degrees(),
-        r2,
-        r2n: r2 / 1.6,
+        settled,
+        r2: settled.then_some(r2),
+        r2n: settled.then_some(r2 / 1.6),
         oscillations: peaks
             .iter()
             .filter(|q| (**q - rest).to_degrees() > OSCILLATION_DEG)
@@ -274,7 +298,7 @@ fn indices(
             .fold(0.0f64, |m, v| m.max(v.abs()))
             .to_degrees(),
         peak_patient_torque_nm: tr.patient_peak,
-        energy_drift_relative: energy_drift,
+        energy_change_relative: energy_change,
         finite: tr.finite,
     }
 }

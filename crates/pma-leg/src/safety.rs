@@ -54,8 +54,12 @@ pub struct SpasmReport {
     /// Largest |dp/dt| of its joint's two muscles (bar/s).
     pub peak_pressure_rate_bar_s: f64,
     /// From the spasm's end until the error is back within 1 deg for good (s); `null` if it
-    /// still was not at the end of the follow-up.
+    /// still was not at the end of the follow-up, or if the next spasm of the joint began
+    /// before this one ended.
     pub recovery_s: Option<f64>,
+    /// The next spasm of the same joint began before this one ended: its figures cover
+    /// this one only until then.
+    pub overlapped: bool,
     /// End of the follow-up (s): [`FOLLOW_S`] after the spasm, the next spasm or the run's end.
     pub followed_until_s: f64,
 }
@@ -96,6 +100,7 @@ pub struct SafetyReport {
 #[derive(Debug, Clone)]
 struct SpasmAcc {
     event: SpasmEvent,
+    overlapped: bool,
     until_s: f64,
     peak_dev: f64,
     peak_speed: f64,
@@ -139,9 +144,15 @@ impl PatientMetrics {
             .iter()
             .enumerate()
             .map(|(i, e)| {
-                let next = events.get(i + 1).map_or(f64::INFINITY, |n| n.t_s);
+                // Followed until the next spasm of the same joint: one on the other joint
+                // does not end this one's effect.
+                let next = events[i + 1..]
+                    .iter()
+                    .find(|n| n.joint == e.joint)
+                    .map_or(f64::INFINITY, |n| n.t_s);
                 SpasmAcc {
                     event: *e,
+                    overlapped: next < e.end_s(),
                     until_s: (e.end_s() + FOLLOW_S).min(next).min(end_s),
                     peak_dev: 0.0,
                     peak_speed: 0.0,
@@ -234,11 +245,12 @@ impl PatientMetrics {
                     peak_deviation_deg: s.peak_dev,
                     peak_joint_speed_deg_s: s.peak_speed,
                     peak_pressure_rate_bar_s: s.peak_rate / 1e5,
-                    recovery_s: if s.out_at_end {
+                    recovery_s: if s.out_at_end || s.overlapped || until < s.event.end_s() {
                         None
                     } else {
                         Some(s.last_out_s.map_or(0.0, |t| (t - s.event.end_s()).max(0.0)))
                     },
+                    overlapped: s.overlapped,
                     followed_until_s: until,
                 }
             })
