@@ -4,7 +4,7 @@
 use anyhow::Result;
 use pma_leg::patient::SpasmEvent;
 use pma_leg::{LegOutput, LegPlant, LegSample, LegSim, VisualShape};
-use pma_loop::{MuscleStep, Period, Recorder};
+use pma_loop::{MuscleStep, Period, Recorder, Start};
 use pma_sim::{MuscleBench, Sample};
 use pma_viz::{Frame, Marker, Shape, Sink, Viz, VizError};
 
@@ -233,18 +233,8 @@ pub struct VizRecorder {
     viz: Viz,
     step: i64,
     error: Option<VizError>,
-    /// Per planned spasm, how far it has been shown.
-    spasms: Vec<Shown>,
-    /// Per joint, the spasms acting now (the marker stays while any does).
-    acting: [u32; 2],
-}
-
-/// How far an event has been shown.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Shown {
-    Not,
-    Started,
-    Ended,
+    /// Time of the previous leg period (s): spasm onsets and ends are logged when crossed.
+    previous_t_s: f64,
 }
 
 impl VizRecorder {
@@ -254,8 +244,7 @@ impl VizRecorder {
             viz,
             step: 0,
             error: None,
-            spasms: Vec::new(),
-            acting: [0; 2],
+            previous_t_s: f64::NEG_INFINITY,
         }
     }
 
@@ -324,6 +313,10 @@ impl Recorder<pma_rig::Rig, MuscleStep> for VizRecorder {
 }
 
 impl Recorder<LegPlant, LegOutput> for VizRecorder {
+    fn start(&mut self, s: &Start<'_, LegPlant>) {
+        self.previous_t_s = s.t_s;
+    }
+
     fn record(&mut self, p: &Period<'_, LegPlant, LegOutput>) {
         self.step += 1;
         let mut scalars = [0.0; LEG_SCALARS];
@@ -339,11 +332,11 @@ impl Recorder<LegPlant, LegOutput> for VizRecorder {
             let r = mark_spasms(
                 &self.viz,
                 patient.events(),
-                (&mut self.spasms, &mut self.acting),
-                p.t_s,
+                (self.previous_t_s, p.t_s),
                 self.step,
             );
             self.keep(r);
+            self.previous_t_s = p.t_s;
         }
     }
 }
@@ -355,20 +348,19 @@ pub fn spasm_marker_path(joint: usize) -> String {
 }
 
 /// Logs the spasms that start or end by `t_s`: a line in [`EVENTS_PATH`] each time, and a
-/// red labelled ball on the joint while a spasm acts on it (`acting` counts them per joint,
-/// so that overlapping spasms keep it until the last one ends).
+/// red labelled ball on the joint while a spasm acts on it (kept until the last of
+/// overlapping spasms ends).
 fn mark_spasms(
     viz: &Viz,
     events: &[SpasmEvent],
-    (shown, acting): (&mut Vec<Shown>, &mut [u32; 2]),
-    t_s: f64,
+    (previous_t_s, t_s): (f64, f64),
     step: i64,
 ) -> Result<()> {
-    // Events are planned before the run: this grows once.
-    shown.resize(events.len(), Shown::Not);
-    for (e, state) in events.iter().zip(shown.iter_mut()) {
+    // What happened since the previous period: onsets and ends in (previous_t_s, t_s].
+    let crossed = |at: f64| previous_t_s < at && at <= t_s;
+    for e in events {
         let joint = JOINT_LINKS[e.joint].0;
-        if *state == Shown::Not && t_s >= e.t_s {
+        if crossed(e.t_s) {
             let text = format!(
                 "{joint} spasm: {} {:.1} N m for {:.2} s",
                 e.direction, e.amplitude_nm, e.duration_s
@@ -381,10 +373,8 @@ fn mark_spasms(
                 label: text,
             };
             viz.marker(t_s, step, &spasm_marker_path(e.joint), &marker)?;
-            acting[e.joint] += 1;
-            *state = Shown::Started;
         }
-        if *state == Shown::Started && t_s >= e.end_s() {
+        if crossed(e.end_s()) {
             viz.event(
                 t_s,
                 step,
@@ -392,11 +382,12 @@ fn mark_spasms(
                 &format!("{joint} spasm ends"),
                 "INFO",
             )?;
-            acting[e.joint] = acting[e.joint].saturating_sub(1);
-            if acting[e.joint] == 0 {
+            let still_acting = events
+                .iter()
+                .any(|o| o.joint == e.joint && o.t_s <= t_s && t_s < o.end_s());
+            if !still_acting {
                 viz.clear(t_s, step, &spasm_marker_path(e.joint))?;
             }
-            *state = Shown::Ended;
         }
     }
     Ok(())

@@ -55,14 +55,7 @@ pub fn run(a: Args) -> Result<i32> {
         .map(|s| Scenario::load(s))
         .collect::<Result<Vec<_>, _>>()?;
     for s in &scenarios {
-        let two_strides = 2.0 * s.scenario.gait.stride_period_s;
-        if a.duration < two_strides {
-            anyhow::bail!(
-                "--duration {} s is shorter than two strides of {} ({two_strides} s): its tracking figures start after the first stride",
-                a.duration,
-                s.scenario.name
-            );
-        }
+        s.scenario.check_run_duration(a.duration)?;
     }
     let controllers = COMPARED
         .iter()

@@ -2,7 +2,7 @@
 use super::{viz, RerunArgs};
 use crate::output::{self, CsvOut, INTERRUPTED};
 use crate::say;
-use anyhow::{bail, Result};
+use anyhow::Result;
 use pma_control::{ControllerConfig, ControllerKind};
 use pma_leg::{LegOutput, LegPlant, LegReport, LegSample, LegSim, Scenario};
 use pma_loop::{Period, Recorder};
@@ -136,12 +136,7 @@ pub fn run(a: Args) -> Result<i32> {
     let sc = &loaded.scenario;
     let duration = a.duration.unwrap_or(sc.duration_s);
     super::check_duration(duration)?;
-    let two_strides = 2.0 * sc.gait.stride_period_s;
-    if duration < two_strides {
-        bail!(
-            "a simulation of {duration} s is shorter than two strides ({two_strides} s): its tracking figures start after the first stride"
-        );
-    }
+    sc.check_run_duration(duration)?;
     let config = leg_config(a.controller, a.gains.as_deref(), &loaded)?;
     let mut sim = LegSim::with_controller(&loaded, &config)?;
     let settings = sim.settings(duration)?;

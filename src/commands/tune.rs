@@ -169,13 +169,7 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
     check_population(a.population)?;
     let loaded = pma_leg::Scenario::load(&a.scenario)?;
     let sc = &loaded.scenario;
-    let two_strides = 2.0 * sc.gait.stride_period_s;
-    if a.duration < two_strides {
-        bail!(
-            "--duration {} s is shorter than two strides ({two_strides} s): the objective starts after the first stride",
-            a.duration
-        );
-    }
+    sc.check_run_duration(a.duration)?;
     output::check_wall_time(
         "this tuning",
         a.duration / sc.period_s * evaluations(a.population, a.generations),

@@ -121,7 +121,7 @@ pub fn parse_muscles(text: &str, file: &str) -> Result<Vec<MuscleGeometry>, LegE
                 message: format!("appears twice in `{file}`: muscle names must be unique"),
             });
         }
-        finite_positive(&format!("{}.pulley_radius_m", m.name), m.pulley_radius_m)?;
+        finite_positive(format!("{}.pulley_radius_m", m.name), m.pulley_radius_m)?;
         if !m.contraction_at_zero_m.is_finite() || m.anchor_m.iter().any(|v| !v.is_finite()) {
             return Err(LegError::Muscle {
                 muscle: m.name.clone(),
@@ -346,6 +346,20 @@ impl Scenario {
         Ok(s)
     }
 
+    /// Rejects a run of `duration_s` shorter than two strides: tracking figures and the
+    /// tuner's objective start after the first one.
+    pub fn check_run_duration(&self, duration_s: f64) -> Result<(), LegError> {
+        let two_strides_s = 2.0 * self.gait.stride_period_s;
+        if duration_s < two_strides_s {
+            return Err(LegError::ShorterThanTwoStrides {
+                scenario: self.name.clone(),
+                duration_s,
+                two_strides_s,
+            });
+        }
+        Ok(())
+    }
+
     /// Range checks.
     pub fn validate(&self) -> Result<(), LegError> {
         finite_positive("duration_s", self.duration_s)?;
@@ -361,10 +375,10 @@ impl Scenario {
         finite_non_negative("gait.ramp_s", self.gait.ramp_s)?;
         for (n, j) in [("hip", self.joints.hip), ("knee", self.joints.knee)] {
             finite_non_negative(
-                &format!("joints.{n}.damping_nm_s_per_rad"),
+                format!("joints.{n}.damping_nm_s_per_rad"),
                 j.damping_nm_s_per_rad,
             )?;
-            finite_non_negative(&format!("joints.{n}.friction_nm"), j.friction_nm)?;
+            finite_non_negative(format!("joints.{n}.friction_nm"), j.friction_nm)?;
         }
         self.plant.valve.validate()?;
         finite_positive(

@@ -57,6 +57,16 @@ pub enum LegError {
         /// Requirement.
         expected: &'static str,
     },
+    /// A leg run too short for its figures, which start after the first stride.
+    #[error("a run of {duration_s} s is shorter than two strides of {scenario} ({two_strides_s} s): its figures start after the first stride")]
+    ShorterThanTwoStrides {
+        /// Scenario name.
+        scenario: String,
+        /// The run's duration (s).
+        duration_s: f64,
+        /// Two stride periods (s).
+        two_strides_s: f64,
+    },
     /// A parameter is needed and absent.
     #[error("{name} is missing: {hint}")]
     Missing {
@@ -81,26 +91,35 @@ pub enum LegError {
 
 pub(crate) use pma_control::text::one_line;
 
-pub(crate) fn finite_positive(name: &str, value: f64) -> Result<f64, LegError> {
-    if value.is_finite() && value > 0.0 {
-        Ok(value)
-    } else {
-        Err(LegError::Invalid {
-            name: name.to_owned(),
-            value,
-            expected: "must be a finite number > 0",
-        })
+/// A parameter's invalid value, with what it must be.
+pub(crate) fn invalid(name: impl Into<String>, value: f64, expected: &'static str) -> LegError {
+    LegError::Invalid {
+        name: name.into(),
+        value,
+        expected,
     }
 }
 
-pub(crate) fn finite_non_negative(name: &str, value: f64) -> Result<f64, LegError> {
+pub(crate) fn finite_positive(name: impl Into<String>, value: f64) -> Result<f64, LegError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(invalid(name, value, "must be a finite number > 0"))
+    }
+}
+
+pub(crate) fn finite_non_negative(name: impl Into<String>, value: f64) -> Result<f64, LegError> {
     if value.is_finite() && value >= 0.0 {
         Ok(value)
     } else {
-        Err(LegError::Invalid {
-            name: name.to_owned(),
-            value,
-            expected: "must be a finite number >= 0",
-        })
+        Err(invalid(name, value, "must be a finite number >= 0"))
+    }
+}
+
+pub(crate) fn finite(name: impl Into<String>, value: f64) -> Result<f64, LegError> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(invalid(name, value, "must be a finite number"))
     }
 }

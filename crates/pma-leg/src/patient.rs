@@ -13,7 +13,7 @@
 //!
 //! Flexion is positive at both joints; a torque is positive when it flexes. The sources and
 //! the calibration of the presets are in `docs/patient.md`.
-use crate::error::LegError;
+use crate::error::{finite, finite_non_negative, finite_positive, invalid, LegError};
 use crate::leg::LegInertia;
 use pma_sim::gait::GaitReference;
 use rand::{Rng, SeedableRng};
@@ -283,38 +283,6 @@ pub struct PatientSettings {
     pub knee: JointPatientSettings,
 }
 
-fn invalid(name: String, value: f64, expected: &'static str) -> LegError {
-    LegError::Invalid {
-        name,
-        value,
-        expected,
-    }
-}
-
-fn non_negative(name: String, v: f64) -> Result<f64, LegError> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(v)
-    } else {
-        Err(invalid(name, v, "must be a finite number >= 0"))
-    }
-}
-
-fn positive(name: String, v: f64) -> Result<f64, LegError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        Err(invalid(name, v, "must be a finite number > 0"))
-    }
-}
-
-fn finite(name: String, v: f64) -> Result<f64, LegError> {
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(invalid(name, v, "must be a finite number"))
-    }
-}
-
 fn range(name: String, r: [f64; 2], positive_low: bool) -> Result<[f64; 2], LegError> {
     let low_ok = if positive_low {
         r[0] > 0.0
@@ -356,20 +324,20 @@ impl SpasticitySettings {
             threshold_rad_s: self.threshold_rad_s.unwrap_or(base.threshold_rad_s),
             delay_s: self.delay_s.unwrap_or(base.delay_s),
         };
-        non_negative(
+        finite_non_negative(
             format!("{at}.extensor_gain_nm_s_per_rad"),
             r.extensor_gain_nm_s_per_rad,
         )?;
-        non_negative(
+        finite_non_negative(
             format!("{at}.flexor_gain_nm_s_per_rad"),
             r.flexor_gain_nm_s_per_rad,
         )?;
         // `none` has an infinite threshold: nothing to check unless a gain was given.
         let active = r.extensor_gain_nm_s_per_rad > 0.0 || r.flexor_gain_nm_s_per_rad > 0.0;
         if active {
-            non_negative(format!("{at}.threshold_rad_s"), r.threshold_rad_s)?;
+            finite_non_negative(format!("{at}.threshold_rad_s"), r.threshold_rad_s)?;
         }
-        non_negative(format!("{at}.delay_s"), r.delay_s)?;
+        finite_non_negative(format!("{at}.delay_s"), r.delay_s)?;
         if r.delay_s > MAX_DELAY_S {
             return Err(invalid(
                 format!("{at}.delay_s"),
@@ -426,13 +394,13 @@ impl StiffnessSettings {
                 "upper_angle_rad",
             )?,
         };
-        non_negative(format!("{at}.lower_nm"), m.lower_nm)?;
-        non_negative(format!("{at}.upper_nm"), m.upper_nm)?;
+        finite_non_negative(format!("{at}.lower_nm"), m.lower_nm)?;
+        finite_non_negative(format!("{at}.upper_nm"), m.upper_nm)?;
         for (field, rate) in [
             ("lower_per_rad", m.lower_per_rad),
             ("upper_per_rad", m.upper_per_rad),
         ] {
-            non_negative(format!("{at}.{field}"), rate)?;
+            finite_non_negative(format!("{at}.{field}"), rate)?;
             if rate > MAX_STIFFNESS_RATE_PER_RAD {
                 return Err(invalid(
                     format!("{at}.{field}"),
@@ -465,7 +433,7 @@ impl PassiveMoment {
 
 impl SpasmSettings {
     fn validate(&self, at: &str) -> Result<(), LegError> {
-        non_negative(format!("{at}.rate_per_min"), self.rate_per_min)?;
+        finite_non_negative(format!("{at}.rate_per_min"), self.rate_per_min)?;
         if self.rate_per_min > MAX_SPASM_RATE_PER_MIN {
             return Err(invalid(
                 format!("{at}.rate_per_min"),
@@ -492,9 +460,9 @@ impl SpasmSettings {
         }
         for (i, e) in self.events.iter().enumerate() {
             let at = format!("{at}.events[{i}]");
-            non_negative(format!("{at}.t_s"), e.t_s)?;
-            non_negative(format!("{at}.amplitude_nm"), e.amplitude_nm)?;
-            positive(format!("{at}.duration_s"), e.duration_s)?;
+            finite_non_negative(format!("{at}.t_s"), e.t_s)?;
+            finite_non_negative(format!("{at}.amplitude_nm"), e.amplitude_nm)?;
+            finite_positive(format!("{at}.duration_s"), e.duration_s)?;
             if e.direction == SpasmDirection::Either {
                 return Err(LegError::Missing {
                     name: format!("{at}.direction"),
@@ -509,7 +477,7 @@ impl SpasmSettings {
 impl EffortSettings {
     fn validate(&self, at: &str) -> Result<(), LegError> {
         finite(format!("{at}.fraction"), self.fraction)?;
-        non_negative(format!("{at}.delay_s"), self.delay_s)?;
+        finite_non_negative(format!("{at}.delay_s"), self.delay_s)?;
         if self.delay_s > MAX_DELAY_S {
             return Err(invalid(
                 format!("{at}.delay_s"),
