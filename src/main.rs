@@ -68,13 +68,33 @@ fn main() {
     match run(cli) {
         Ok(code) => std::process::exit(code),
         Err(e) if e.downcast_ref::<output::StdoutClosed>().is_some() => std::process::exit(0),
+        Err(e) if e.downcast_ref::<studies::Interrupted>().is_some() => {
+            eprintln!(
+                "interrupted: nothing was written over the previous results (the sweeps' runs so far are kept under the output's sweeps/; the same command resumes them)"
+            );
+            std::process::exit(output::INTERRUPTED);
+        }
         Err(e) => {
-            // One line: the error and its causes.
-            let chain: Vec<String> = e.chain().map(|c| c.to_string()).collect();
-            eprintln!("error: {}", pma_control::text::one_line(&chain.join(": ")));
+            eprintln!("error: {}", error_line(&e));
             std::process::exit(1);
         }
     }
+}
+
+/// One line: the error and its causes, a cause left out when the message before it
+/// already says it (errors that name their file wrap and print their cause).
+fn error_line(e: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in e.chain().map(|c| c.to_string()) {
+        if line.contains(&cause) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&cause);
+    }
+    pma_control::text::one_line(&line)
 }
 
 /// Help and version as clap prints them; any other clap error on one line that keeps its

@@ -2,7 +2,6 @@
 //! (and named in every error) before a run starts, CSV streamed row by row, a progress
 //! bar with an ETA, a refusal of runs that would take hours, and Ctrl-C.
 use anyhow::{bail, Context, Result};
-use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -35,48 +34,160 @@ macro_rules! say {
     };
 }
 
-/// A file opened for writing before the run, whose errors name it.
+/// Where an output's bytes go until it is complete.
+enum Staged {
+    /// A temporary file beside the file it will replace (same directory, so that the final
+    /// rename is atomic), named `.NAME.XXXXXX.part`.
+    Temp {
+        temp: tempfile::NamedTempFile,
+        path: PathBuf,
+    },
+    /// Straight into something that is not a regular file (`/dev/stdout`, a pipe,
+    /// `/dev/null`): it holds no earlier result to protect, and renaming over it would
+    /// replace the device itself.
+    Direct(std::fs::File),
+}
+
+impl Staged {
+    /// Prepares `path` (`keep_extension`: the temporary name ends in the target's
+    /// extension, for writers that choose the format by it). A symbolic link is followed:
+    /// its target is replaced, not the link.
+    fn new(path: &Path, keep_extension: bool) -> Result<Self> {
+        let context = || format!("cannot create `{}`", path.display());
+        let path = match std::fs::metadata(path) {
+            Ok(meta) if !meta.is_file() => {
+                let file = std::fs::OpenOptions::new()
+                    .write(true)
+                    .open(path)
+                    .with_context(context)?;
+                return Ok(Staged::Direct(file));
+            }
+            Ok(_) => std::fs::canonicalize(path).with_context(context)?,
+            Err(_) => path.to_path_buf(),
+        };
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        let name = path.file_name().with_context(context)?.to_string_lossy();
+        let suffix = match path.extension() {
+            Some(ext) if keep_extension => format!(".{}", ext.to_string_lossy()),
+            _ => ".part".to_owned(),
+        };
+        let temp = tempfile::Builder::new()
+            .prefix(&format!(".{name}."))
+            .suffix(&suffix)
+            .tempfile_in(dir)
+            .with_context(context)?;
+        Ok(Staged::Temp { temp, path })
+    }
+
+    /// The path a writer that opens files itself (plotters) writes to.
+    fn write_path(&self, target: &Path) -> PathBuf {
+        match self {
+            Staged::Temp { temp, .. } => temp.path().to_path_buf(),
+            Staged::Direct(_) => target.to_path_buf(),
+        }
+    }
+
+    /// The output is complete: renamed onto its path (an earlier file there is replaced
+    /// only now, never truncated before the work is done).
+    fn commit(self, shown: &Path) -> Result<()> {
+        let context = || format!("cannot write `{}`", shown.display());
+        match self {
+            Staged::Temp { temp, path } => {
+                temp.as_file().sync_all().with_context(context)?;
+                temp.persist(&path)
+                    .map(drop)
+                    .map_err(|e| anyhow::Error::new(e.error))
+                    .with_context(context)
+            }
+            Staged::Direct(mut f) => f.flush().with_context(context),
+        }
+    }
+}
+
+impl Write for Staged {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        match self {
+            Staged::Temp { temp, .. } => temp.write(buf),
+            Staged::Direct(f) => f.write(buf),
+        }
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        match self {
+            Staged::Temp { temp, .. } => temp.flush(),
+            Staged::Direct(f) => f.flush(),
+        }
+    }
+}
+
+/// Draws or writes a file through `write(path to write)` and renames it onto `path` when
+/// `write` succeeds (plots: plotters writes the file itself, by its extension).
+pub fn write_via_temp<E: std::fmt::Display>(
+    path: &Path,
+    write: impl FnOnce(&Path) -> std::result::Result<(), E>,
+) -> Result<()> {
+    let staged = Staged::new(path, true)?;
+    write(&staged.write_path(path))
+        .map_err(|e| anyhow::anyhow!("cannot write `{}`: {e}", path.display()))?;
+    staged.commit(path)
+}
+
+/// A result file written in full or not at all: it is created now as a temporary file
+/// beside `path` (so that a bad path fails before any work) and renamed onto `path` only by
+/// [`OutFile::finish_with`]. An interrupted or failed run leaves the previous file intact.
 pub struct OutFile {
     path: PathBuf,
-    file: BufWriter<File>,
+    file: BufWriter<Staged>,
 }
 
 impl OutFile {
-    /// Creates (truncates) `path` now, so that a bad path fails before any work.
+    /// Prepares `path`: a temporary file beside it, now.
     pub fn create(path: &Path) -> Result<Self> {
-        let file =
-            File::create(path).with_context(|| format!("cannot create `{}`", path.display()))?;
         Ok(Self {
             path: path.to_path_buf(),
-            file: BufWriter::new(file),
+            file: BufWriter::new(Staged::new(path, false)?),
         })
     }
 
-    /// Writes `text` and closes the file.
+    /// Writes `text` and renames the file onto its path.
     pub fn finish_with(mut self, text: &str) -> Result<()> {
-        let path = self.path.clone();
+        let context = || format!("cannot write `{}`", self.path.display());
         self.file
             .write_all(text.as_bytes())
             .and_then(|()| self.file.flush())
-            .with_context(|| format!("cannot write `{}`", path.display()))
+            .with_context(context)?;
+        let staged = self
+            .file
+            .into_inner()
+            .map_err(|e| anyhow::Error::new(e.into_error()))
+            .with_context(context)?;
+        staged.commit(&self.path)
     }
 }
 
-/// A CSV file streamed row by row through a buffer. The first I/O error is kept (with
-/// the path) and reported by [`CsvOut::finish`]; later rows are dropped.
+/// Writes `text` to `path` in full or not at all (through a temporary file).
+pub fn write_file(path: &Path, text: &str) -> Result<()> {
+    OutFile::create(path)?.finish_with(text)
+}
+
+/// A CSV file streamed row by row through a buffer into a temporary file beside its path,
+/// renamed onto the path by [`CsvOut::finish`] (also after Ctrl-C: the rows so far are a
+/// complete CSV). The first I/O error is kept (with the path) and reported by `finish`;
+/// later rows are dropped.
 pub struct CsvOut {
     path: PathBuf,
-    writer: csv::Writer<BufWriter<File>>,
+    writer: csv::Writer<BufWriter<Staged>>,
     error: Option<anyhow::Error>,
     rows: u64,
 }
 
 impl CsvOut {
-    /// Creates `path` and writes the header now.
+    /// Prepares `path` and writes the header now.
     pub fn create(path: &Path, header: &[String]) -> Result<Self> {
-        let file =
-            File::create(path).with_context(|| format!("cannot create `{}`", path.display()))?;
-        let mut writer = csv::Writer::from_writer(BufWriter::with_capacity(1 << 16, file));
+        let staged = Staged::new(path, false)?;
+        let mut writer = csv::Writer::from_writer(BufWriter::with_capacity(1 << 16, staged));
         writer
             .write_record(header)
             .with_context(|| format!("cannot write `{}`", path.display()))?;
@@ -102,15 +213,64 @@ impl CsvOut {
         }
     }
 
-    /// Flushes; the first error of the run, if any, naming the file.
+    /// Flushes and renames the file onto its path; the first error of the run, if any,
+    /// naming the file (the previous file at the path is then left as it was).
     pub fn finish(mut self) -> Result<u64> {
         if let Some(e) = self.error.take() {
             return Err(e);
         }
-        self.writer
-            .flush()
-            .with_context(|| format!("cannot write `{}`", self.path.display()))?;
+        let context = || format!("cannot write `{}`", self.path.display());
+        let staged = self
+            .writer
+            .into_inner()
+            .map_err(|e| anyhow::Error::new(e.into_error()))
+            .with_context(context)?
+            .into_inner()
+            .map_err(|e| anyhow::Error::new(e.into_error()))
+            .with_context(context)?;
+        staged.commit(&self.path)?;
         Ok(self.rows)
+    }
+}
+
+/// A path given on the command line that a command reads: a `--plant`, `--gains`,
+/// `--config`, scenario or sweep file. Names of embedded presets are not files.
+pub fn input_file(arg: &str) -> Option<&Path> {
+    let p = Path::new(arg);
+    p.is_file().then_some(p)
+}
+
+/// Refuses to write an output onto one of the inputs (`single --plant P --csv P` would
+/// destroy the plant file): compares file identities, so links and `./` spellings are
+/// caught too.
+pub fn refuse_input_as_output(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<()> {
+    for (out_what, out) in outputs {
+        for (in_what, input) in inputs {
+            if same_file(input, out) {
+                bail!(
+                    "{out_what} `{}` is the {in_what} this command reads: refusing to overwrite an input (choose another path)",
+                    out.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(unix)]
+fn same_file(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
+}
+
+#[cfg(not(unix))]
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
     }
 }
 

@@ -17,9 +17,13 @@ pub fn run(out: &Path) -> Result<()> {
     std::fs::create_dir_all(out).with_context(|| format!("cannot create `{}`", out.display()))?;
     let json_file = OutFile::create(&out.join("results.json"))?;
     let report_file = OutFile::create(&out.join("report.md"))?;
+    let stop = crate::output::stop_flag()?;
     let (results, plots) = compute(&plant, &spec)?;
     crate::plot::register_font()?;
-    let studies = crate::studies::run_all(out)?;
+    let studies = crate::studies::run_all(out, &stop)?;
+    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        return Err(crate::studies::Interrupted.into());
+    }
     let mut json = serde_json::to_value(&results)?;
     if let Some(map) = json.as_object_mut() {
         for (key, summary) in &studies.summaries {
@@ -30,8 +34,7 @@ pub fn run(out: &Path) -> Result<()> {
     report_file.finish_with(&format!("{}{}", report(&results), studies.report))?;
     for plot in &plots {
         let path = out.join(format!("{}.png", plot.name));
-        crate::plot::draw(&path, plot)
-            .map_err(|e| anyhow::anyhow!("cannot draw `{}`: {e}", path.display()))?;
+        crate::output::write_via_temp(&path, |tmp| crate::plot::draw(tmp, plot))?;
     }
     say!(
         "Table II in simulation ({} plant, sine 0.25 Hz, 20 s):",

@@ -1,7 +1,13 @@
 //! The studies `paper` adds to the paper's experiments, run as the shipped sweeps
 //! (`models/sweeps/`): shocks, Fig. 9 (added loads) and a Monte Carlo population.
 use crate::commands::sweep::load;
-use anyhow::Result;
+use anyhow::{bail, Result};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// A study stopped by SIGINT or SIGTERM.
+#[derive(Debug, thiserror::Error)]
+#[error("interrupted")]
+pub struct Interrupted;
 use pma_sim::shock::{BLOCK_S, BLOCK_START_S, IMPACT_START_S, JUMP_DOWN_S, JUMP_UP_S};
 use pma_sim::sweep::{self, Shard, Summary, Sweep};
 use std::path::Path;
@@ -20,6 +26,7 @@ pub struct Studies {
 fn run_sweep(
     name: &str,
     out: &Path,
+    stop: &AtomicBool,
 ) -> Result<(
     Sweep,
     Summary,
@@ -27,7 +34,10 @@ fn run_sweep(
 )> {
     let s = load(name)?;
     let dir = out.join("sweeps").join(name);
-    sweep::execute(&s, &dir, Shard::default(), &|_, _| {})?;
+    sweep::execute(&s, &dir, Shard::default(), &|_, _| {}, stop)?;
+    if stop.load(Ordering::Relaxed) {
+        bail!(Interrupted);
+    }
     let (manifest, runs, missing) = sweep::merge(&[dir])?;
     let summary = sweep::summarise(&manifest.name, &runs, missing.len());
     Ok((s, summary, runs))
@@ -99,8 +109,10 @@ fn shock_plots(s: &Sweep, out: &Path) -> Result<usize> {
                 }
             }
             let path = out.join(format!("shock_{event}_{plant}.png").replace("none", "jump"));
-            crate::plot::shock(&path, title, &format!("{plant} plant; every controller at equal activity (3 bar/s), APRC-NDO also with the paper's gains and m_p 0.5-15"), &traces, marks)
-                .map_err(|e| anyhow::anyhow!("cannot draw `{}`: {e}", path.display()))?;
+            let subtitle = format!("{plant} plant; every controller at equal activity (3 bar/s), APRC-NDO also with the paper's gains and m_p 0.5-15");
+            crate::output::write_via_temp(&path, |tmp| {
+                crate::plot::shock(tmp, title, &subtitle, &traces, marks)
+            })?;
             n += 1;
         }
     }
@@ -108,14 +120,15 @@ fn shock_plots(s: &Sweep, out: &Path) -> Result<usize> {
 }
 
 /// Runs the three studies, writes their plots, and returns their summaries and sections.
-pub fn run_all(out: &Path) -> Result<Studies> {
-    let (shocks, shock_summary, _) = run_sweep("shocks", out)?;
+pub fn run_all(out: &Path, stop: &AtomicBool) -> Result<Studies> {
+    let (shocks, shock_summary, _) = run_sweep("shocks", out, stop)?;
     let mut plots = shock_plots(&shocks, out)?;
-    let (_, fig9, _) = run_sweep("fig9", out)?;
-    let (_, mc, mc_runs) = run_sweep("monte_carlo", out)?;
+    let (_, fig9, _) = run_sweep("fig9", out, stop)?;
+    let (_, mc, mc_runs) = run_sweep("monte_carlo", out, stop)?;
     let png = out.join("robustness.png");
-    crate::plot::rte_distributions(&png, "monte_carlo", &mc_runs)
-        .map_err(|e| anyhow::anyhow!("cannot draw `{}`: {e}", png.display()))?;
+    crate::output::write_via_temp(&png, |tmp| {
+        crate::plot::rte_distributions(tmp, "monte_carlo", &mc_runs)
+    })?;
     plots += 1;
     let mut report = String::new();
     report.push_str(&section(

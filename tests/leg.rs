@@ -272,3 +272,22 @@ fn bad_scenarios_and_urdfs_are_named_in_one_line() {
         .to_string()
         .contains("gait_jogging"));
 }
+
+/// Regression: a leg that diverged (`pulley_radius_m = 10`: hip RMS 3.97e31 deg) was
+/// reported as a finite success. A run whose state leaves physical bounds now fails.
+#[test]
+fn a_leg_run_that_leaves_physical_bounds_fails() {
+    let loaded = Scenario::load("gait_training").unwrap();
+    let mut sim = LegSim::new(&loaded).unwrap();
+    // A knee spun at 80 rad/s: no limb moves so fast.
+    sim.set_state([0.2, 0.3], [0.0, 80.0]);
+    let e = sim.run(4.0, &mut ()).expect_err("left physics");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("physical bounds") && msg.contains("knee"),
+        "{msg}"
+    );
+    // A sane start runs.
+    let mut sim = LegSim::new(&loaded).unwrap();
+    sim.run(0.5, &mut ()).expect("a normal run");
+}

@@ -118,11 +118,7 @@ fn ideal_converter_config() -> RigConfig {
         )
         .replace("sensor_stuck_periods = 500", "sensor_stuck_periods = 0")
         .replace("converter_bits = 16", "converter_bits = 0")
-        .replace("sensor_noise_rms_m = 3e-6", "sensor_noise_rms_m = 0.0")
-        .replace(
-            "input_range_v = [0.0, 10.0]",
-            "input_range_v = [-10.0, 10.0]",
-        );
+        .replace("sensor_noise_rms_m = 3e-6", "sensor_noise_rms_m = 0.0");
     assert_ne!(text, EMBEDDED_VIRTUAL);
     RigConfig::from_toml_str(&text, "ideal-converters.toml").expect("config")
 }
@@ -468,4 +464,240 @@ fn without_the_board_check_names_the_device_and_what_to_do() {
         err.contains("--features comedi") || err.contains("driver") || err.contains("permission"),
         "{err}"
     );
+}
+
+/// Writes `text` as a rig configuration in `dir` and returns its path.
+fn config_file(dir: &Path, name: &str, text: &str) -> String {
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, text).expect("write");
+    path.display().to_string()
+}
+
+fn assert_refused(args: &[&str], needle: &str) {
+    let out = pma_exo(args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+    assert!(err.contains(needle), "{args:?}: {err}");
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+}
+
+/// Regression: 10 bar on a 6-bar muscle, a window to 120 mm, the charge pump on the
+/// valve's channel, the valve on an input subdevice, channel 99999, subdevice 77, range
+/// 250, a negative valve scale and a 10 us period all passed `rig check`.
+#[test]
+fn implausible_rig_configurations_are_refused_by_rig_check() {
+    let dir = temp_dir("implausible");
+    let valve = "valve = { subdevice = 1, channel = 0, range = 1, aref = \"ground\" }";
+    let cases: [(&str, String, &str); 10] = [
+        (
+            "ten bar",
+            EMBEDDED_VIRTUAL.replace("pressure_max_pa = 6.0e5 ", "pressure_max_pa = 1.0e6 "),
+            "limits.pressure_max_pa",
+        ),
+        (
+            "window to 120 mm",
+            EMBEDDED_VIRTUAL.replace("position_max_m = 0.045", "position_max_m = 0.120"),
+            "limits.position_max_m",
+        ),
+        (
+            "pump on the valve",
+            EMBEDDED_VIRTUAL.replace(
+                "charge_pump = { subdevice = 2, channel = 0 }",
+                "charge_pump = { subdevice = 1, channel = 0 }",
+            ),
+            "signals.charge_pump",
+        ),
+        (
+            "valve on an input",
+            EMBEDDED_VIRTUAL.replace(
+                valve,
+                &valve.replace("subdevice = 1, channel = 0", "subdevice = 0, channel = 1"),
+            ),
+            "analog input",
+        ),
+        (
+            "channel 99999",
+            EMBEDDED_VIRTUAL.replace(valve, &valve.replace("channel = 0", "channel = 99999")),
+            "no channel 99999",
+        ),
+        (
+            "subdevice 77",
+            EMBEDDED_VIRTUAL.replace(valve, &valve.replace("subdevice = 1", "subdevice = 77")),
+            "no subdevice 77",
+        ),
+        (
+            "range 250",
+            EMBEDDED_VIRTUAL.replace(valve, &valve.replace("range = 1", "range = 250")),
+            "no range 250",
+        ),
+        (
+            "negative valve scale",
+            EMBEDDED_VIRTUAL.replace("valve_pa_per_v = 1.0e5", "valve_pa_per_v = -1.0e5"),
+            "calibration.valve_pa_per_v",
+        ),
+        (
+            "period 10 us",
+            EMBEDDED_VIRTUAL.replace("period_s = 0.001", "period_s = 0.00001"),
+            "period_s",
+        ),
+        (
+            "watchdog of 4294967295 periods",
+            EMBEDDED_VIRTUAL.replace("watchdog_periods = 50", "watchdog_periods = 4294967295"),
+            "limits.watchdog_periods",
+        ),
+    ];
+    for (what, text, needle) in cases {
+        assert_ne!(text, EMBEDDED_VIRTUAL, "{what}: the edit did not apply");
+        let p = config_file(&dir, &what.replace(' ', "_"), &text);
+        assert_refused(&["rig", "check", "--config", &p], needle);
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// Regression: the sensor's documented span, -20..130 mm, was refused because the
+/// calibration put -20 mm at -0.0000000000000002 V.
+#[test]
+fn the_sensors_documented_span_passes_despite_rounding() {
+    let dir = temp_dir("span");
+    let text = EMBEDDED_VIRTUAL
+        .replace("position_min_m = -0.018", "position_min_m = -0.020")
+        .replace(
+            "[limits]",
+            "[muscle]\npressure_max_pa = 6.0e5\nnominal_length_m = 0.6\n\n[limits]",
+        )
+        .replace("position_max_m = 0.045", "position_max_m = 0.130");
+    let p = config_file(&dir, "span", &text);
+    let out = pma_exo(&["rig", "check", "--config", &p]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// Regression: `--inject stall@0` and `--inject sensor-nan@25 --duration 20` ended
+/// "completed", exit 0: a fault that cannot fire tests nothing.
+#[test]
+fn an_injection_that_cannot_fire_is_refused() {
+    assert_refused(&["rig", "run", "--inject", "stall@0"], "cannot fire");
+    assert_refused(
+        &[
+            "rig",
+            "run",
+            "--duration",
+            "20",
+            "--inject",
+            "sensor-nan@25",
+        ],
+        "cannot fire",
+    );
+}
+
+/// Regression: `--log /dev/null` ran the whole experiment and failed at the end; a log
+/// over an existing file destroyed it.
+#[test]
+fn a_log_that_cannot_keep_the_run_is_refused_before_the_muscle_moves() {
+    assert_refused(&["rig", "run", "--log", "/dev/null"], "not a regular file");
+    let dir = temp_dir("existing-log");
+    let old = dir.join("old.csv");
+    std::fs::write(&old, "an earlier run").expect("write");
+    assert_refused(
+        &["rig", "run", "--log", old.to_str().expect("utf-8")],
+        "never overwritten",
+    );
+    assert_eq!(
+        std::fs::read_to_string(&old).expect("read"),
+        "an earlier run"
+    );
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// Regression: a log with its last 5,000 rows removed, or with an edited time, period,
+/// voltage, fault or header limit, replayed as "0 differ". A log now ends with a digest
+/// and replay recomputes every column it can.
+#[test]
+fn replay_refuses_a_truncated_or_edited_log() {
+    let dir = temp_dir("replay-edits");
+    let log = dir.join("log.csv");
+    let r = run_virtual(
+        &virtual_config(),
+        &RunOptions {
+            duration_s: Some(8.0),
+            log_path: Some(log.clone()),
+            ..RunOptions::default()
+        },
+    );
+    assert!(r.completed, "{r:?}");
+    let text = std::fs::read_to_string(&log).expect("log");
+    assert_eq!(pma_rig::replay(&log).expect("intact").mismatches, 0);
+    let lines: Vec<&str> = text.lines().collect();
+    let header_end = lines
+        .iter()
+        .position(|l| !l.starts_with('#'))
+        .expect("columns");
+    let row = header_end + 3000;
+    // Columns: t_s,period,dt_s,...,position_m(6),position_v(7),...,valve_v(11),...,fault(18)
+    let edit_field = |line: &str, field: usize, value: &str| -> String {
+        let mut f: Vec<String> = line.split(',').map(str::to_owned).collect();
+        f[field] = value.to_owned();
+        f.join(",")
+    };
+    let with_line = |i: usize, new: String| -> String {
+        let mut l: Vec<String> = lines.iter().map(|s| (*s).to_owned()).collect();
+        l[i] = new;
+        l.join("\n") + "\n"
+    };
+    let t_edited = {
+        let t: f64 = lines[row].split(',').next().expect("t").parse().expect("t");
+        edit_field(lines[row], 0, &format!("{}", t + 0.5))
+    };
+    let cases: Vec<(&str, String, &str)> = vec![
+        (
+            "truncated",
+            lines[..lines.len() - 5000].join("\n") + "\n",
+            "truncated",
+        ),
+        ("time edited", with_line(row, t_edited), "digest"),
+        (
+            "volts edited",
+            with_line(row, edit_field(lines[row], 7, "5.5")),
+            "digest",
+        ),
+        (
+            "fault edited",
+            with_line(row, edit_field(lines[row], 18, "stall")),
+            "digest",
+        ),
+        (
+            "header limit edited",
+            text.replace("position_max_m = 0.045", "position_max_m = 0.04"),
+            "digest",
+        ),
+    ];
+    for (what, edited, needle) in cases {
+        assert_ne!(edited, text, "{what}: the edit did not apply");
+        let p = dir.join(format!("{}.csv", what.replace(' ', "_")));
+        std::fs::write(&p, &edited).expect("write");
+        let e = pma_rig::replay(&p).expect_err(what).to_string();
+        assert!(e.contains(needle), "{what}: {e}");
+    }
+    // An edit that recomputes the digest is still caught by the columns replay recomputes.
+    let forged_row = edit_field(lines[row], 1, "77");
+    let mut forged: Vec<String> = lines.iter().map(|s| (*s).to_owned()).collect();
+    forged[row] = forged_row;
+    let digest_line = forged.pop().expect("digest line");
+    let rows = digest_line.rsplit(' ').next().expect("rows").to_owned();
+    let body = forged.join("\n") + "\n";
+    use sha2::Digest;
+    let hex: String = sha2::Sha256::digest(body.as_bytes())
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    let p = dir.join("forged.csv");
+    std::fs::write(&p, format!("{body}# sha256 {hex} rows {rows}\n")).expect("write");
+    let e = pma_rig::replay(&p).expect_err("forged").to_string();
+    assert!(e.contains("period"), "{e}");
+    std::fs::remove_dir_all(dir).ok();
 }

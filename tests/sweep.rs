@@ -266,3 +266,56 @@ fn a_slurm_job_array_runs_the_shards() {
     );
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// Regression: two sweeps into one directory both did all the work and left 2,388
+/// duplicate lines. The directory is now locked for the run.
+#[test]
+fn a_second_sweep_into_a_busy_directory_is_refused() {
+    let dir = temp("lock");
+    let long = SMALL.replace("duration_s = 3.0", "duration_s = 60.0");
+    let file = write_sweep(&dir, &long);
+    let out = dir.join("out").display().to_string();
+    let mut first = Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args(["sweep", &file, "--out", &out, "--threads", "1"])
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("spawn");
+    // Wait for the first to hold the lock (its manifest is written after the lock).
+    let manifest = dir.join("out").join("sweep.json");
+    let t0 = std::time::Instant::now();
+    while !manifest.exists() && t0.elapsed() < std::time::Duration::from_secs(60) {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let second = pma_exo(&["sweep", &file, "--out", &out]);
+    let _ = first.kill();
+    let _ = first.wait();
+    let err = String::from_utf8_lossy(&second.stderr);
+    assert_eq!(second.status.code(), Some(1), "{err}");
+    assert!(err.contains("another `pma-exo sweep`"), "{err}");
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// Regression: a record appended by hand (or by another sweep) made a 36-run sweep report
+/// 37 runs. Only the sweep's own run indices are accepted, once each.
+#[test]
+fn a_foreign_record_in_runs_jsonl_is_refused() {
+    let dir = temp("foreign");
+    let file = write_sweep(&dir, SMALL);
+    let out = dir.join("out");
+    let o = out.display().to_string();
+    ok(&["sweep", &file, "--out", &o]);
+    let runs = out.join("runs.jsonl");
+    let text = std::fs::read_to_string(&runs).expect("runs");
+    let first = text.lines().next().expect("a line");
+    let mut v: serde_json::Value = serde_json::from_str(first).expect("json");
+    v["run"] = serde_json::json!(10);
+    std::fs::write(&runs, format!("{text}{v}\n")).expect("append");
+    let again = pma_exo(&["sweep", &file, "--out", &o]);
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert_eq!(again.status.code(), Some(1), "{err}");
+    assert!(err.contains("not a record of this sweep"), "{err}");
+    let merged = dir.join("merged").display().to_string();
+    let m = pma_exo(&["sweep", "merge", &o, "--out", &merged]);
+    assert_eq!(m.status.code(), Some(1));
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -41,7 +41,7 @@ pub struct RerunArgs {
     )]
     pub mode: String,
     /// Log to Rerun at this rate (Hz) instead of every control period.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub rerun_hz: Option<f64>,
 }
 
@@ -57,6 +57,11 @@ impl Default for RerunArgs {
 impl RerunArgs {
     /// Whether anything is to be logged; warns about a rate given without a sink.
     pub fn enabled(&self) -> Result<bool> {
+        if let Some(hz) = self.rerun_hz {
+            if !(hz.is_finite() && hz > 0.0) {
+                bail!("--rerun-hz must be a finite rate in Hz > 0 (got {hz})");
+            }
+        }
         let on = self.mode != "off";
         if !on && self.rerun_hz.is_some() {
             eprintln!("warning: --rerun-hz has no effect without --rerun (nothing is logged)");
@@ -101,11 +106,39 @@ pub fn load_gains(kind: ControllerKind, path: Option<&Path>) -> Result<Controlle
     })
 }
 
+/// Most worker threads per core accepted: more only slow a run down.
+const THREADS_PER_CORE_MAX: usize = 4;
+
+/// The files a leg command reads: the scenario file, its URDF and muscle geometry, and a
+/// gain file.
+pub fn scenario_inputs<'a>(
+    scenario: &'a str,
+    loaded: &'a pma_leg::LoadedScenario,
+    gains: Option<&'a Path>,
+) -> Vec<(&'static str, &'a Path)> {
+    let mut inputs: Vec<(&'static str, &Path)> = vec![
+        ("URDF", Path::new(&loaded.urdf_source)),
+        ("muscle geometry", Path::new(&loaded.muscles_source)),
+    ];
+    if let Some(p) = crate::output::input_file(scenario) {
+        inputs.push(("scenario file", p));
+    }
+    if let Some(g) = gains {
+        inputs.push(("gain file", g));
+    }
+    inputs
+}
+
 /// Runs `f` on a rayon pool of `threads` threads (`None`: one per core).
 pub fn with_threads<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> Result<T> {
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    let max = (THREADS_PER_CORE_MAX * cores).max(8);
     match threads {
         None => Ok(f()),
         Some(0) => bail!("--threads must be at least 1"),
+        Some(n) if n > max => bail!(
+            "--threads {n} is more than {THREADS_PER_CORE_MAX} per core of this machine's {cores} (at most {max}): more threads than cores only slow the run"
+        ),
         Some(n) => Ok(rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build()

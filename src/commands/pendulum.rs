@@ -104,6 +104,11 @@ impl Recorder<LegPlant, LegOutput> for CsvRecorder {
 /// Runs `pendulum`.
 pub fn run(a: Args) -> Result<i32> {
     super::check_duration(a.duration)?;
+    for (flag, deg) in [("--knee-deg", a.knee_deg), ("--hip-deg", a.hip_deg)] {
+        if !deg.is_finite() {
+            anyhow::bail!("{flag} must be a finite angle in degrees (got {deg})");
+        }
+    }
     let mut loaded = Scenario::load(&a.scenario)?;
     if let Some(s) = a.spasticity {
         let preset = SpasticitySettings {
@@ -117,6 +122,12 @@ pub fn run(a: Args) -> Result<i32> {
         hip_rad: a.hip_deg.to_radians(),
         knee_rad: a.knee_deg.to_radians(),
     };
+    if let Some(csv) = &a.csv {
+        output::refuse_input_as_output(
+            &super::scenario_inputs(&a.scenario, &loaded, None),
+            &[("--csv", csv)],
+        )?;
+    }
     let sim = pendulum::seated(&loaded, setup)?;
     let settings = LoopSettings::new(loaded.scenario.period_s, a.duration)?;
     let csv = match &a.csv {

@@ -151,6 +151,12 @@ pub fn run(a: Args) -> Result<i32> {
         .iter()
         .map(|m| m.geometry.name.clone())
         .collect();
+    if let Some(csv) = &a.csv {
+        output::refuse_input_as_output(
+            &super::scenario_inputs(&a.scenario, &loaded, a.gains.as_deref()),
+            &[("--csv", csv)],
+        )?;
+    }
     let csv = match &a.csv {
         Some(p) => Some(CsvRecorder {
             out: CsvOut::create(p, &csv_header(&names))?,

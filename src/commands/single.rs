@@ -94,8 +94,18 @@ pub fn run(a: Args) -> Result<i32> {
         duration_s: a.duration,
         ..RunSpec::default()
     };
-    let settings = spec.settings()?;
+    let settings = spec.validate()?;
     output::check_wall_time("this run", settings.periods() as f64, BENCH_PERIOD_S, a.yes)?;
+    if let Some(csv) = &a.csv {
+        let mut inputs = Vec::new();
+        if let Some(p) = output::input_file(&a.plant) {
+            inputs.push(("plant file", p));
+        }
+        if let Some(g) = &a.gains {
+            inputs.push(("gain file", g.as_path()));
+        }
+        output::refuse_input_as_output(&inputs, &[("--csv", csv)])?;
+    }
     let header: Vec<String> = CSV_COLUMNS.iter().map(|c| (*c).to_owned()).collect();
     let csv = a
         .csv

@@ -86,15 +86,27 @@ pub fn run(a: Args) -> Result<i32> {
         .filter(|p| a.shard.contains(p.index))
         .count();
     let periods = sweep.file.duration_s / sweep.file.period_s * selected as f64;
-    let threads = a.threads.unwrap_or_else(rayon::current_num_threads).max(1);
+    // More threads than cores do not make a sweep faster.
+    let cores = rayon::current_num_threads().max(1);
+    let threads = a.threads.unwrap_or(cores).clamp(1, cores);
     output::check_wall_time("this sweep", periods, 1e-6 / threads as f64, a.yes)?;
+    let stop = output::stop_flag()?;
     let bar = output::progress_bar(selected as u64, "runs");
     let progress = |done: usize, _total: usize| bar.set_position(done as u64);
     let start = std::time::Instant::now();
     let exec = super::with_threads(a.threads, || {
-        sweep::execute(&sweep, &out, a.shard, &progress)
+        sweep::execute(&sweep, &out, a.shard, &progress, &stop)
     })??;
     bar.finish_and_clear();
+    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        eprintln!(
+            "interrupted: {} runs written now, {} before, in `{}`; run the same command again to resume",
+            exec.run_now,
+            exec.already_done,
+            out.display()
+        );
+        return Ok(output::INTERRUPTED);
+    }
     let wall = start.elapsed().as_secs_f64();
     eprintln!(
         "sweep `{}` shard {}: {} runs now ({:.1} runs/s), {} already in `{}`",
@@ -112,16 +124,18 @@ pub fn run(a: Args) -> Result<i32> {
 }
 
 fn merge(dirs: &[PathBuf], out: &Path) -> Result<i32> {
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create `{}`", out.display()))?;
+    // The inputs are read before anything is created: a missing shard leaves no empty --out.
     let (manifest, runs, missing) = sweep::merge(dirs)?;
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create `{}`", out.display()))?;
     sweep::write_runs(&out.join("runs.jsonl"), &runs)?;
     let merged = pma_sim::sweep::Manifest {
         shard: Shard::default(),
         ..manifest
     };
-    let path = out.join("sweep.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&merged)?)
-        .with_context(|| format!("cannot write `{}`", path.display()))?;
+    output::write_file(
+        &out.join("sweep.json"),
+        &serde_json::to_string_pretty(&merged)?,
+    )?;
     summarise_dirs(&[out.to_path_buf()], out)?;
     if !missing.is_empty() {
         bail!(
@@ -139,15 +153,14 @@ fn summarise_dirs(dirs: &[PathBuf], out: &Path) -> Result<()> {
     let (manifest, runs, missing) = sweep::merge(dirs)?;
     let summary = sweep::summarise(&manifest.name, &runs, missing.len());
     let json = out.join("summary.json");
-    std::fs::write(&json, serde_json::to_string_pretty(&summary)?)
-        .with_context(|| format!("cannot write `{}`", json.display()))?;
+    output::write_file(&json, &serde_json::to_string_pretty(&summary)?)?;
     let md = out.join("summary.md");
-    std::fs::write(&md, sweep::markdown(&summary))
-        .with_context(|| format!("cannot write `{}`", md.display()))?;
+    output::write_file(&md, &sweep::markdown(&summary))?;
     let png = out.join("rte.png");
     crate::plot::register_font()?;
-    crate::plot::rte_distributions(&png, &summary.name, &runs)
-        .map_err(|e| anyhow::anyhow!("cannot draw `{}`: {e}", png.display()))?;
+    output::write_via_temp(&png, |tmp| {
+        crate::plot::rte_distributions(tmp, &summary.name, &runs)
+    })?;
     say!(
         "sweep `{}`: {} runs in {} groups{}; wrote {}, {} and {}",
         summary.name,

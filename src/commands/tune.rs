@@ -3,7 +3,7 @@ use super::check_duration;
 use super::simulate::LEG_PERIOD_S;
 use crate::output::{self, OutFile};
 use crate::say;
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use pma_control::ControllerKind;
 use std::path::PathBuf;
 
@@ -55,23 +55,31 @@ impl Args {
     }
 }
 
-/// Evaluations of a firefly search: the initial population, then every pair per generation
-/// at most (the tuner's own count is reported after the run).
-fn evaluations(population: usize, generations: usize) -> f64 {
-    (population + population * generations) as f64
-}
+/// Largest firefly population accepted.
+const MAX_POPULATION: usize = 10_000;
+/// Most generations accepted.
+const MAX_GENERATIONS: usize = 100_000;
 
-fn check_population(population: usize) -> Result<()> {
-    if population < 2 {
-        bail!("--population must be at least 2 (got {population})");
+/// Checks the search's size and returns its evaluations: the initial population, then one
+/// per firefly per generation at most (the tuner's own count is reported after the run).
+fn evaluations(population: usize, generations: usize) -> Result<f64> {
+    if !(2..=MAX_POPULATION).contains(&population) {
+        bail!("--population must be 2..={MAX_POPULATION} (got {population})");
     }
-    Ok(())
+    if !(1..=MAX_GENERATIONS).contains(&generations) {
+        bail!("--generations must be 1..={MAX_GENERATIONS} (got {generations})");
+    }
+    let n = generations
+        .checked_add(1)
+        .and_then(|g| g.checked_mul(population))
+        .context("the search is too large to count")?;
+    Ok(n as f64)
 }
 
 /// Runs `tune`.
 pub fn run(a: Args) -> Result<i32> {
     check_duration(a.duration)?;
-    check_population(a.population)?;
+    let evaluations = evaluations(a.population, a.generations)?;
     if let Some(v) = a.max_variation {
         if !(v.is_finite() && v > 0.0) {
             bail!("--max-variation must be a finite number of bar/s > 0 (got {v})");
@@ -83,12 +91,10 @@ pub fn run(a: Args) -> Result<i32> {
         ..Default::default()
     };
     let periods = spec.settings()?.periods() as f64;
-    output::check_wall_time(
-        "this tuning",
-        periods * evaluations(a.population, a.generations),
-        1e-6,
-        a.yes,
-    )?;
+    output::check_wall_time("this tuning", periods * evaluations, 1e-6, a.yes)?;
+    if let (Some(out), Some(plant)) = (&a.out, output::input_file(&a.plant)) {
+        output::refuse_input_as_output(&[("plant file", plant)], &[("--out", out)])?;
+    }
     let out = a.out.as_deref().map(OutFile::create).transpose()?;
     let opts = pma_sim::tune::FireflyOptions {
         population: a.population,
@@ -100,9 +106,13 @@ pub fn run(a: Args) -> Result<i32> {
         duration_s: a.duration,
         max_variation_pa_per_s: a.max_variation.map(|v| v * 1e5),
     };
+    let stop = output::stop_flag()?;
     let found = super::with_threads(a.threads, || {
-        pma_sim::tune::tune(a.controller, &plant, &opts, &objective)
+        pma_sim::tune::tune(a.controller, &plant, &opts, &objective, &stop)
     })?;
+    if interrupted(&stop, a.out.as_deref()) {
+        return Ok(output::INTERRUPTED);
+    }
     let Some(res) = found else {
         bail!(
             "{} has no search space here (pass --gains to change its gains)",
@@ -166,16 +176,22 @@ pub struct LegArgs {
 /// Runs `tune-leg`.
 pub fn run_leg(a: LegArgs) -> Result<i32> {
     check_duration(a.duration)?;
-    check_population(a.population)?;
+    let evaluations = evaluations(a.population, a.generations)?;
     let loaded = pma_leg::Scenario::load(&a.scenario)?;
     let sc = &loaded.scenario;
     sc.check_run_duration(a.duration)?;
     output::check_wall_time(
         "this tuning",
-        a.duration / sc.period_s * evaluations(a.population, a.generations),
+        a.duration / sc.period_s * evaluations,
         LEG_PERIOD_S,
         a.yes,
     )?;
+    if let Some(out) = &a.out {
+        output::refuse_input_as_output(
+            &super::scenario_inputs(&a.scenario, &loaded, None),
+            &[("--out", out)],
+        )?;
+    }
     let out = a.out.as_deref().map(OutFile::create).transpose()?;
     let opts = pma_sim::tune::FireflyOptions {
         population: a.population,
@@ -183,9 +199,13 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
         seed: a.seed,
         ..Default::default()
     };
+    let stop = output::stop_flag()?;
     let found = super::with_threads(a.threads, || {
-        pma_leg::tune::tune(&loaded, a.controller, &opts, a.duration)
+        pma_leg::tune::tune(&loaded, a.controller, &opts, a.duration, &stop)
     })?;
+    if interrupted(&stop, a.out.as_deref()) {
+        return Ok(output::INTERRUPTED);
+    }
     let Some(t) = found else {
         bail!(
             "{} has no search space here (pass --gains to simulate to change its gains)",
@@ -216,6 +236,21 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
         a.controller, t.objective, t.evaluations
     );
     Ok(0)
+}
+
+/// Whether a signal stopped the search; says so, and that nothing was written.
+fn interrupted(stop: &std::sync::atomic::AtomicBool, out: Option<&std::path::Path>) -> bool {
+    let stopped = stop.load(std::sync::atomic::Ordering::Relaxed);
+    if stopped {
+        match out {
+            Some(p) => eprintln!(
+                "interrupted: the search was stopped; `{}` was not written (a previous file there is unchanged)",
+                p.display()
+            ),
+            None => eprintln!("interrupted: the search was stopped; no gains to report"),
+        }
+    }
+    stopped
 }
 
 /// The gain file's text to `out`, or to stdout without `--out`.

@@ -1,5 +1,5 @@
 //! Scenario and muscle-geometry files (TOML, `deny_unknown_fields`, units in the names).
-use crate::error::{finite_non_negative, finite_positive, LegError};
+use crate::error::{finite_non_negative, finite_positive, invalid, within, LegError};
 use crate::patient::PatientSettings;
 use pma_control::AprcGains;
 use pma_model::{SensorParams, ValveParams};
@@ -108,20 +108,34 @@ struct MuscleFile {
     muscles: Vec<MuscleGeometry>,
 }
 
+/// Plausible pulley radii (m): from a 5 mm cable drum to a 200 mm lever.
+pub const PULLEY_RADIUS_RANGE_M: (f64, f64) = (0.005, 0.2);
+
 /// Parses a muscle geometry file; `file` names it in errors.
 pub fn parse_muscles(text: &str, file: &str) -> Result<Vec<MuscleGeometry>, LegError> {
     let f: MuscleFile = toml::from_str(text).map_err(|e| LegError::Parse {
         file: file.to_owned(),
         message: pma_control::text::toml_error(text, &e),
     })?;
+    check_muscles(&f).map_err(|e| e.in_file(file))?;
+    Ok(f.muscles)
+}
+
+fn check_muscles(f: &MuscleFile) -> Result<(), LegError> {
     for (i, m) in f.muscles.iter().enumerate() {
         if f.muscles[..i].iter().any(|o| o.name == m.name) {
             return Err(LegError::Muscle {
                 muscle: m.name.clone(),
-                message: format!("appears twice in `{file}`: muscle names must be unique"),
+                message: "appears twice: muscle names must be unique".into(),
             });
         }
-        finite_positive(format!("{}.pulley_radius_m", m.name), m.pulley_radius_m)?;
+        within(
+            format!("{}.pulley_radius_m", m.name),
+            m.pulley_radius_m,
+            PULLEY_RADIUS_RANGE_M.0,
+            PULLEY_RADIUS_RANGE_M.1,
+            "must be 0.005..=0.2 m (an exoskeleton's pulley or lever arm)",
+        )?;
         if !m.contraction_at_zero_m.is_finite() || m.anchor_m.iter().any(|v| !v.is_finite()) {
             return Err(LegError::Muscle {
                 muscle: m.name.clone(),
@@ -129,7 +143,7 @@ pub fn parse_muscles(text: &str, file: &str) -> Result<Vec<MuscleGeometry>, LegE
             });
         }
     }
-    Ok(f.muscles)
+    Ok(())
 }
 
 /// Viscous damping and Coulomb friction of a joint, set explicitly in rapier (which would
@@ -326,6 +340,8 @@ pub struct LoadedScenario {
     pub urdf_source: String,
     /// Muscles.
     pub muscles: Vec<MuscleGeometry>,
+    /// Where the muscle geometry came from (for messages).
+    pub muscles_source: String,
 }
 
 fn read(path: &Path) -> Result<String, LegError> {
@@ -363,15 +379,27 @@ impl Scenario {
     /// Range checks.
     pub fn validate(&self) -> Result<(), LegError> {
         finite_positive("duration_s", self.duration_s)?;
-        finite_positive("period_s", self.period_s)?;
-        if self.physics_substeps == 0 {
+        within(
+            "period_s",
+            self.period_s,
+            1e-4,
+            1e-2,
+            "must be 0.0001..=0.01 s (the controllers are discretised for 0.1-10 ms)",
+        )?;
+        if !(1..=100).contains(&self.physics_substeps) {
             return Err(LegError::Invalid {
                 name: "physics_substeps".into(),
-                value: 0.0,
-                expected: "must be >= 1",
+                value: f64::from(self.physics_substeps),
+                expected: "must be 1..=100",
             });
         }
-        finite_positive("gait.stride_period_s", self.gait.stride_period_s)?;
+        within(
+            "gait.stride_period_s",
+            self.gait.stride_period_s,
+            0.5,
+            10.0,
+            "must be 0.5..=10 s (normal strides last about 1 s, training strides 1.4-3 s)",
+        )?;
         finite_non_negative("gait.ramp_s", self.gait.ramp_s)?;
         for (n, j) in [("hip", self.joints.hip), ("knee", self.joints.knee)] {
             finite_non_negative(
@@ -379,6 +407,20 @@ impl Scenario {
                 j.damping_nm_s_per_rad,
             )?;
             finite_non_negative(format!("joints.{n}.friction_nm"), j.friction_nm)?;
+            within(
+                format!("joints.{n}.damping_nm_s_per_rad"),
+                j.damping_nm_s_per_rad,
+                0.0,
+                100.0,
+                "must be 0..=100 N m s/rad",
+            )?;
+            within(
+                format!("joints.{n}.friction_nm"),
+                j.friction_nm,
+                0.0,
+                100.0,
+                "must be 0..=100 N m",
+            )?;
         }
         self.plant.valve.validate()?;
         finite_positive(
@@ -387,6 +429,13 @@ impl Scenario {
         )?;
         self.plant.encoder.sensor(0).validate()?;
         finite_positive("control.cocontraction_pa", self.control.cocontraction_pa)?;
+        if self.control.cocontraction_pa > self.plant.valve.pressure_max_pa {
+            return Err(invalid(
+                "control.cocontraction_pa",
+                self.control.cocontraction_pa,
+                "must be at most the valve's plant.valve.pressure_max_pa",
+            ));
+        }
         finite_positive(
             "control.nominal_inertia_fraction",
             self.control.nominal_inertia_fraction,
@@ -424,6 +473,7 @@ impl Scenario {
             urdf_text: EMBEDDED_URDF.to_owned(),
             urdf_source: "models/exo_leg.urdf".into(),
             muscles: parse_muscles(EMBEDDED_MUSCLES, "models/muscles.toml")?,
+            muscles_source: "models/muscles.toml".into(),
         })
     }
 
@@ -451,18 +501,22 @@ impl Scenario {
             }
             None => (EMBEDDED_URDF.to_owned(), "models/exo_leg.urdf".into()),
         };
-        let muscles = match &scenario.muscle_geometry {
+        let (muscles, muscles_source) = match &scenario.muscle_geometry {
             Some(p) => {
-                let full = dir.join(p);
-                parse_muscles(&read(&full)?, &full.display().to_string())?
+                let full = dir.join(p).display().to_string();
+                (parse_muscles(&read(Path::new(&full))?, &full)?, full)
             }
-            None => parse_muscles(EMBEDDED_MUSCLES, "models/muscles.toml")?,
+            None => (
+                parse_muscles(EMBEDDED_MUSCLES, "models/muscles.toml")?,
+                "models/muscles.toml".into(),
+            ),
         };
         Ok(LoadedScenario {
             scenario,
             urdf_text,
             urdf_source,
             muscles,
+            muscles_source,
         })
     }
 }

@@ -35,6 +35,14 @@ pub enum LegError {
         /// What is wrong.
         message: String,
     },
+    /// An error in a named file.
+    #[error("`{file}`: {source}")]
+    InFile {
+        /// File.
+        file: String,
+        /// The error.
+        source: Box<LegError>,
+    },
     /// A parameter is out of range.
     #[error("{name} = {value} is invalid: {expected}")]
     Invalid {
@@ -75,6 +83,14 @@ pub enum LegError {
         /// What to give.
         hint: &'static str,
     },
+    /// The simulation's state left physical bounds: the run failed.
+    #[error("the simulation left physical bounds at {t_s:.3} s: {what}; the run failed (its figures would be meaningless)")]
+    LeftPhysics {
+        /// Time (s).
+        t_s: f64,
+        /// What.
+        what: String,
+    },
     /// A controller gain set is invalid.
     #[error(transparent)]
     Controller(#[from] pma_control::ConfigError),
@@ -90,6 +106,16 @@ pub enum LegError {
 }
 
 pub(crate) use pma_control::text::one_line;
+
+impl LegError {
+    /// This error, naming the file it comes from.
+    pub fn in_file(self, file: &str) -> Self {
+        LegError::InFile {
+            file: file.to_owned(),
+            source: Box::new(self),
+        }
+    }
+}
 
 /// A parameter's invalid value, with what it must be.
 pub(crate) fn invalid(name: impl Into<String>, value: f64, expected: &'static str) -> LegError {
@@ -121,5 +147,20 @@ pub(crate) fn finite(name: impl Into<String>, value: f64) -> Result<f64, LegErro
         Ok(value)
     } else {
         Err(invalid(name, value, "must be a finite number"))
+    }
+}
+
+/// A finite `value` within `[low, high]`; `expected` states the range and why.
+pub(crate) fn within(
+    name: impl Into<String>,
+    value: f64,
+    low: f64,
+    high: f64,
+    expected: &'static str,
+) -> Result<f64, LegError> {
+    if value.is_finite() && (low..=high).contains(&value) {
+        Ok(value)
+    } else {
+        Err(invalid(name, value, expected))
     }
 }

@@ -332,6 +332,17 @@ impl SpasticitySettings {
             format!("{at}.flexor_gain_nm_s_per_rad"),
             r.flexor_gain_nm_s_per_rad,
         )?;
+        for (field, gain) in [
+            ("extensor_gain_nm_s_per_rad", r.extensor_gain_nm_s_per_rad),
+            ("flexor_gain_nm_s_per_rad", r.flexor_gain_nm_s_per_rad),
+        ] {
+            at_most(
+                format!("{at}.{field}"),
+                gain,
+                MAX_REFLEX_GAIN_NM_S_PER_RAD,
+                "must be at most 50 N m s/rad (the `severe` preset's is 7)",
+            )?;
+        }
         // `none` has an infinite threshold: nothing to check unless a gain was given.
         let active = r.extensor_gain_nm_s_per_rad > 0.0 || r.flexor_gain_nm_s_per_rad > 0.0;
         if active {
@@ -346,6 +357,23 @@ impl SpasticitySettings {
             ));
         }
         Ok(r)
+    }
+}
+
+/// Largest reflex gain accepted (N m s/rad): 7x the `severe` preset's.
+pub const MAX_REFLEX_GAIN_NM_S_PER_RAD: f64 = 50.0;
+/// Largest torque any part of the patient may produce (N m): above the strongest voluntary
+/// hip extension of adults (about 200-300 N m); beyond it the leg is no longer a leg.
+pub const MAX_PATIENT_TORQUE_NM: f64 = 300.0;
+/// Longest spasm accepted (s).
+pub const MAX_SPASM_DURATION_S: f64 = 10.0;
+
+/// `value` no larger than `max`.
+fn at_most(name: String, value: f64, max: f64, expected: &'static str) -> Result<(), LegError> {
+    if value <= max {
+        Ok(())
+    } else {
+        Err(invalid(name, value, expected))
     }
 }
 
@@ -394,8 +422,15 @@ impl StiffnessSettings {
                 "upper_angle_rad",
             )?,
         };
-        finite_non_negative(format!("{at}.lower_nm"), m.lower_nm)?;
-        finite_non_negative(format!("{at}.upper_nm"), m.upper_nm)?;
+        for (field, nm) in [("lower_nm", m.lower_nm), ("upper_nm", m.upper_nm)] {
+            finite_non_negative(format!("{at}.{field}"), nm)?;
+            at_most(
+                format!("{at}.{field}"),
+                nm,
+                MAX_PATIENT_TORQUE_NM,
+                "must be at most 300 N m",
+            )?;
+        }
         for (field, rate) in [
             ("lower_per_rad", m.lower_per_rad),
             ("upper_per_rad", m.upper_per_rad),
@@ -441,15 +476,27 @@ impl SpasmSettings {
                 "must be at most 60 (one spasm a second)",
             ));
         }
+        // Checked even when no random spasm is drawn: a wrong range is a mistake either way.
+        range(format!("{at}.amplitude_nm"), self.amplitude_nm, false)?;
         if self.rate_per_min > 0.0 && self.amplitude_nm[1] <= 0.0 {
             return Err(LegError::Missing {
                 name: format!("{at}.amplitude_nm"),
                 hint: "random spasms need their peak torque range [low, high] in N m",
             });
         }
-        // Checked even when no random spasm is drawn: a wrong range is a mistake either way.
-        range(format!("{at}.amplitude_nm"), self.amplitude_nm, false)?;
+        at_most(
+            format!("{at}.amplitude_nm"),
+            self.amplitude_nm[1],
+            MAX_PATIENT_TORQUE_NM,
+            "must be at most 300 N m (the strongest voluntary hip torque of adults)",
+        )?;
         range(format!("{at}.duration_s"), self.duration_s, true)?;
+        at_most(
+            format!("{at}.duration_s"),
+            self.duration_s[1],
+            MAX_SPASM_DURATION_S,
+            "must be at most 10 s",
+        )?;
         if !(self.rise_fraction.is_finite() && self.rise_fraction > 0.0 && self.rise_fraction < 1.0)
         {
             return Err(invalid(
@@ -462,7 +509,19 @@ impl SpasmSettings {
             let at = format!("{at}.events[{i}]");
             finite_non_negative(format!("{at}.t_s"), e.t_s)?;
             finite_non_negative(format!("{at}.amplitude_nm"), e.amplitude_nm)?;
+            at_most(
+                format!("{at}.amplitude_nm"),
+                e.amplitude_nm,
+                MAX_PATIENT_TORQUE_NM,
+                "must be at most 300 N m (the strongest voluntary hip torque of adults)",
+            )?;
             finite_positive(format!("{at}.duration_s"), e.duration_s)?;
+            at_most(
+                format!("{at}.duration_s"),
+                e.duration_s,
+                MAX_SPASM_DURATION_S,
+                "must be at most 10 s",
+            )?;
             if e.direction == SpasmDirection::Either {
                 return Err(LegError::Missing {
                     name: format!("{at}.direction"),
@@ -477,6 +536,13 @@ impl SpasmSettings {
 impl EffortSettings {
     fn validate(&self, at: &str) -> Result<(), LegError> {
         finite(format!("{at}.fraction"), self.fraction)?;
+        if self.fraction.abs() > 1.0 {
+            return Err(invalid(
+                format!("{at}.fraction"),
+                self.fraction,
+                "must be -1..=1 (a patient resists or assists with at most the whole of the gait's own joint torque)",
+            ));
+        }
         finite_non_negative(format!("{at}.delay_s"), self.delay_s)?;
         if self.delay_s > MAX_DELAY_S {
             return Err(invalid(

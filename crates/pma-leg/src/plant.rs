@@ -262,6 +262,50 @@ impl LegPlant {
     }
 }
 
+/// A joint this far beyond its URDF limit (rad) has left the physics: rapier holds its
+/// limits to a few milliradians, so only a diverging simulation gets there.
+pub const LIMIT_OVERSHOOT_MAX_RAD: f64 = 0.5;
+/// Fastest joint speed of a physical run (rad/s): about 2900 deg/s, five times the fastest
+/// knee swing of sprinting.
+pub const JOINT_SPEED_MAX_RAD_S: f64 = 50.0;
+
+impl LegPlant {
+    /// Ends a run whose state left physical bounds: non-finite, a joint far beyond its
+    /// limit or faster than any limb moves. Its figures would be garbage.
+    fn check_physics(&self) -> Result<(), LegError> {
+        let (q, qd) = (self.leg.angles(), self.leg.velocities());
+        let limits = self.leg.limits_rad();
+        for (k, name) in JOINT_NAMES.iter().enumerate() {
+            let [lo, hi] = limits[k];
+            let beyond = (lo - q[k]).max(q[k] - hi);
+            let diverged = if !(q[k].is_finite() && qd[k].is_finite()) {
+                Some(format!(
+                    "its state is not finite ({} rad, {} rad/s)",
+                    q[k], qd[k]
+                ))
+            } else if beyond > LIMIT_OVERSHOOT_MAX_RAD {
+                Some(format!(
+                    "it is {beyond:.3} rad beyond its limits [{lo:.3}, {hi:.3}] rad (bound {LIMIT_OVERSHOOT_MAX_RAD} rad)"
+                ))
+            } else if qd[k].abs() > JOINT_SPEED_MAX_RAD_S {
+                Some(format!(
+                    "it turns at {:.1} rad/s (bound {JOINT_SPEED_MAX_RAD_S} rad/s)",
+                    qd[k]
+                ))
+            } else {
+                None
+            };
+            if let Some(why) = diverged {
+                return Err(LegError::LeftPhysics {
+                    t_s: self.time(),
+                    what: format!("the {name}: {why}"),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
 impl Backend for LegPlant {
     type Reading = [f64; 2];
     type Command = [f64; 4];
@@ -291,6 +335,7 @@ impl Backend for LegPlant {
             });
         }
         self.advance();
+        self.check_physics()?;
         Ok(1)
     }
 

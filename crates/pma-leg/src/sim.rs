@@ -164,7 +164,8 @@ impl LegSim {
                 ],
             )?)
         };
-        let muscles = build_muscles(&sc, &loaded.muscles)?;
+        let muscles =
+            build_muscles(&sc, &loaded.muscles).map_err(|e| e.in_file(&loaded.muscles_source))?;
         let controllers = LegControllers::new(&sc, &muscles, leg.inertia(), config)?;
         let resting = resting_pressures(&muscles, sc.control.cocontraction_pa);
         let mut plant = LegPlant::new(leg, muscles, &sc)?;

@@ -56,6 +56,7 @@ pub fn tune(
     kind: ControllerKind,
     opts: &FireflyOptions,
     duration_s: f64,
+    stop: &std::sync::atomic::AtomicBool,
 ) -> Option<LegTuning> {
     let space = search_space(kind)?;
     let base = base_config(loaded, kind);
@@ -67,7 +68,7 @@ pub fn tune(
         c.validate().ok()?;
         Some(c)
     };
-    let (u, best, evaluations) = firefly(space.len(), opts, |u| {
+    let (u, best, evaluations) = firefly(space.len(), opts, stop, |u| {
         at(u).map_or(FAILED_RUN, |c| objective(loaded, &c, duration_s))
     });
     Some(LegTuning {

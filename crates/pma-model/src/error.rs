@@ -59,3 +59,23 @@ pub(crate) fn non_negative(name: &'static str, value: f64) -> Result<f64, ModelE
         })
     }
 }
+
+/// Requires a finite value within `[low, high]`; `expected` states the range and why.
+pub(crate) fn within(
+    name: &'static str,
+    value: f64,
+    low: f64,
+    high: f64,
+    expected: &'static str,
+) -> Result<f64, ModelError> {
+    finite(name, value)?;
+    if (low..=high).contains(&value) {
+        Ok(value)
+    } else {
+        Err(ModelError::OutOfRange {
+            name,
+            value,
+            expected,
+        })
+    }
+}

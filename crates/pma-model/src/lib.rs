@@ -24,8 +24,8 @@ mod sensor;
 mod valve;
 
 pub use error::ModelError;
-pub use load::{LoadProfile, LoadStep, GRAVITY_M_S2};
-pub use muscle::{DampingMode, MuscleParams};
+pub use load::{LoadProfile, LoadStep, GRAVITY_M_S2, MAX_LOAD_KG};
+pub use muscle::{DampingMode, MuscleParams, MAX_FACTOR_ON_TABLE_I};
 pub use rng::GaussianRng;
 pub use sensor::{PositionSensor, SensorParams};
-pub use valve::{Valve, ValveParams};
+pub use valve::{Valve, ValveParams, MAX_VALVE_DELAY_S, MAX_VALVE_PRESSURE_PA};

@@ -1,4 +1,8 @@
-use crate::error::{non_negative, positive, ModelError};
+use crate::error::{non_negative, positive, within, ModelError};
+
+/// Heaviest load accepted (kg): a DMSP-40 pulls at most 6 kN (Festo Info 501), about 600 kg.
+pub const MAX_LOAD_KG: f64 = 600.0;
+const LOAD_RANGE: &str = "must be 0..=600 kg (a DMSP-40 lifts at most about 600 kg)";
 
 /// Standard gravity (m/s^2).
 pub const GRAVITY_M_S2: f64 = 9.81;
@@ -57,9 +61,17 @@ impl LoadProfile {
     /// Checks for a positive mass and a non-negative, finite step.
     pub fn validate(&self) -> Result<(), ModelError> {
         positive("mass_kg", self.mass_kg)?;
+        within("mass_kg", self.mass_kg, 0.0, MAX_LOAD_KG, LOAD_RANGE)?;
         if let Some(s) = self.step {
             non_negative("step.time_s", s.time_s)?;
             non_negative("step.extra_mass_kg", s.extra_mass_kg)?;
+            within(
+                "step.extra_mass_kg",
+                s.extra_mass_kg,
+                0.0,
+                MAX_LOAD_KG,
+                LOAD_RANGE,
+            )?;
         }
         Ok(())
     }

@@ -1,4 +1,9 @@
-use crate::error::{finite, positive, ModelError};
+use crate::error::{finite, positive, within, ModelError};
+
+/// Largest factor between any parameter of a muscle and Table I's: Festo's muscles span a
+/// factor of 10 in force from the DMSP-10 to the DMSP-40; beyond 100 a parameter set is a
+/// typo, not a muscle.
+pub const MAX_FACTOR_ON_TABLE_I: f64 = 100.0;
 
 /// Which damping coefficients of eq. (1) apply: the muscle dissipates differently while it
 /// is being inflated and while it is being deflated.
@@ -81,6 +86,42 @@ impl MuscleParams {
         finite("b1_inflation_ns_per_m_pa", self.b1_inflation_ns_per_m_pa)?;
         positive("b0_deflation_ns_per_m", self.b0_deflation_ns_per_m)?;
         finite("b1_deflation_ns_per_m_pa", self.b1_deflation_ns_per_m_pa)?;
+        let t = Self::TABLE_I;
+        for (name, value, table) in [
+            ("f0_n", self.f0_n, t.f0_n),
+            ("f1_n_per_pa", self.f1_n_per_pa, t.f1_n_per_pa),
+            ("k0_n_per_m", self.k0_n_per_m, t.k0_n_per_m),
+            ("k1_n_per_m_pa", self.k1_n_per_m_pa, t.k1_n_per_m_pa),
+            (
+                "b0_inflation_ns_per_m",
+                self.b0_inflation_ns_per_m,
+                t.b0_inflation_ns_per_m,
+            ),
+            (
+                "b1_inflation_ns_per_m_pa",
+                self.b1_inflation_ns_per_m_pa,
+                t.b1_inflation_ns_per_m_pa,
+            ),
+            (
+                "b0_deflation_ns_per_m",
+                self.b0_deflation_ns_per_m,
+                t.b0_deflation_ns_per_m,
+            ),
+            (
+                "b1_deflation_ns_per_m_pa",
+                self.b1_deflation_ns_per_m_pa,
+                t.b1_deflation_ns_per_m_pa,
+            ),
+        ] {
+            let bound = MAX_FACTOR_ON_TABLE_I * table.abs();
+            within(
+                name,
+                value,
+                -bound,
+                bound,
+                "must be within 100 times Table I's magnitude (Festo's muscles span a factor of 10 in force, DMSP-10 to DMSP-40)",
+            )?;
+        }
         Ok(())
     }
 

@@ -1,4 +1,4 @@
-use crate::error::{finite, non_negative, ModelError};
+use crate::error::{finite, non_negative, within, ModelError};
 use crate::GaussianRng;
 
 /// Displacement sensor: measuring range, A/D resolution and white noise. The paper's rig
@@ -46,6 +46,13 @@ impl SensorParams {
             });
         }
         non_negative("noise_rms_m", self.noise_rms_m)?;
+        within(
+            "noise_rms_m",
+            self.noise_rms_m,
+            0.0,
+            1e-2,
+            "must be 0..=0.01 RMS in the sensor's unit (m, or rad for an encoder): sensor noise is micrometres or millidegrees",
+        )?;
         if self.resolution_bits > 32 {
             return Err(ModelError::OutOfRange {
                 name: "resolution_bits",

@@ -1,9 +1,15 @@
-use crate::error::{non_negative, positive, ModelError};
+use crate::error::{non_negative, positive, within, ModelError};
 use crate::DampingMode;
 
 /// Shortest command period the dead-time buffer is sized for (s). Commands sent faster
 /// than this with a dead time overwrite the oldest pending command instead of allocating.
 const MIN_COMMAND_PERIOD_S: f64 = 1e-4;
+
+/// Highest valve pressure accepted (Pa): 10 bar.
+pub const MAX_VALVE_PRESSURE_PA: f64 = 1.0e6;
+/// Longest valve time constant or dead time accepted (s); the dead-time buffer is sized
+/// from it.
+pub const MAX_VALVE_DELAY_S: f64 = 1.0;
 
 /// Proportional pressure valve. The paper's model feeds the command straight into the
 /// muscle ([`ValveParams::ideal`]); a real valve lags, so the lag is explicit here.
@@ -47,8 +53,29 @@ impl ValveParams {
     /// Checks ranges: positive maximum, non-negative lag and dead time, positive rate limit.
     pub fn validate(&self) -> Result<(), ModelError> {
         positive("pressure_max_pa", self.pressure_max_pa)?;
+        within(
+            "pressure_max_pa",
+            self.pressure_max_pa,
+            0.0,
+            MAX_VALVE_PRESSURE_PA,
+            "must be > 0 and at most 10 bar (a Festo VPPM regulates 0-10 bar)",
+        )?;
         non_negative("time_constant_s", self.time_constant_s)?;
+        within(
+            "time_constant_s",
+            self.time_constant_s,
+            0.0,
+            MAX_VALVE_DELAY_S,
+            "must be 0..=1 s (a proportional valve settles in tens of milliseconds)",
+        )?;
         non_negative("dead_time_s", self.dead_time_s)?;
+        within(
+            "dead_time_s",
+            self.dead_time_s,
+            0.0,
+            MAX_VALVE_DELAY_S,
+            "must be 0..=1 s (a proportional valve settles in tens of milliseconds)",
+        )?;
         if let Some(r) = self.rate_limit_pa_per_s {
             positive("rate_limit_pa_per_s", r)?;
         }

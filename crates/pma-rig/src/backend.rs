@@ -33,6 +33,7 @@ pub struct RigBackend {
     daq: Box<dyn Daq>,
     signals: Signals,
     calibration: Calibration,
+    output_range_v: (f64, f64),
     vent_v: f64,
     pacing: Pacing,
     pacer: Option<Pacer>,
@@ -71,8 +72,9 @@ impl RigBackend {
         let lines: Vec<_> = s.charge_pump.into_iter().collect();
         daq.check(&[s.position], &[s.valve], &lines)?;
         let out = daq.range_v(&s.valve, true)?;
+        let inside =
+            |v: f64, r: (f64, f64)| v >= r.0 - RANGE_TOLERANCE_V && v <= r.1 + RANGE_TOLERANCE_V;
         let vent_v = c.valve_v(0.0);
-        let inside = |v: f64, r: (f64, f64)| v >= r.0 && v <= r.1;
         if !inside(vent_v, out) {
             return Err(range_error(
                 "calibration.valve_offset_v",
@@ -92,6 +94,7 @@ impl RigBackend {
         }
         let input = daq.range_v(&s.position, false)?;
         check_window(&config.limits, &c, input)?;
+        let vent_v = vent_v.clamp(out.0, out.1);
         daq.write_analog(&s.valve, vent_v)?;
         if let Some(line) = &s.charge_pump {
             daq.write_digital(line, false)?;
@@ -112,6 +115,7 @@ impl RigBackend {
             daq,
             signals: s,
             calibration: c,
+            output_range_v: out,
             vent_v,
             pacing,
             pacer: None,
@@ -162,6 +166,20 @@ impl RigBackend {
         self.pacer.as_ref().map(Pacer::summary)
     }
 
+    /// The set point of a pressure; a value within rounding of the output's range is
+    /// brought onto it (configure checked the limits map into the range).
+    fn valve_volts(&self, pressure_pa: f64) -> f64 {
+        let v = self.calibration.valve_v(pressure_pa);
+        let (lo, hi) = self.output_range_v;
+        if v < lo && v >= lo - RANGE_TOLERANCE_V {
+            lo
+        } else if v > hi && v <= hi + RANGE_TOLERANCE_V {
+            hi
+        } else {
+            v
+        }
+    }
+
     fn toggle_charge_pump(&mut self) -> Result<(), DaqError> {
         if let Some(line) = &self.signals.charge_pump {
             self.pump_level = !self.pump_level;
@@ -171,17 +189,22 @@ impl RigBackend {
     }
 }
 
+/// Volts closer than this to a range's edge count as inside it (V): a window computed
+/// through the calibration lands on the edge up to rounding (the documented span of the
+/// sensor, -20..130 mm, is -2.2e-16..10 V).
+const RANGE_TOLERANCE_V: f64 = 1e-9;
+
 fn check_window(limits: &Limits, c: &Calibration, input: (f64, f64)) -> Result<(), RigError> {
     for (field, x) in [
         ("limits.position_min_m", limits.position_min_m),
         ("limits.position_max_m", limits.position_max_m),
     ] {
         let v = c.position_v(x);
-        if !(v > input.0 && v < input.1) {
+        if !(v >= input.0 - RANGE_TOLERANCE_V && v <= input.1 + RANGE_TOLERANCE_V) {
             return Err(RigError::Field {
                 field,
                 message: format!(
-                    "{x} m is {v} V through the calibration, outside the sensor input's range {}..{} V: the window must be measurable",
+                    "{x} m is {v:.6} V through the calibration, outside the sensor input's range {}..{} V: the window must be measurable",
                     input.0, input.1
                 ),
             });
@@ -237,7 +260,7 @@ impl Backend for RigBackend {
     }
 
     fn write(&mut self, pressure_pa: &f64) -> Result<f64, DaqError> {
-        let v = self.calibration.valve_v(*pressure_pa);
+        let v = self.valve_volts(*pressure_pa);
         self.daq.write_analog(&self.signals.valve, v)?;
         self.telemetry.valve_v = v;
         Ok(*pressure_pa)

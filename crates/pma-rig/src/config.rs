@@ -49,6 +49,35 @@ pub struct Signals {
     pub charge_pump: Option<DigitalLine>,
 }
 
+impl Signals {
+    /// Every signal on its own channel.
+    fn validate(&self) -> Result<(), RigError> {
+        let mut used: Vec<(&'static str, u32, u32)> = vec![
+            (
+                "signals.position",
+                self.position.subdevice,
+                self.position.channel,
+            ),
+            ("signals.valve", self.valve.subdevice, self.valve.channel),
+        ];
+        if let Some(p) = &self.charge_pump {
+            used.push(("signals.charge_pump", p.subdevice, p.channel));
+        }
+        for (i, a) in used.iter().enumerate() {
+            if let Some(b) = used[..i].iter().find(|b| (b.1, b.2) == (a.1, a.2)) {
+                return Err(RigError::Field {
+                    field: a.0,
+                    message: format!(
+                        "subdevice {} channel {} is already {}: every signal needs its own channel",
+                        a.1, a.2, b.0
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
 /// A linear transducer: `value = (volts - offset_v) * gain`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -96,8 +125,113 @@ pub struct Limits {
     pub position_max_m: f64,
     /// A reading identical for this many periods is a stuck sensor (0: not checked).
     pub sensor_stuck_periods: u32,
-    /// The loop silent for this many periods trips the watchdog, which vents on its own.
+    /// The loop silent for this many periods trips the watchdog, which vents on its own
+    /// (at most [`WATCHDOG_MAX_S`] of silence).
     pub watchdog_periods: u32,
+    /// A wake-up that misses more than this many deadlines in a row is a timing fault.
+    #[serde(default = "default_overrun_consecutive")]
+    pub overrun_max_consecutive_periods: u32,
+    /// A share of missed deadlines above this over a window of 1000 periods is a timing
+    /// fault (0..=0.5).
+    #[serde(default = "default_overrun_share")]
+    pub overrun_max_share: f64,
+}
+
+fn default_overrun_consecutive() -> u32 {
+    10
+}
+
+fn default_overrun_share() -> f64 {
+    0.05
+}
+
+/// Longest watchdog timeout a configuration may ask for (s): a valve left at its last
+/// command for longer than this is not supervised.
+pub const WATCHDOG_MAX_S: f64 = 0.25;
+
+/// Shortest and longest control period of a rig (s): the controllers are discretised for
+/// periods of 0.1-10 ms (the paper ran at 1 ms).
+pub const PERIOD_RANGE_S: (f64, f64) = (1e-4, 1e-2);
+
+/// The muscle on the rig: what it tolerates, against which the limits are checked.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MuscleRating {
+    /// Highest admissible pressure (Pa gauge): 6 bar for Festo's DMSP-20 and DMSP-40
+    /// (Cao et al. 2020, Sec. IV-A; Festo Info 501).
+    pub pressure_max_pa: f64,
+    /// Nominal (rest) length (m).
+    pub nominal_length_m: f64,
+    /// Largest contraction as a fraction of the nominal length: 0.25 for the DMSP
+    /// (Festo FluidSIM component library).
+    #[serde(default = "default_contraction_max")]
+    pub contraction_max_fraction: f64,
+    /// Largest stretch below the rest length as a fraction of it. Festo allows a mounting
+    /// pretension of 5 %; the default 10 % leaves room for a load hanging on the vented
+    /// muscle. Readings beyond it mean a broken mount, not a muscle.
+    #[serde(default = "default_stretch_max")]
+    pub stretch_max_fraction: f64,
+}
+
+fn default_contraction_max() -> f64 {
+    0.25
+}
+
+fn default_stretch_max() -> f64 {
+    0.10
+}
+
+impl Default for MuscleRating {
+    /// The seed rig's Festo DMSP-20-200: 0-6 bar, 200 mm.
+    fn default() -> Self {
+        Self {
+            pressure_max_pa: 6.0e5,
+            nominal_length_m: 0.2,
+            contraction_max_fraction: default_contraction_max(),
+            stretch_max_fraction: default_stretch_max(),
+        }
+    }
+}
+
+impl MuscleRating {
+    /// Largest contraction the muscle can reach (m).
+    pub fn contraction_max_m(&self) -> f64 {
+        self.contraction_max_fraction * self.nominal_length_m
+    }
+
+    /// Largest stretch it can take (m, positive).
+    pub fn stretch_max_m(&self) -> f64 {
+        self.stretch_max_fraction * self.nominal_length_m
+    }
+
+    fn validate(&self) -> Result<(), RigError> {
+        check(
+            "muscle.pressure_max_pa",
+            self.pressure_max_pa.is_finite()
+                && self.pressure_max_pa > 0.0
+                && self.pressure_max_pa <= 8.0e5,
+            self.pressure_max_pa,
+            "must be > 0 and at most 8 bar (the highest rating of a Festo DMSP)",
+        )?;
+        check(
+            "muscle.nominal_length_m",
+            self.nominal_length_m.is_finite() && (0.03..=10.0).contains(&self.nominal_length_m),
+            self.nominal_length_m,
+            "must be 0.03..=10 m (Festo DMSP lengths are 40-9000 mm)",
+        )?;
+        check(
+            "muscle.contraction_max_fraction",
+            self.contraction_max_fraction > 0.0 && self.contraction_max_fraction <= 0.3,
+            self.contraction_max_fraction,
+            "must be > 0 and at most 0.3 (a DMSP contracts by at most 25 %)",
+        )?;
+        check(
+            "muscle.stretch_max_fraction",
+            self.stretch_max_fraction > 0.0 && self.stretch_max_fraction <= 0.2,
+            self.stretch_max_fraction,
+            "must be > 0 and at most 0.2",
+        )
+    }
 }
 
 /// The controller.
@@ -179,10 +313,13 @@ pub struct VirtualConfig {
     /// Delay of the sensor reading (s).
     #[serde(default)]
     pub sensor_latency_s: f64,
-    /// The analog input's range (V).
-    pub input_range_v: [f64; 2],
-    /// The analog output's range (V).
-    pub output_range_v: [f64; 2],
+    /// The analog input's range (V): optional, and if given it must be the range the
+    /// simulated board (a PCI-6052E) has at `signals.position`'s range index.
+    #[serde(default)]
+    pub input_range_v: Option<[f64; 2]>,
+    /// The analog output's range (V), likewise for `signals.valve`.
+    #[serde(default)]
+    pub output_range_v: Option<[f64; 2]>,
 }
 
 /// Real-time settings of the loop thread.
@@ -225,6 +362,9 @@ pub struct RigConfig {
     pub signals: Signals,
     /// Transducer scales.
     pub calibration: Calibration,
+    /// The muscle's ratings (default: the DMSP-20-200 of the seed rig).
+    #[serde(default)]
+    pub muscle: MuscleRating,
     /// Safety limits.
     pub limits: Limits,
     /// Controller.
@@ -278,6 +418,19 @@ fn non_negative(field: &'static str, v: f64) -> Result<(), RigError> {
     )
 }
 
+/// Highest reference frequency (Hz): a muscle under a load follows a few hertz at most
+/// (Table I's corners are 0.06-1 Hz; the paper's chirp ends at 0.5 Hz).
+pub const REFERENCE_FREQUENCY_MAX_HZ: f64 = 5.0;
+
+fn frequency(field: &'static str, v: f64) -> Result<(), RigError> {
+    check(
+        field,
+        v.is_finite() && (0.0..=REFERENCE_FREQUENCY_MAX_HZ).contains(&v),
+        v,
+        "must be 0..=5 Hz (a loaded muscle follows a few hertz at most)",
+    )
+}
+
 fn nonzero(field: &'static str, v: f64) -> Result<(), RigError> {
     check(
         field,
@@ -326,7 +479,12 @@ impl RigConfig {
     /// Every field in range, every limit consistent: checked before anything touches the
     /// board.
     pub fn validate(&self) -> Result<(), RigError> {
-        positive("period_s", self.period_s)?;
+        check(
+            "period_s",
+            self.period_s >= PERIOD_RANGE_S.0 && self.period_s <= PERIOD_RANGE_S.1,
+            self.period_s,
+            "must be 0.0001..=0.01 s (the controllers are discretised for 0.1-10 ms; the paper ran at 1 ms)",
+        )?;
         positive("duration_s", self.duration_s)?;
         if self.device.driver == Driver::Comedi && self.device.path.is_empty() {
             return Err(RigError::Missing {
@@ -334,31 +492,19 @@ impl RigConfig {
                 why: "the comedi driver needs the device (e.g. /dev/comedi0)",
             });
         }
+        self.signals.validate()?;
         let c = &self.calibration;
         nonzero("calibration.position_m_per_v", c.position_m_per_v)?;
         finite("calibration.position_offset_v", c.position_offset_v)?;
-        nonzero("calibration.valve_pa_per_v", c.valve_pa_per_v)?;
+        check(
+            "calibration.valve_pa_per_v",
+            c.valve_pa_per_v.is_finite() && c.valve_pa_per_v > 0.0,
+            c.valve_pa_per_v,
+            "must be a finite number > 0: a higher set point must mean more pressure (a negative scale would turn every vent into full pressure)",
+        )?;
         finite("calibration.valve_offset_v", c.valve_offset_v)?;
-        let l = &self.limits;
-        positive("limits.pressure_max_pa", l.pressure_max_pa)?;
-        positive(
-            "limits.pressure_rate_max_pa_per_s",
-            l.pressure_rate_max_pa_per_s,
-        )?;
-        finite("limits.position_min_m", l.position_min_m)?;
-        finite("limits.position_max_m", l.position_max_m)?;
-        check(
-            "limits.position_max_m",
-            l.position_max_m > l.position_min_m,
-            l.position_max_m,
-            "must exceed limits.position_min_m",
-        )?;
-        check(
-            "limits.watchdog_periods",
-            l.watchdog_periods >= 2,
-            f64::from(l.watchdog_periods),
-            "must be >= 2",
-        )?;
+        self.muscle.validate()?;
+        self.limits_check()?;
         self.control_kind()?;
         self.control.nominal_model_check()?;
         self.reference_check()?;
@@ -381,6 +527,86 @@ impl RigConfig {
         Ok(())
     }
 
+    /// The limits against each other, the muscle's ratings and the period.
+    fn limits_check(&self) -> Result<(), RigError> {
+        let l = &self.limits;
+        let m = &self.muscle;
+        positive("limits.pressure_max_pa", l.pressure_max_pa)?;
+        if l.pressure_max_pa > m.pressure_max_pa {
+            return Err(RigError::Field {
+                field: "limits.pressure_max_pa",
+                message: format!(
+                    "{} bar is above the muscle's rating, muscle.pressure_max_pa = {} bar",
+                    l.pressure_max_pa / 1e5,
+                    m.pressure_max_pa / 1e5
+                ),
+            });
+        }
+        positive(
+            "limits.pressure_rate_max_pa_per_s",
+            l.pressure_rate_max_pa_per_s,
+        )?;
+        finite("limits.position_min_m", l.position_min_m)?;
+        finite("limits.position_max_m", l.position_max_m)?;
+        check(
+            "limits.position_max_m",
+            l.position_max_m > l.position_min_m,
+            l.position_max_m,
+            "must exceed limits.position_min_m",
+        )?;
+        if l.position_max_m > m.contraction_max_m() {
+            return Err(RigError::Field {
+                field: "limits.position_max_m",
+                message: format!(
+                    "{} mm is beyond the muscle's largest contraction, {} mm ({} % of its {} mm): a window the muscle cannot reach protects nothing",
+                    l.position_max_m * 1e3,
+                    m.contraction_max_m() * 1e3,
+                    m.contraction_max_fraction * 100.0,
+                    m.nominal_length_m * 1e3
+                ),
+            });
+        }
+        if l.position_min_m < -m.stretch_max_m() {
+            return Err(RigError::Field {
+                field: "limits.position_min_m",
+                message: format!(
+                    "{} mm is a stretch beyond the muscle's {} mm ({} % of its {} mm)",
+                    l.position_min_m * 1e3,
+                    -m.stretch_max_m() * 1e3,
+                    m.stretch_max_fraction * 100.0,
+                    m.nominal_length_m * 1e3
+                ),
+            });
+        }
+        let timeout_s = f64::from(l.watchdog_periods) * self.period_s;
+        if l.watchdog_periods < 2 || timeout_s > WATCHDOG_MAX_S {
+            return Err(RigError::Field {
+                field: "limits.watchdog_periods",
+                message: format!(
+                    "{} periods of {} s is a {timeout_s} s timeout: it must be at least 2 periods and at most {WATCHDOG_MAX_S} s",
+                    l.watchdog_periods, self.period_s
+                ),
+            });
+        }
+        if l.overrun_max_consecutive_periods == 0
+            || l.overrun_max_consecutive_periods >= l.watchdog_periods
+        {
+            return Err(RigError::Field {
+                field: "limits.overrun_max_consecutive_periods",
+                message: format!(
+                    "{} must be at least 1 and below limits.watchdog_periods ({})",
+                    l.overrun_max_consecutive_periods, l.watchdog_periods
+                ),
+            });
+        }
+        check(
+            "limits.overrun_max_share",
+            l.overrun_max_share > 0.0 && l.overrun_max_share <= 0.5,
+            l.overrun_max_share,
+            "must be > 0 and at most 0.5",
+        )
+    }
+
     /// The controller kind.
     pub fn control_kind(&self) -> Result<ControllerKind, RigError> {
         self.control
@@ -393,6 +619,42 @@ impl RigConfig {
     }
 
     fn reference_check(&self) -> Result<(), RigError> {
+        self.reference_shape_check()?;
+        let (low, high) = self.reference_span_m();
+        let l = &self.limits;
+        if low < l.position_min_m || high > l.position_max_m {
+            return Err(RigError::Field {
+                field: "reference",
+                message: format!(
+                    "the reference spans {:.1}..{:.1} mm, outside the position window {:.1}..{:.1} mm: it would drive the muscle into a fault",
+                    low * 1e3,
+                    high * 1e3,
+                    l.position_min_m * 1e3,
+                    l.position_max_m * 1e3
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// The lowest and highest position of the reference's trajectory (m).
+    pub fn reference_span_m(&self) -> (f64, f64) {
+        match self.reference {
+            ReferenceConfig::Sine {
+                amplitude_m,
+                offset_m,
+                ..
+            }
+            | ReferenceConfig::Chirp {
+                amplitude_m,
+                offset_m,
+                ..
+            } => (offset_m - amplitude_m.abs(), offset_m + amplitude_m.abs()),
+            ReferenceConfig::Hold { position_m, .. } => (position_m, position_m),
+        }
+    }
+
+    fn reference_shape_check(&self) -> Result<(), RigError> {
         match self.reference {
             ReferenceConfig::Sine {
                 amplitude_m,
@@ -401,7 +663,7 @@ impl RigConfig {
                 ramp_s,
             } => {
                 finite("reference.amplitude_m", amplitude_m)?;
-                non_negative("reference.frequency_hz", frequency_hz)?;
+                frequency("reference.frequency_hz", frequency_hz)?;
                 finite("reference.offset_m", offset_m)?;
                 non_negative("reference.ramp_s", ramp_s)?;
             }
@@ -415,8 +677,8 @@ impl RigConfig {
             } => {
                 finite("reference.amplitude_m", amplitude_m)?;
                 finite("reference.offset_m", offset_m)?;
-                non_negative("reference.f0_hz", f0_hz)?;
-                non_negative("reference.f1_hz", f1_hz)?;
+                frequency("reference.f0_hz", f0_hz)?;
+                frequency("reference.f1_hz", f1_hz)?;
                 positive("reference.sweep_s", sweep_s)?;
                 non_negative("reference.ramp_s", ramp_s)?;
             }
@@ -552,22 +814,28 @@ impl VirtualConfig {
             f64::from(self.converter_bits),
             "must be 0..=24",
         )?;
-        non_negative("virtual.sensor_latency_s", self.sensor_latency_s)?;
-        non_negative("virtual.sensor_noise_rms_m", self.sensor_noise_rms_m)?;
-        for (field, r) in [
-            ("virtual.input_range_v", self.input_range_v),
-            ("virtual.output_range_v", self.output_range_v),
-        ] {
-            check(
-                field,
-                r[0].is_finite() && r[1].is_finite() && r[1] > r[0],
-                r[1],
-                "must be [min, max] volts with max > min",
-            )?;
-        }
+        check(
+            "virtual.sensor_latency_s",
+            self.sensor_latency_s.is_finite()
+                && (0.0..=VIRTUAL_LATENCY_MAX_S).contains(&self.sensor_latency_s),
+            self.sensor_latency_s,
+            "must be 0..=1 s",
+        )?;
+        check(
+            "virtual.sensor_noise_rms_m",
+            self.sensor_noise_rms_m.is_finite()
+                && (0.0..=VIRTUAL_NOISE_MAX_M).contains(&self.sensor_noise_rms_m),
+            self.sensor_noise_rms_m,
+            "must be 0..=0.001 m RMS",
+        )?;
         Ok(())
     }
 }
+
+/// Longest sensor latency the virtual rig simulates (s).
+pub const VIRTUAL_LATENCY_MAX_S: f64 = 1.0;
+/// Largest sensor noise the virtual rig simulates (m RMS).
+pub const VIRTUAL_NOISE_MAX_M: f64 = 1e-3;
 
 /// A base trajectory of the rig.
 #[derive(Debug, Clone, Copy, PartialEq)]

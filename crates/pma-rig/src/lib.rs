@@ -4,6 +4,7 @@
 #![warn(missing_docs)]
 
 pub mod backend;
+pub mod board;
 pub mod comedi;
 pub mod config;
 pub mod daq;
@@ -23,5 +24,5 @@ pub use daq::{
 pub use error::RigError;
 pub use replay::{replay, ReplayReport};
 pub use run::{Rig, RigReport, RunOptions};
-pub use supervisor::{Fault, Supervised, Watchdog};
+pub use supervisor::{Alarm, Fault, Supervised, Watchdog};
 pub use virtual_daq::{InjectedFault, Injection, VirtualDaq};

@@ -1,13 +1,19 @@
 //! The rig's log: fixed-size records pushed by the control loop into a preallocated
 //! wait-free ring buffer (`rtrb`), written as CSV by a writer thread. The loop does no
-//! file I/O and allocates nothing; the file is opened (and its header written) before the
-//! run, and it is complete up to the last period on every exit path: the end of the run,
-//! a fault, Ctrl-C and a panic (dropping the log joins the writer).
+//! file I/O and allocates nothing; the file is created (never over an existing one) and its
+//! header written before the run, and it is complete up to the last period on every exit
+//! path: the end of the run, a fault, Ctrl-C and a panic (dropping the log joins the
+//! writer). It ends with the vent row and a digest line, `# sha256 <hex> rows <n>`, over
+//! every byte before it, which replay checks.
+//!
+//! A log that cannot be written (a full disk, a vanished device) raises the run's
+//! [`Alarm`]: the supervisor vents and stops with `log-error` at the next period.
 use crate::backend::RigBackend;
 use crate::error::RigError;
-use crate::supervisor::Supervised;
+use crate::supervisor::{Alarm, Supervised};
 use pma_control::{RefSample, Reference};
 use pma_loop::{Backend, End, MuscleStep, Period, Recorder, Start};
+use sha2::{Digest, Sha256};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -15,12 +21,18 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-/// Version of the log format: replay refuses other versions.
-pub const LOG_FORMAT: u32 = 1;
+/// Version of the log format: replay refuses other versions. 2: the digest line.
+pub const LOG_FORMAT: u32 = 2;
+
+/// The last line's prefix: `# sha256 <hex> rows <n>`.
+pub const DIGEST_PREFIX: &str = "# sha256 ";
 
 /// Records the ring buffer holds (65 s at 1 kHz): the writer only has to keep up on
 /// average.
 const RING_RECORDS: usize = 1 << 16;
+
+/// Most records a lockstep run may be ahead of its writer (1 s at 1 kHz).
+const LOCKSTEP_LAG_RECORDS: usize = 1000;
 
 /// What a row is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -134,13 +146,16 @@ pub struct LogSummary {
     /// Records the loop could not push because the writer fell behind (0 unless the disk
     /// stalled for over a minute).
     pub dropped: u64,
+    /// Why the log is incomplete, if it is (the run was stopped with `log-error`).
+    pub error: Option<String>,
 }
 
 /// The log: a [`Recorder`] of the supervised rig.
 pub struct RigLog {
     producer: rtrb::Producer<LogRecord>,
     done: Arc<AtomicBool>,
-    writer: Option<std::thread::JoinHandle<Result<u64, RigError>>>,
+    alarm: Arc<Alarm>,
+    writer: Option<std::thread::JoinHandle<(u64, Result<(), RigError>)>>,
     path: PathBuf,
     dropped: u64,
     last: LogRecord,
@@ -156,22 +171,93 @@ fn io_error(path: &Path, e: impl std::fmt::Display) -> RigError {
     }
 }
 
+/// What a log is written to: a file (or, in tests, a disk that fills up).
+trait Sink: Write + Send {
+    /// Makes what was written durable.
+    fn sync(&mut self) -> std::io::Result<()>;
+}
+
+impl Sink for File {
+    fn sync(&mut self) -> std::io::Result<()> {
+        self.sync_all()
+    }
+}
+
+/// What a log records besides its rows.
+pub struct LogSpec<'a> {
+    /// The header, one `#` comment per line.
+    pub header: &'a str,
+    /// The reference, for the activation row.
+    pub reference: Box<dyn Reference>,
+    /// The valve's vent voltage, for the vent row.
+    pub vent_valve_v: f64,
+    /// A lockstep run, which has no deadline, waits for the writer (keeping within a
+    /// second of it); a real-time run never waits (a record that does not fit raises the
+    /// alarm).
+    pub wait_when_full: bool,
+    /// Raised when the log fails.
+    pub alarm: Arc<Alarm>,
+}
+
+/// Where a log's bytes go: the sink, through a running SHA-256 of everything written.
+struct Hashing {
+    sink: Box<dyn Sink>,
+    hash: Sha256,
+}
+
+impl Write for Hashing {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.sink.write(buf)?;
+        self.hash.update(&buf[..n]);
+        Ok(n)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.sink.flush()
+    }
+}
+
+type LogWriter = csv::Writer<BufWriter<Hashing>>;
+
+/// Creates a new log file: never over an existing file, and only a regular file (a log
+/// into `/dev/null` or a pipe would run the experiment and keep nothing).
+fn create_new(path: &Path) -> Result<File, RigError> {
+    if let Ok(meta) = std::fs::metadata(path) {
+        let what = if meta.is_file() {
+            "exists: a rig log is never overwritten (move it, or pass another --log)"
+        } else {
+            "is not a regular file: a rig log must be a new file that keeps what it records"
+        };
+        return Err(io_error(path, what));
+    }
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)
+        .map_err(|e| io_error(path, e))
+}
+
 impl RigLog {
-    /// Creates the file and writes `header` (each line as a `#` comment) and the column
-    /// names, then starts the writer thread. Fails before the run if the file cannot be
-    /// written. `reference` gives the reference at the activation (the loop's first row).
-    /// `wait_when_full`: a lockstep run, which has no deadline, waits for the writer when
-    /// the ring is full; a real-time run never waits (a record that does not fit is
-    /// counted as dropped).
-    pub fn create(
-        path: &Path,
-        header: &str,
-        reference: Box<dyn Reference>,
-        vent_valve_v: f64,
-        wait_when_full: bool,
-    ) -> Result<Self, RigError> {
-        let file = File::create(path).map_err(|e| io_error(path, e))?;
-        let mut out = BufWriter::new(file);
+    /// Creates the file (which must not exist) and writes the header (each line as a `#`
+    /// comment) and the column names, then starts the writer thread. Fails before the run
+    /// if the file cannot be written.
+    pub fn create(path: &Path, spec: LogSpec<'_>) -> Result<Self, RigError> {
+        let file = create_new(path)?;
+        Self::on_sink(Box::new(file), path, spec)
+    }
+
+    /// [`RigLog::create`] on an opened sink.
+    fn on_sink(sink: Box<dyn Sink>, path: &Path, spec: LogSpec<'_>) -> Result<Self, RigError> {
+        let LogSpec {
+            header,
+            reference,
+            vent_valve_v,
+            wait_when_full,
+            alarm,
+        } = spec;
+        let mut out = BufWriter::new(Hashing {
+            sink,
+            hash: Sha256::new(),
+        });
         for line in header.lines() {
             writeln!(out, "# {line}").map_err(|e| io_error(path, e))?;
         }
@@ -182,10 +268,18 @@ impl RigLog {
         let done = Arc::new(AtomicBool::new(false));
         let writer = {
             let done = Arc::clone(&done);
+            let alarm = Arc::clone(&alarm);
             let file_path = path.to_path_buf();
             std::thread::Builder::new()
                 .name("pma-rig-log".into())
-                .spawn(move || write_rows(consumer, csv, &done, &file_path))
+                .spawn(move || {
+                    let mut rows = 0;
+                    let r = write_rows(consumer, csv, &done, &file_path, &mut rows);
+                    if let Err(e) = &r {
+                        alarm.raise(e.to_string());
+                    }
+                    (rows, r)
+                })
                 .map_err(|e| io_error(path, e))?
         };
         let blank = LogRecord {
@@ -205,6 +299,7 @@ impl RigLog {
         Ok(Self {
             producer,
             done,
+            alarm,
             writer: Some(writer),
             path: path.to_path_buf(),
             dropped: 0,
@@ -217,10 +312,21 @@ impl RigLog {
 
     fn push(&mut self, r: LogRecord) {
         self.last = r;
+        if self.wait_when_full {
+            // A lockstep run has no deadline: it keeps within a second of the writer, so that
+            // it stops where its log stopped, as a real-time run does within milliseconds.
+            while RING_RECORDS - self.producer.slots() >= LOCKSTEP_LAG_RECORDS
+                && self.writer.as_ref().is_some_and(|w| !w.is_finished())
+            {
+                std::thread::yield_now();
+            }
+        }
         let mut record = r;
         while let Err(rtrb::PushError::Full(back)) = self.producer.push(record) {
             if !self.wait_when_full || self.writer.as_ref().is_none_or(|w| w.is_finished()) {
                 self.dropped += 1;
+                self.alarm
+                    .raise("the log writer fell behind: records were lost");
                 return;
             }
             std::thread::yield_now();
@@ -245,26 +351,34 @@ impl RigLog {
         self.push(r);
     }
 
-    /// Waits for the writer to write everything and closes the file.
-    pub fn finish(mut self) -> Result<LogSummary, RigError> {
-        let rows = self.join()?;
-        Ok(LogSummary {
+    /// Waits for the writer to write everything and closes the file. A log that failed
+    /// says why in [`LogSummary::error`]: the run's report is never lost with it.
+    pub fn finish(mut self) -> LogSummary {
+        let (rows, result) = self.join();
+        let error = result.err().map(|e| e.to_string());
+        let error = error.or_else(|| self.alarm.is_raised().then(|| self.alarm.message()));
+        LogSummary {
             path: self.path.clone(),
             rows,
             dropped: self.dropped,
-        })
+            error,
+        }
     }
 
-    fn join(&mut self) -> Result<u64, RigError> {
+    /// Rows written, and how the writing ended.
+    fn join(&mut self) -> (u64, Result<(), RigError>) {
         self.done.store(true, Ordering::Release);
         match self.writer.take() {
             Some(t) => t.join().unwrap_or_else(|_| {
-                Err(RigError::Io {
-                    path: self.path.display().to_string(),
-                    message: "the log writer thread panicked".into(),
-                })
+                (
+                    0,
+                    Err(RigError::Io {
+                        path: self.path.display().to_string(),
+                        message: "the log writer thread panicked".into(),
+                    }),
+                )
             }),
-            None => Ok(0),
+            None => (0, Ok(())),
         }
     }
 }
@@ -276,13 +390,14 @@ impl Drop for RigLog {
     }
 }
 
+/// Writes rows until `done`, counting them in `rows` (also when it fails).
 fn write_rows(
     mut consumer: rtrb::Consumer<LogRecord>,
-    mut csv: csv::Writer<BufWriter<File>>,
+    mut csv: LogWriter,
     done: &AtomicBool,
     path: &Path,
-) -> Result<u64, RigError> {
-    let mut rows = 0u64;
+    rows: &mut u64,
+) -> Result<(), RigError> {
     loop {
         // Read `done` before draining: whatever was pushed before it was set is drained.
         let finished = done.load(Ordering::Acquire);
@@ -290,24 +405,69 @@ fn write_rows(
         while let Ok(r) = consumer.pop() {
             csv.write_record(r.fields())
                 .map_err(|e| io_error(path, e))?;
-            rows += 1;
+            *rows += 1;
             wrote = true;
         }
         if finished {
             break;
         }
-        if !wrote {
+        if wrote {
+            // Idle: hand what was written to the file now, so that a full disk is seen
+            // within a few periods rather than at the end of the run.
+            csv.flush().map_err(|e| io_error(path, e))?;
+        } else {
             std::thread::sleep(Duration::from_millis(2));
         }
     }
     csv.flush().map_err(|e| io_error(path, e))?;
-    let file = csv
+    let Hashing { mut sink, hash } = csv
         .into_inner()
         .map_err(|e| io_error(path, e.error()))?
         .into_inner()
         .map_err(|e| io_error(path, e.error()))?;
-    file.sync_all().map_err(|e| io_error(path, e))?;
-    Ok(rows)
+    writeln!(sink, "{DIGEST_PREFIX}{} rows {rows}", hex(&hash.finalize()))
+        .and_then(|()| sink.sync())
+        .map_err(|e| io_error(path, e))
+}
+
+/// `path` with every `{time}` replaced by the UTC time now, `20261123T101500Z`: the
+/// shipped configurations name each run's log by its start, so that runs never collide.
+pub fn expand_time(path: &Path) -> PathBuf {
+    let text = path.to_string_lossy();
+    if !text.contains("{time}") {
+        return path.to_path_buf();
+    }
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    PathBuf::from(text.replace("{time}", &utc_stamp(secs)))
+}
+
+/// `YYYYMMDDTHHMMSSZ` of seconds since the Unix epoch (civil date from day count:
+/// Howard Hinnant's `civil_from_days`).
+fn utc_stamp(secs: u64) -> String {
+    let days = (secs / 86_400) as i64;
+    let rem = secs % 86_400;
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year:04}{month:02}{day:02}T{:02}{:02}{:02}Z",
+        rem / 3600,
+        rem % 3600 / 60,
+        rem % 60
+    )
+}
+
+/// Lower-case hexadecimal.
+pub fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 type Rig = Supervised<RigBackend>;
@@ -356,5 +516,117 @@ impl Recorder<Rig, MuscleStep> for RigLog {
             End::Fault { error, .. } => Some(error.name()),
         };
         self.vent_row(fault);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pma_control::SineReference;
+
+    fn record(period: u64) -> LogRecord {
+        LogRecord {
+            period,
+            t_s: period as f64 * 1e-3,
+            dt_s: 1e-3,
+            reference: RefSample::default(),
+            position_m: 0.01,
+            position_v: 2.0,
+            command_pa: 1e5,
+            valve_cmd_pa: 1e5,
+            valve_v: 1.0,
+            diagnostics: pma_control::Diagnostics::NONE,
+            event: Event::Period,
+            fault: None,
+        }
+    }
+
+    /// A disk that takes `room` bytes, then fails every write with ENOSPC.
+    struct FillingDisk {
+        room: usize,
+    }
+
+    impl Write for FillingDisk {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            if self.room == 0 {
+                return Err(std::io::Error::from_raw_os_error(28));
+            }
+            let n = buf.len().min(self.room);
+            self.room -= n;
+            Ok(n)
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    impl Sink for FillingDisk {
+        fn sync(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    /// Regression: on a full disk the log stopped at 2 s while the muscle kept moving to
+    /// 10 s, and the run ended with exit 1 and no report. A log that cannot be written now
+    /// raises the run's alarm (the supervisor vents at the next period) and `finish` says
+    /// why instead of failing.
+    #[test]
+    fn a_log_on_a_full_disk_raises_the_alarm_and_reports_why() {
+        let alarm = Alarm::new();
+        let mut log = RigLog::on_sink(
+            Box::new(FillingDisk { room: 200_000 }),
+            Path::new("full.csv"),
+            LogSpec {
+                header: "header",
+                reference: Box::new(SineReference::paper()),
+                vent_valve_v: 0.0,
+                wait_when_full: true,
+                alarm: Arc::clone(&alarm),
+            },
+        )
+        .expect("the header fits");
+        for k in 1..=20_000 {
+            log.push(record(k));
+        }
+        let t0 = std::time::Instant::now();
+        while !alarm.is_raised() && t0.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        assert!(alarm.is_raised(), "the alarm was not raised");
+        assert!(
+            alarm.message().contains("No space left"),
+            "{}",
+            alarm.message()
+        );
+        let summary = log.finish();
+        assert!(
+            summary
+                .error
+                .as_deref()
+                .is_some_and(|e| e.contains("No space left")),
+            "{summary:?}"
+        );
+    }
+
+    #[test]
+    fn a_log_never_overwrites_a_file_nor_writes_into_a_device() {
+        let dir = std::env::temp_dir().join(format!("pma-rig-log-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let existing = dir.join("old.csv");
+        std::fs::write(&existing, "keep me").unwrap();
+        let e = create_new(&existing).unwrap_err().to_string();
+        assert!(e.contains("never overwritten"), "{e}");
+        assert_eq!(std::fs::read_to_string(&existing).unwrap(), "keep me");
+        let e = create_new(Path::new("/dev/null")).unwrap_err().to_string();
+        assert!(e.contains("not a regular file"), "{e}");
+        std::fs::remove_dir_all(dir).ok();
+    }
+
+    #[test]
+    fn utc_stamps_of_known_instants() {
+        assert_eq!(utc_stamp(0), "19700101T000000Z");
+        // 2020-05-25 (the paper's publication date) 12:34:56 UTC.
+        assert_eq!(utc_stamp(1_590_410_096), "20200525T123456Z");
+        assert_eq!(utc_stamp(951_782_400), "20000229T000000Z");
     }
 }

@@ -4,9 +4,11 @@ use crate::backend::{Pacing, RigBackend};
 use crate::config::{ClockMode, Driver, RigConfig};
 use crate::daq::{Daq, DaqError, OutputHandle};
 use crate::error::RigError;
-use crate::log::{LogSummary, RigLog};
-use crate::replay::{format_line, CONFIG_BEGIN, CONFIG_END, GAINS_BEGIN, GAINS_END};
-use crate::supervisor::{Fault, Supervised, VentAction, WatchdogFactory};
+use crate::log::{LogSpec, LogSummary, RigLog};
+use crate::replay::{
+    format_line, CONFIG_BEGIN, CONFIG_END, GAINS_BEGIN, GAINS_END, REFERENCE_START,
+};
+use crate::supervisor::{Alarm, Fault, Supervised, VentAction, WatchdogFactory};
 use crate::timing::{enter_realtime, RealtimeStatus, TimingSummary};
 use crate::virtual_daq::{InjectedFault, Injection, VirtualDaq};
 use pma_control::{ControlOutput, Controller, ControllerConfig, Measurement, RefSample};
@@ -16,7 +18,7 @@ use pma_loop::{
 use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
-use std::sync::{Mutex, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
 /// The supervised rig, as recorders see it.
@@ -96,6 +98,8 @@ pub struct RigReport {
     pub log_rows: u64,
     /// Records lost (the writer fell behind).
     pub log_dropped: u64,
+    /// Why the log is incomplete, if it is.
+    pub log_error: Option<String>,
 }
 
 impl RigReport {
@@ -267,8 +271,13 @@ impl VirtualOrBoard {
     }
 }
 
-/// The log header: version, the configuration with the gains, for replay.
-fn header(config: &RigConfig, gains: &ControllerConfig) -> Result<String, RigError> {
+/// The log header: version, the configuration with the gains and where the reference
+/// starts, for replay.
+fn header(
+    config: &RigConfig,
+    gains: &ControllerConfig,
+    reference_start_m: f64,
+) -> Result<String, RigError> {
     let mut cfg = config.clone();
     cfg.control.gains = None;
     cfg.control.controller = gains.kind().as_str().to_owned();
@@ -277,7 +286,7 @@ fn header(config: &RigConfig, gains: &ControllerConfig) -> Result<String, RigErr
         message: format!("cannot serialise the configuration for the log: {e}"),
     })?;
     Ok(format!(
-        "{}\n{CONFIG_BEGIN}\n{toml}{CONFIG_END}\n{GAINS_BEGIN}\n{}{GAINS_END}",
+        "{}\n{CONFIG_BEGIN}\n{toml}{CONFIG_END}\n{GAINS_BEGIN}\n{}{GAINS_END}\n{REFERENCE_START}{reference_start_m:?}",
         format_line(),
         gains.to_toml_string()
     ))
@@ -310,6 +319,7 @@ where
         cfg.realtime.fifo = fifo;
     }
     cfg.validate()?;
+    check_injections(&options.injections, cfg.duration_s)?;
     let gains = match options.controller {
         Some(c) => c,
         None => cfg
@@ -347,19 +357,21 @@ where
     let device = backend.device().to_owned();
     let reference = cfg.reference(backend.configure_reading_m());
     let vent_v = backend.vent_v();
-    let header = header(&cfg, &gains)?;
+    let header = header(&cfg, &gains, backend.configure_reading_m())?;
     let _panic_vent = PanicVent::register(backend.valve_handle()?, vent_v);
     let watchdog_handle = backend.valve_handle()?;
     let factory: WatchdogFactory = Box::new(move || {
         let vent: VentAction = Box::new(move || watchdog_handle.write(vent_v).is_ok());
         Some(vent)
     });
-    let mut rig = Supervised::new(backend, cfg.limits, cfg.period_s, Some(factory));
+    let alarm = Alarm::new();
+    let mut rig = Supervised::new(backend, cfg.limits, cfg.period_s, Some(factory))
+        .with_alarm(Arc::clone(&alarm));
     let controller_name = controller.name().to_owned();
     let mut task = MuscleTask::new(controller, &reference);
     let mut metrics = RigMetrics(TrackingMetrics::new(0.0), 0);
     let mut recorder = recorder;
-    let log_path = cfg.log_path.clone();
+    let log_path = crate::log::expand_time(&cfg.log_path);
     let (end, rt, log_summary) = std::thread::scope(|s| {
         let worker = std::thread::Builder::new()
             .name("pma-rig-loop".into())
@@ -376,10 +388,13 @@ where
                     let header = format!("{header}\n{}", realtime_line(&rt, realtime_pacing));
                     let mut log = RigLog::create(
                         &log_path,
-                        &header,
-                        Box::new(reference),
-                        vent_v,
-                        !realtime_pacing,
+                        LogSpec {
+                            header: &header,
+                            reference: Box::new(reference),
+                            vent_valve_v: vent_v,
+                            wait_when_full: !realtime_pacing,
+                            alarm,
+                        },
                     )?;
                     let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| {
                         pma_loop::run(
@@ -399,7 +414,7 @@ where
                             Ended::Panic
                         }
                     };
-                    Ok((end, rt, log.finish()?))
+                    Ok((end, rt, log.finish()))
                 },
             );
         match worker {
@@ -417,7 +432,12 @@ where
     })?;
     let timing = rig.inner().timing();
     let summary = metrics.0.summary(metrics.1 as f64 * cfg.period_s, None);
-    let (fault, detail) = end.fault();
+    let (mut fault, mut detail) = end.fault();
+    if let (None, Some(e)) = (&fault, &log_summary.error) {
+        // The run completed but its log did not: not a success.
+        fault = Some("log-error".into());
+        detail = Some(format!("the log cannot be written ({e})"));
+    }
     let report = RigReport {
         config: cfg.name.clone(),
         driver: match cfg.device.driver {
@@ -427,7 +447,7 @@ where
         device,
         clock: clock_name.into(),
         controller: controller_name,
-        completed: matches!(end, Ended::Loop(End::Completed)),
+        completed: matches!(end, Ended::Loop(End::Completed)) && log_summary.error.is_none(),
         fault,
         fault_detail: detail,
         vented: rig.inner().vented() || rig.watchdog_vented(),
@@ -449,8 +469,27 @@ where
         log: log_summary.path.display().to_string(),
         log_rows: log_summary.rows,
         log_dropped: log_summary.dropped,
+        log_error: log_summary.error,
     };
     Ok(report)
+}
+
+/// Every injected fault must fall inside the run (after the activation at 0 s, before the
+/// end): one that cannot fire would make a test of a fault path pass without the fault.
+fn check_injections(injections: &[Injection], duration_s: f64) -> Result<(), RigError> {
+    for i in injections {
+        if !(i.at_s > 0.0 && i.at_s < duration_s) {
+            return Err(RigError::Field {
+                field: "--inject",
+                message: format!(
+                    "{}@{} cannot fire: the run lasts {duration_s} s and an injection must come after the activation (0 s) and before the end",
+                    i.fault.name(),
+                    i.at_s
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// The log header's line on the real-time set-up.

@@ -7,7 +7,7 @@ use crate::config::Limits;
 use pma_control::Measurement;
 use pma_loop::{Backend, Started};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 use thiserror::Error;
 
@@ -50,6 +50,18 @@ pub enum Fault<E: std::error::Error + 'static> {
         /// Timeout (ms).
         timeout_ms: f64,
     },
+    /// The loop cannot keep its period: too many deadlines missed.
+    #[error("timing: the loop cannot keep its period: {detail}")]
+    Timing {
+        /// What was missed.
+        detail: String,
+    },
+    /// The log cannot be written: a run that is not recorded does not go on.
+    #[error("log-error: the log cannot be written ({message})")]
+    Log {
+        /// Why.
+        message: String,
+    },
 }
 
 impl<E: std::error::Error + 'static> Fault<E> {
@@ -61,6 +73,8 @@ impl<E: std::error::Error + 'static> Fault<E> {
             Fault::SensorStuck { .. } => "sensor-stuck",
             Fault::Backend(_) => "daq-error",
             Fault::Stall { .. } => "stall",
+            Fault::Timing { .. } => "timing",
+            Fault::Log { .. } => "log-error",
         }
     }
 }
@@ -69,7 +83,8 @@ impl<E: std::error::Error + 'static> Fault<E> {
 /// write succeeded.
 pub type VentAction = Box<dyn Fn() -> bool + Send + 'static>;
 
-/// An independent thread that vents on its own when the loop stops kicking it.
+/// An independent thread that vents on its own when the loop stops kicking it. Its sleep
+/// between checks is interruptible: shutting it down never waits for a poll to end.
 pub struct Watchdog {
     shared: Arc<WatchdogShared>,
     thread: Option<std::thread::JoinHandle<()>>,
@@ -80,7 +95,20 @@ struct WatchdogShared {
     last_kick_ns: AtomicU64,
     tripped_silence_ns: AtomicU64,
     vented: AtomicBool,
-    stop: AtomicBool,
+    stop: Mutex<bool>,
+    wake: Condvar,
+}
+
+impl WatchdogShared {
+    /// Sleeps up to `poll`; returns whether a shutdown was asked for.
+    fn sleep(&self, poll: Duration) -> bool {
+        let stop = self.stop.lock().unwrap_or_else(|p| p.into_inner());
+        let (stop, _) = self
+            .wake
+            .wait_timeout_while(stop, poll, |stop| !*stop)
+            .unwrap_or_else(|p| p.into_inner());
+        *stop
+    }
 }
 
 impl Watchdog {
@@ -91,24 +119,24 @@ impl Watchdog {
             last_kick_ns: AtomicU64::new(0),
             tripped_silence_ns: AtomicU64::new(0),
             vented: AtomicBool::new(false),
-            stop: AtomicBool::new(false),
+            stop: Mutex::new(false),
+            wake: Condvar::new(),
         });
         let s = Arc::clone(&shared);
         let poll = (timeout / 4).max(Duration::from_micros(200));
+        let timeout_ns = u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX);
         let thread = std::thread::Builder::new()
             .name("pma-rig-watchdog".into())
-            .spawn(move || loop {
-                std::thread::sleep(poll);
-                if s.stop.load(Ordering::Acquire) {
-                    return;
-                }
-                let now = s.origin.elapsed().as_nanos() as u64;
-                let silent = now.saturating_sub(s.last_kick_ns.load(Ordering::Acquire));
-                if silent > timeout.as_nanos() as u64 {
-                    let ok = vent();
-                    s.vented.store(ok, Ordering::Release);
-                    s.tripped_silence_ns.store(silent.max(1), Ordering::Release);
-                    return;
+            .spawn(move || {
+                while !s.sleep(poll) {
+                    let now = s.origin.elapsed().as_nanos() as u64;
+                    let silent = now.saturating_sub(s.last_kick_ns.load(Ordering::Acquire));
+                    if silent > timeout_ns {
+                        let ok = vent();
+                        s.vented.store(ok, Ordering::Release);
+                        s.tripped_silence_ns.store(silent.max(1), Ordering::Release);
+                        return;
+                    }
                 }
             })?;
         let w = Self {
@@ -138,8 +166,13 @@ impl Watchdog {
         self.shared.vented.load(Ordering::Acquire)
     }
 
-    fn shutdown(&mut self) {
-        self.shared.stop.store(true, Ordering::Release);
+    /// Stops the thread at once (its sleep is interrupted) and waits for it.
+    pub fn shutdown(&mut self) {
+        {
+            let mut stop = self.shared.stop.lock().unwrap_or_else(|p| p.into_inner());
+            *stop = true;
+        }
+        self.shared.wake.notify_all();
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
@@ -152,8 +185,110 @@ impl Drop for Watchdog {
     }
 }
 
+/// Raised from outside the loop by something the run depends on (the log's writer thread):
+/// the supervisor turns it into a fault at the next period.
+#[derive(Debug, Default)]
+pub struct Alarm {
+    raised: AtomicBool,
+    message: Mutex<Option<String>>,
+}
+
+impl Alarm {
+    /// A new, quiet alarm.
+    pub fn new() -> Arc<Self> {
+        Arc::new(Self::default())
+    }
+
+    /// Raises it with `message`; the first message is kept.
+    pub fn raise(&self, message: impl Into<String>) {
+        if let Ok(mut m) = self.message.lock() {
+            m.get_or_insert_with(|| message.into());
+        }
+        self.raised.store(true, Ordering::Release);
+    }
+
+    /// Whether it was raised.
+    pub fn is_raised(&self) -> bool {
+        self.raised.load(Ordering::Acquire)
+    }
+
+    /// The message it was raised with.
+    pub fn message(&self) -> String {
+        self.message
+            .lock()
+            .ok()
+            .and_then(|m| m.clone())
+            .unwrap_or_default()
+    }
+}
+
+/// Periods over which the share of missed deadlines is measured.
+pub const OVERRUN_WINDOW_PERIODS: u64 = 1000;
+
+/// Counts missed deadlines: consecutive ones in a single wait, and their share over
+/// windows of [`OVERRUN_WINDOW_PERIODS`].
+#[derive(Debug, Clone, Copy, Default)]
+struct OverrunCounter {
+    window_elapsed: u64,
+    window_missed: u64,
+    waited: bool,
+}
+
+impl OverrunCounter {
+    /// A wait that took `elapsed` periods; the fault if a limit is passed.
+    fn record<E: std::error::Error>(
+        &mut self,
+        elapsed: u32,
+        limits: &Limits,
+    ) -> Result<(), Fault<E>> {
+        let missed = elapsed.saturating_sub(1);
+        // The first wake-up also pays for the activation (threads, the log's first row):
+        // its misses count in the share, not as a stall of the loop.
+        let first = !std::mem::replace(&mut self.waited, true);
+        if !first && missed > limits.overrun_max_consecutive_periods {
+            return Err(Fault::Timing {
+                detail: format!(
+                    "{missed} consecutive periods missed in one wake-up (limit {})",
+                    limits.overrun_max_consecutive_periods
+                ),
+            });
+        }
+        self.window_elapsed += u64::from(elapsed.max(1));
+        self.window_missed += u64::from(missed);
+        if self.window_elapsed >= OVERRUN_WINDOW_PERIODS {
+            let share = self.window_missed as f64 / self.window_elapsed as f64;
+            if share > limits.overrun_max_share {
+                return Err(Fault::Timing {
+                    detail: format!(
+                        "{} of the last {} periods missed ({:.1} %, limit {:.1} %)",
+                        self.window_missed,
+                        self.window_elapsed,
+                        share * 100.0,
+                        limits.overrun_max_share * 100.0
+                    ),
+                });
+            }
+            self.window_elapsed = 0;
+            self.window_missed = 0;
+        }
+        Ok(())
+    }
+}
+
 /// Builds the watchdog's vent action when the run starts.
 pub type WatchdogFactory = Box<dyn FnOnce() -> Option<VentAction> + Send>;
+
+/// The command the supervisor applies: clamped to `[0, max]` (NaN vents), its change
+/// from `last_pa` limited to the rate limit over `dt_s` (replay recomputes it from a log).
+pub fn limit_command(command_pa: f64, last_pa: f64, limits: &Limits, dt_s: f64) -> f64 {
+    let u = if command_pa.is_nan() {
+        0.0
+    } else {
+        command_pa.clamp(0.0, limits.pressure_max_pa)
+    };
+    let step = limits.pressure_rate_max_pa_per_s * dt_s;
+    u.clamp(last_pa - step, last_pa + step)
+}
 
 /// The supervisor around `B`.
 pub struct Supervised<B> {
@@ -166,6 +301,8 @@ pub struct Supervised<B> {
     watchdog_factory: Option<WatchdogFactory>,
     watchdog: Option<Watchdog>,
     watchdog_vented: bool,
+    alarm: Option<Arc<Alarm>>,
+    overruns: OverrunCounter,
 }
 
 impl<B> Supervised<B>
@@ -185,6 +322,23 @@ where
             watchdog_factory: watchdog,
             watchdog: None,
             watchdog_vented: false,
+            alarm: None,
+            overruns: OverrunCounter::default(),
+        }
+    }
+
+    /// Faults the run at the next period once `alarm` is raised (the log's writer).
+    pub fn with_alarm(mut self, alarm: Arc<Alarm>) -> Self {
+        self.alarm = Some(alarm);
+        self
+    }
+
+    fn check_alarm(&self) -> Result<(), Fault<B::Error>> {
+        match &self.alarm {
+            Some(a) if a.is_raised() => Err(Fault::Log {
+                message: a.message(),
+            }),
+            _ => Ok(()),
         }
     }
 
@@ -247,15 +401,8 @@ where
         Ok(m)
     }
 
-    /// Clamps to `[0, max]` (NaN vents) and limits the rate of change.
     fn limit(&self, command_pa: f64, dt_s: f64) -> f64 {
-        let u = if command_pa.is_nan() {
-            0.0
-        } else {
-            command_pa.clamp(0.0, self.limits.pressure_max_pa)
-        };
-        let step = self.limits.pressure_rate_max_pa_per_s * dt_s;
-        u.clamp(self.last_command_pa - step, self.last_command_pa + step)
+        limit_command(command_pa, self.last_command_pa, &self.limits, dt_s)
     }
 }
 
@@ -280,10 +427,12 @@ where
 
     fn wait(&mut self, period_s: f64) -> Result<u32, Self::Error> {
         self.check_watchdog()?;
+        self.check_alarm()?;
         let n = self.inner.wait(period_s).map_err(Fault::Backend)?;
         if let Some(w) = &self.watchdog {
             w.kick();
         }
+        self.overruns.record(n, &self.limits)?;
         Ok(n)
     }
 
@@ -310,12 +459,199 @@ where
         self.inner.truth()
     }
 
-    /// Stops the watchdog, then vents through the backend.
+    /// Vents through the backend first, then stops the watchdog: nothing delays the vent.
     fn stop(&mut self) {
+        self.inner.stop();
         if let Some(mut w) = self.watchdog.take() {
             w.shutdown();
             self.watchdog_vented |= w.vented();
         }
-        self.inner.stop();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::convert::Infallible;
+    use std::sync::atomic::AtomicU32;
+
+    /// A muscle that reads NaN from `nan_at` on, and waits `elapsed` periods per wait;
+    /// it records when it was vented.
+    struct Scripted {
+        period: u32,
+        nan_at: u32,
+        elapsed: u32,
+        vented_at: Arc<Mutex<Option<Instant>>>,
+        faulted_at: Option<Instant>,
+    }
+
+    impl Scripted {
+        fn new(nan_at: u32, elapsed: u32) -> Self {
+            Self {
+                period: 0,
+                nan_at,
+                elapsed,
+                vented_at: Arc::new(Mutex::new(None)),
+                faulted_at: None,
+            }
+        }
+    }
+
+    impl Backend for Scripted {
+        type Reading = Measurement;
+        type Command = f64;
+        type Truth = ();
+        type Error = Infallible;
+        fn start(&mut self) -> Result<Started<Measurement, f64>, Infallible> {
+            Ok(Started {
+                t_s: 0.0,
+                reading: Measurement { position_m: 0.01 },
+                command: 0.0,
+            })
+        }
+        fn wait(&mut self, _: f64) -> Result<u32, Infallible> {
+            self.period += 1;
+            Ok(self.elapsed)
+        }
+        fn read(&mut self) -> Result<Measurement, Infallible> {
+            let x = if self.period >= self.nan_at {
+                self.faulted_at.get_or_insert_with(Instant::now);
+                f64::NAN
+            } else {
+                0.01 + f64::from(self.period) * 1e-6
+            };
+            Ok(Measurement { position_m: x })
+        }
+        fn write(&mut self, u: &f64) -> Result<f64, Infallible> {
+            Ok(*u)
+        }
+        fn truth(&self) {}
+        fn stop(&mut self) {
+            if let Ok(mut v) = self.vented_at.lock() {
+                v.get_or_insert_with(Instant::now);
+            }
+        }
+    }
+
+    fn limits() -> Limits {
+        Limits {
+            pressure_max_pa: 6e5,
+            pressure_rate_max_pa_per_s: 2e8,
+            position_min_m: -0.018,
+            position_max_m: 0.045,
+            sensor_stuck_periods: 0,
+            watchdog_periods: 50,
+            overrun_max_consecutive_periods: 10,
+            overrun_max_share: 0.05,
+        }
+    }
+
+    /// A watchdog that never trips within the test, with its vent counted.
+    fn quiet_watchdog(timeout_periods: u32) -> (Limits, WatchdogFactory, Arc<AtomicU32>) {
+        let vents = Arc::new(AtomicU32::new(0));
+        let counted = Arc::clone(&vents);
+        let factory: WatchdogFactory = Box::new(move || {
+            let vent: VentAction = Box::new(move || {
+                counted.fetch_add(1, Ordering::SeqCst);
+                true
+            });
+            Some(vent)
+        });
+        let l = Limits {
+            watchdog_periods: timeout_periods,
+            ..limits()
+        };
+        (l, factory, vents)
+    }
+
+    /// Regression: `Supervised::stop` joined the watchdog (asleep for a quarter of its
+    /// timeout) before venting, so a fault left the valve at its last command for up to
+    /// 12.5 ms with the default configuration and 9 s with a long watchdog. The vent now
+    /// comes first; here the watchdog sleeps 2.5 s between checks.
+    #[test]
+    fn a_fault_vents_before_the_watchdog_is_joined() {
+        let (l, factory, vents) = quiet_watchdog(10_000);
+        let backend = Scripted::new(5, 1);
+        let vented_at = Arc::clone(&backend.vented_at);
+        let mut rig = Supervised::new(backend, l, 0.001, Some(factory));
+        rig.start().expect("start");
+        let mut fault = None;
+        for _ in 0..10 {
+            rig.wait(0.001).expect("wait");
+            if let Err(f) = rig.read() {
+                fault = Some(f);
+                break;
+            }
+        }
+        assert_eq!(fault, Some(Fault::SensorNan));
+        rig.stop();
+        let faulted = rig.inner().faulted_at.expect("fault seen");
+        let vented = vented_at.lock().unwrap().expect("vented");
+        let delay = vented.duration_since(faulted);
+        // The old order took at least one watchdog poll (2.5 s here).
+        assert!(
+            delay < Duration::from_millis(250),
+            "vented {delay:?} after the fault"
+        );
+        assert_eq!(vents.load(Ordering::SeqCst), 0, "the watchdog did not trip");
+    }
+
+    /// Regression: the watchdog slept through its whole poll before seeing a shutdown, so
+    /// `watchdog_periods = 4294967295` hung the process for minutes. Its sleep is now
+    /// interrupted by the shutdown.
+    #[test]
+    fn a_watchdog_with_a_long_timeout_shuts_down_at_once() {
+        let mut w = Watchdog::spawn(Duration::from_secs(3600), Box::new(|| true)).expect("spawn");
+        let t0 = Instant::now();
+        w.shutdown();
+        assert!(t0.elapsed() < Duration::from_secs(5), "{:?}", t0.elapsed());
+        assert!(w.tripped().is_none());
+    }
+
+    /// Regression: a real-time run at `period_s = 1e-5` missed 160,898 deadlines and ended
+    /// "completed". Missing more than the limit in a row, or too large a share, is now a
+    /// timing fault that vents.
+    #[test]
+    fn a_loop_that_cannot_keep_time_is_a_timing_fault() {
+        // 12 deadlines missed in one wake-up (limit 10); the first wake-up, which pays for
+        // the activation, only counts in the share.
+        let mut rig = Supervised::new(Scripted::new(u32::MAX, 13), limits(), 0.001, None);
+        rig.start().expect("start");
+        rig.wait(0.001).expect("the first wake-up");
+        let e = rig.wait(0.001).expect_err("timing fault");
+        assert_eq!(e.name(), "timing");
+        assert!(e.to_string().contains("12 consecutive"), "{e}");
+        // Two periods each wake-up: half the deadlines missed (limit 5 %).
+        let mut rig = Supervised::new(Scripted::new(u32::MAX, 2), limits(), 0.001, None);
+        rig.start().expect("start");
+        let mut periods = 0;
+        let e = loop {
+            match rig.wait(0.001) {
+                Ok(n) => periods += n,
+                Err(e) => break e,
+            }
+            assert!(periods < 10_000, "no fault");
+        };
+        assert_eq!(e.name(), "timing");
+        assert!(periods < 1000, "{periods}");
+        // One missed deadline now and then is not a fault.
+        let mut rig = Supervised::new(Scripted::new(u32::MAX, 1), limits(), 0.001, None);
+        rig.start().expect("start");
+        for _ in 0..5000 {
+            rig.wait(0.001).expect("keeps time");
+        }
+    }
+
+    #[test]
+    fn a_raised_alarm_is_a_log_fault_at_the_next_period() {
+        let alarm = Alarm::new();
+        let mut rig = Supervised::new(Scripted::new(u32::MAX, 1), limits(), 0.001, None)
+            .with_alarm(Arc::clone(&alarm));
+        rig.start().expect("start");
+        rig.wait(0.001).expect("quiet");
+        alarm.raise("No space left on device (os error 28)");
+        let e = rig.wait(0.001).expect_err("log fault");
+        assert_eq!(e.name(), "log-error");
+        assert!(e.to_string().contains("No space left"), "{e}");
     }
 }

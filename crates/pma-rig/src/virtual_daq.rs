@@ -1,6 +1,7 @@
 //! The virtual rig: the `pma-model` muscle, load and valve (the bench of `pma-sim`) behind
 //! the [`Daq`] trait, in volts and converter counts, so that calibration, quantisation and
 //! every fault path of the real rig run without hardware.
+use crate::board::BoardLayout;
 use crate::config::{Calibration, ClockMode, RigConfig, VirtualConfig};
 use crate::daq::{AnalogChannel, ChannelName, Daq, DaqError, DigitalLine, OutputHandle};
 use crate::error::RigError;
@@ -282,6 +283,31 @@ pub struct VirtualDaq {
     valve: AnalogChannel,
     pump: Option<DigitalLine>,
     injections: Vec<Injection>,
+    board: BoardLayout,
+}
+
+/// The simulated board's range at `channel` (V); a configured range must agree with it.
+fn board_range(
+    board: &BoardLayout,
+    channel: &AnalogChannel,
+    output: bool,
+    configured: Option<[f64; 2]>,
+) -> Result<[f64; 2], RigError> {
+    let (min, max) = board.analog_range_v(VIRTUAL_DEVICE, channel, output)?;
+    match configured {
+        Some(r) if r != [min, max] => Err(RigError::Field {
+            field: if output {
+                "virtual.output_range_v"
+            } else {
+                "virtual.input_range_v"
+            },
+            message: format!(
+                "[{}, {}] V is not the range the simulated {} has at range index {} ({min}..{max} V): drop the field or make it agree",
+                r[0], r[1], board.name, channel.range
+            ),
+        }),
+        _ => Ok([min, max]),
+    }
 }
 
 impl VirtualDaq {
@@ -309,13 +335,16 @@ impl VirtualDaq {
             field: "virtual.sensor_noise_rms_m",
             message: e.to_string(),
         })?;
+        let board = BoardLayout::pci6052e();
+        let input_range = board_range(&board, &config.signals.position, false, v.input_range_v)?;
+        let output_range = board_range(&board, &config.signals.valve, true, v.output_range_v)?;
         let latency_steps = (v.sensor_latency_s / step_s).round() as usize;
         let hw = Hardware {
             bench,
             sensor,
             calibration: config.calibration,
-            input: Converter::new(v.input_range_v, v.converter_bits),
-            output: Converter::new(v.output_range_v, v.converter_bits),
+            input: Converter::new(input_range, v.converter_bits),
+            output: Converter::new(output_range, v.converter_bits),
             step_s,
             steps_done: 0,
             history: vec![0.0; latency_steps],
@@ -338,6 +367,7 @@ impl VirtualDaq {
             valve: config.signals.valve,
             pump: config.signals.charge_pump,
             injections: injections.to_vec(),
+            board,
         })
     }
 
@@ -393,6 +423,15 @@ impl Daq for VirtualDaq {
         outputs: &[AnalogChannel],
         lines: &[DigitalLine],
     ) -> Result<(), DaqError> {
+        for c in inputs {
+            self.board.analog_range_v(VIRTUAL_DEVICE, c, false)?;
+        }
+        for c in outputs {
+            self.board.analog_range_v(VIRTUAL_DEVICE, c, true)?;
+        }
+        for l in lines {
+            self.board.digital_line(VIRTUAL_DEVICE, l)?;
+        }
         if let Some(c) = inputs.iter().find(|c| **c != self.position) {
             return Err(self.wrong_channel(c.input_name()));
         }

@@ -18,17 +18,29 @@ pub enum SimError {
     /// No preset of that name.
     #[error("unknown plant `{0}` (expected one of: ideal, mismatch, realistic, realistic_known_lag, or a .toml file)")]
     UnknownPlant(String),
-    /// A file could not be read.
-    #[error("cannot read `{path}`: {message}")]
+    /// A file could not be read or written.
+    #[error("cannot {operation} `{path}`: {message}")]
     Io {
+        /// `read` or `write`.
+        operation: &'static str,
         /// Path.
         path: String,
         /// OS message.
         message: String,
     },
-    /// A plant file could not be parsed.
-    #[error("plant file `{file}`: {message}")]
+    /// An output file or directory holds something else than it should.
+    #[error("`{path}`: {message}")]
+    Output {
+        /// Path.
+        path: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A file could not be parsed.
+    #[error("{what} `{file}`: {message}")]
     Parse {
+        /// What the file is (`plant file`, `sweep file`, `gait file`).
+        what: &'static str,
         /// File name.
         file: String,
         /// Parser message.

@@ -66,6 +66,7 @@ impl FromStr for GaitSpeed {
             .into_iter()
             .find(|g| g.as_str() == s)
             .ok_or_else(|| SimError::Parse {
+                what: "gait file",
                 file: "gait speed".into(),
                 message: format!(
                     "unknown speed `{s}` (expected very-slow, slow, free, fast or very-fast)"
@@ -179,11 +180,13 @@ impl GaitReference {
             });
         }
         let file: FourierFile = toml::from_str(FOURIER_TOML).map_err(|e| SimError::Parse {
+            what: "gait file",
             file: "models/gait/schwartz2008_fourier.toml".into(),
             message: e.to_string(),
         })?;
         if file.harmonics != HARMONICS {
             return Err(SimError::Parse {
+                what: "gait file",
                 file: "models/gait/schwartz2008_fourier.toml".into(),
                 message: format!("{} harmonics, expected {HARMONICS}", file.harmonics),
             });

@@ -147,6 +147,7 @@ impl PlantConfig {
             return Self::preset(name_or_path);
         }
         let text = std::fs::read_to_string(name_or_path).map_err(|e| SimError::Io {
+            operation: "read",
             path: name_or_path.to_owned(),
             message: e.to_string(),
         })?;
@@ -156,10 +157,12 @@ impl PlantConfig {
     /// Parses and validates a plant file; `file` names it in errors.
     pub fn from_toml_str(text: &str, file: &str) -> Result<Self, SimError> {
         let cfg: PlantConfig = toml::from_str(text).map_err(|e| SimError::Parse {
+            what: "plant file",
             file: file.to_owned(),
             message: pma_control::text::toml_error(text, &e),
         })?;
         cfg.validate().map_err(|e| SimError::Parse {
+            what: "plant file",
             file: file.to_owned(),
             message: e.to_string(),
         })?;

@@ -23,32 +23,69 @@ pub struct Population {
     pub noise_rms_m: [f64; 2],
 }
 
-fn range_ok(name: &'static str, r: [f64; 2], min: f64) -> Result<(), SimError> {
-    if r[0].is_finite() && r[1].is_finite() && r[0] >= min && r[1] >= r[0] {
+fn range_ok(
+    name: &'static str,
+    r: [f64; 2],
+    min: f64,
+    max: f64,
+    expected: &'static str,
+) -> Result<(), SimError> {
+    if r[0].is_finite() && r[1].is_finite() && r[0] >= min && r[1] >= r[0] && r[1] <= max {
         Ok(())
     } else {
         Err(SimError::InvalidRun {
             name,
-            value: r[1],
-            expected: "must be [lo, hi] with finite lo <= hi (and lo >= 0 where it is a size)",
+            value: if r[0] < min || !r[0].is_finite() {
+                r[0]
+            } else {
+                r[1]
+            },
+            expected,
         })
     }
 }
 
+/// Largest population: a sweep holds every run in memory before it starts.
+pub const MAX_POPULATION: usize = 100_000;
+
 impl Population {
-    /// Checks the ranges.
+    /// Checks the size and the ranges (each within what the plant files accept).
     pub fn validate(&self) -> Result<(), SimError> {
-        if self.size == 0 {
+        if !(1..=MAX_POPULATION).contains(&self.size) {
             return Err(SimError::InvalidRun {
                 name: "population.size",
-                value: 0.0,
-                expected: "must be >= 1",
+                value: self.size as f64,
+                expected: "must be 1..=100000 (split larger studies into several sweeps)",
             });
         }
-        range_ok("population.muscle_scale", self.muscle_scale, 0.0)?;
-        range_ok("population.load_kg", self.load_kg, 0.0)?;
-        range_ok("population.valve_lag_s", self.valve_lag_s, 0.0)?;
-        range_ok("population.noise_rms_m", self.noise_rms_m, 0.0)
+        range_ok(
+            "population.muscle_scale",
+            self.muscle_scale,
+            f64::MIN_POSITIVE,
+            pma_model::MAX_FACTOR_ON_TABLE_I,
+            "must be [lo, hi] with 0 < lo <= hi <= 100",
+        )?;
+        range_ok(
+            "population.load_kg",
+            self.load_kg,
+            f64::MIN_POSITIVE,
+            pma_model::MAX_LOAD_KG,
+            "must be [lo, hi] kg with 0 < lo <= hi <= 600",
+        )?;
+        range_ok(
+            "population.valve_lag_s",
+            self.valve_lag_s,
+            0.0,
+            pma_model::MAX_VALVE_DELAY_S,
+            "must be [lo, hi] s with 0 <= lo <= hi <= 1",
+        )?;
+        range_ok(
+            "population.noise_rms_m",
+            self.noise_rms_m,
+            0.0,
+            1e-2,
+            "must be [lo, hi] m with 0 <= lo <= hi <= 0.01",
+        )
     }
 
     /// Plant `k`: the `mismatch` preset's controller model (Table I, 2 kg) over a muscle,

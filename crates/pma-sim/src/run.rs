@@ -5,6 +5,11 @@ use pma_control::{
 use pma_loop::{LoopSettings, MuscleStep, MuscleTask, Period, Recorder, Start, TrackingMetrics};
 use std::sync::atomic::AtomicBool;
 
+/// Shortest and longest control period a user may ask for (s).
+pub const PERIOD_RANGE_S: (f64, f64) = (1e-4, 1e-2);
+/// Fewest control periods of a run whose figures are reported.
+pub const MIN_PERIODS: u64 = 100;
+
 /// Duration and period of a closed-loop run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RunSpec {
@@ -33,6 +38,28 @@ impl RunSpec {
     /// runs shorter than one period.
     pub fn settings(&self) -> Result<LoopSettings<'static>, SimError> {
         Ok(LoopSettings::new(self.period_s, self.duration_s)?)
+    }
+
+    /// The checks of a run a user describes (a sweep file): a period the controllers are
+    /// discretised for and at least [`MIN_PERIODS`] of them, so that the figures describe
+    /// tracking rather than a few samples.
+    pub fn validate(&self) -> Result<LoopSettings<'static>, SimError> {
+        if !(self.period_s >= PERIOD_RANGE_S.0 && self.period_s <= PERIOD_RANGE_S.1) {
+            return Err(SimError::InvalidRun {
+                name: "period_s",
+                value: self.period_s,
+                expected: "must be 0.0001..=0.01 s (the controllers are discretised for 0.1-10 ms; the paper ran at 1 ms)",
+            });
+        }
+        let settings = self.settings()?;
+        if settings.periods() < MIN_PERIODS {
+            return Err(SimError::InvalidRun {
+                name: "duration_s",
+                value: self.duration_s,
+                expected: "must cover at least 100 control periods",
+            });
+        }
+        Ok(settings)
     }
 
     /// Number of control periods.

@@ -85,6 +85,32 @@ pub struct Grid {
     pub seeds: Vec<u64>,
 }
 
+/// Most runs a sweep may have (every run is expanded in memory before the first starts).
+pub const MAX_RUNS: usize = 100_000;
+
+impl Grid {
+    /// How many runs the grid has at most (a gain set that does not apply to a controller
+    /// is skipped later), counted without expanding it; `None` on overflow.
+    fn count(&self) -> Option<usize> {
+        let population = self.plants.population.map_or(0, |p| p.size);
+        let plants = self
+            .plants
+            .presets
+            .len()
+            .checked_mul(self.plants.added_load_kg.len())?
+            .checked_add(population)?;
+        [
+            self.controllers.len(),
+            self.gains.len(),
+            self.references.len(),
+            self.events.len(),
+            self.seeds.len().max(1),
+        ]
+        .iter()
+        .try_fold(plants, |n, &k| n.checked_mul(k))
+    }
+}
+
 fn default_events() -> Vec<String> {
     vec!["none".into()]
 }
@@ -161,6 +187,7 @@ pub struct Sweep {
 
 fn field_error(file: &str, field: &str, message: String) -> SimError {
     SimError::Parse {
+        what: "sweep file",
         file: file.to_owned(),
         message: format!("{field}: {message}"),
     }
@@ -181,6 +208,7 @@ impl Sweep {
     /// relative to `dir`).
     pub fn from_toml_str(text: &str, file: &str, dir: &Path) -> Result<Self, SimError> {
         let parsed: SweepFile = toml::from_str(text).map_err(|e| SimError::Parse {
+            what: "sweep file",
             file: file.to_owned(),
             message: pma_control::text::toml_error(text, &e),
         })?;
@@ -189,8 +217,8 @@ impl Sweep {
             period_s: parsed.period_s,
             x_a_m: None,
         };
-        spec.settings()
-            .map_err(|e| field_error(file, "duration_s", e.to_string()))?;
+        spec.validate()
+            .map_err(|e| field_error(file, "duration_s, period_s", e.to_string()))?;
         if parsed.grid.is_empty() {
             return Err(field_error(
                 file,
@@ -198,7 +226,26 @@ impl Sweep {
                 "no [[grid]]: nothing to run".into(),
             ));
         }
-        let mut points = Vec::new();
+        for (g, grid) in parsed.grid.iter().enumerate() {
+            if let Some(p) = grid.plants.population {
+                p.validate().map_err(|e| {
+                    field_error(file, &format!("grid[{g}].plants.population"), e.to_string())
+                })?;
+            }
+        }
+        let total = parsed
+            .grid
+            .iter()
+            .try_fold(0usize, |n, g| n.checked_add(g.count()?))
+            .filter(|&n| n <= MAX_RUNS)
+            .ok_or_else(|| {
+                field_error(
+                    file,
+                    "grid",
+                    format!("more than {MAX_RUNS} runs: split the study into several sweep files"),
+                )
+            })?;
+        let mut points = Vec::with_capacity(total);
         for (g, grid) in parsed.grid.iter().enumerate() {
             expand(grid, file, dir, g, &mut points)?;
         }
@@ -219,6 +266,7 @@ impl Sweep {
     /// Reads a sweep file.
     pub fn load(path: &Path) -> Result<Self, SimError> {
         let text = std::fs::read_to_string(path).map_err(|e| SimError::Io {
+            operation: "read",
             path: path.display().to_string(),
             message: e.to_string(),
         })?;
@@ -650,38 +698,68 @@ pub struct Manifest {
     pub shard: Shard,
 }
 
-/// Errors of a sweep's files.
-fn io_error(path: &Path, e: impl std::fmt::Display) -> SimError {
+/// A sweep's file that cannot be read.
+fn read_error(path: &Path, e: impl std::fmt::Display) -> SimError {
     SimError::Io {
+        operation: "read",
+        path: path.display().to_string(),
+        message: e.to_string(),
+    }
+}
+
+/// A sweep's file or directory that cannot be written.
+fn write_error(path: &Path, e: impl std::fmt::Display) -> SimError {
+    SimError::Io {
+        operation: "write",
+        path: path.display().to_string(),
+        message: e.to_string(),
+    }
+}
+
+/// An output directory that does not hold what it should.
+fn dir_error(path: &Path, e: impl std::fmt::Display) -> SimError {
+    SimError::Output {
         path: path.display().to_string(),
         message: e.to_string(),
     }
 }
 
 /// The complete lines of a `runs.jsonl` (a torn last line, from a kill, is cut off the
-/// file so that it is redone), by run index.
-pub fn read_runs(path: &Path, repair: bool) -> Result<BTreeMap<usize, RunRecord>, SimError> {
+/// file so that it is redone), by run index. Only indices below `runs_in_sweep` belong to
+/// the sweep; a run recorded twice must be recorded the same way (runs are
+/// deterministic: two different lines for one run mean two different sweeps wrote here).
+pub fn read_runs(
+    path: &Path,
+    repair: bool,
+    runs_in_sweep: usize,
+) -> Result<BTreeMap<usize, RunRecord>, SimError> {
     let mut runs = BTreeMap::new();
     let text = match std::fs::read_to_string(path) {
         Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(runs),
-        Err(e) => return Err(io_error(path, e)),
+        Err(e) => return Err(read_error(path, e)),
     };
     let mut good_bytes = 0usize;
     let mut offset = 0usize;
-    for line in text.split_inclusive('\n') {
+    for (number, line) in text.split_inclusive('\n').enumerate() {
         offset += line.len();
         let complete = line.ends_with('\n');
         match serde_json::from_str::<RunRecord>(line.trim_end()) {
             Ok(r) if complete => {
-                runs.insert(r.run, r);
+                add_run(
+                    path,
+                    &format!("line {}", number + 1),
+                    r,
+                    runs_in_sweep,
+                    &mut runs,
+                )?;
                 good_bytes = offset;
             }
             _ if offset == text.len() && repair => break,
             _ => {
-                return Err(io_error(
+                return Err(dir_error(
                     path,
-                    format!("line ending at byte {offset} is not a run record"),
+                    format!("line {} is not a run record", number + 1),
                 ))
             }
         }
@@ -690,11 +768,69 @@ pub fn read_runs(path: &Path, repair: bool) -> Result<BTreeMap<usize, RunRecord>
         let f = std::fs::OpenOptions::new()
             .write(true)
             .open(path)
-            .map_err(|e| io_error(path, e))?;
+            .map_err(|e| write_error(path, e))?;
         f.set_len(good_bytes as u64)
-            .map_err(|e| io_error(path, e))?;
+            .map_err(|e| write_error(path, e))?;
     }
     Ok(runs)
+}
+
+fn add_run(
+    path: &Path,
+    at: &str,
+    r: RunRecord,
+    runs_in_sweep: usize,
+    runs: &mut BTreeMap<usize, RunRecord>,
+) -> Result<(), SimError> {
+    if r.run >= runs_in_sweep {
+        return Err(dir_error(
+            path,
+            format!(
+                "{at} records run {}, but the sweep has runs 0..{}: not a record of this sweep",
+                r.run,
+                runs_in_sweep.saturating_sub(1)
+            ),
+        ));
+    }
+    match runs.get(&r.run) {
+        Some(seen) if *seen != r => Err(dir_error(
+            path,
+            format!(
+                "{at} records run {} differently from an earlier record: two sweeps wrote here",
+                r.run
+            ),
+        )),
+        Some(_) => Ok(()),
+        None => {
+            runs.insert(r.run, r);
+            Ok(())
+        }
+    }
+}
+
+/// Holds a directory for one sweep at a time (an advisory lock on `DIR/.lock`, released
+/// when the process ends, even by a kill).
+pub struct DirLock(#[allow(dead_code)] std::fs::File);
+
+impl DirLock {
+    /// Takes the lock of `out`, or fails at once if another process holds it.
+    pub fn take(out: &Path) -> Result<Self, SimError> {
+        let path = out.join(".lock");
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(&path)
+            .map_err(|e| write_error(&path, e))?;
+        match file.try_lock() {
+            Ok(()) => Ok(Self(file)),
+            Err(std::fs::TryLockError::WouldBlock) => Err(dir_error(
+                out,
+                "another `pma-exo sweep` is writing into this directory: wait for it or use another --out",
+            )),
+            Err(std::fs::TryLockError::Error(e)) => Err(write_error(&path, e)),
+        }
+    }
 }
 
 /// How an execution went.
@@ -710,24 +846,30 @@ pub struct Execution {
 
 /// Runs this shard of `sweep` into `out` (`runs.jsonl`, `sweep.json`), on the current
 /// rayon pool, skipping the runs already written there; `progress(done, total)` is called
-/// after each run.
+/// after each run. Once `stop` is raised no new run starts (the runs written stay; the
+/// same command resumes).
 pub fn execute(
     sweep: &Sweep,
     out: &Path,
     shard: Shard,
     progress: &(dyn Fn(usize, usize) + Sync),
+    stop: &std::sync::atomic::AtomicBool,
 ) -> Result<Execution, SimError> {
     use rayon::prelude::*;
-    std::fs::create_dir_all(out).map_err(|e| io_error(out, e))?;
+    std::fs::create_dir_all(out).map_err(|e| write_error(out, e))?;
     let manifest = Manifest {
         name: sweep.file.name.clone(),
         fingerprint: sweep.fingerprint.clone(),
         runs: sweep.points.len(),
         shard,
     };
+    let _lock = DirLock::take(out)?;
     check_manifest(out, &manifest)?;
     let runs_path = out.join("runs.jsonl");
-    let done = read_runs(&runs_path, true)?;
+    let done = read_runs(&runs_path, true, sweep.points.len())?;
+    for r in done.values() {
+        check_record(&runs_path, r, &sweep.points[r.run])?;
+    }
     let todo: Vec<&Point> = sweep
         .points
         .iter()
@@ -742,19 +884,22 @@ pub fn execute(
         .create(true)
         .append(true)
         .open(&runs_path)
-        .map_err(|e| io_error(&runs_path, e))?;
+        .map_err(|e| write_error(&runs_path, e))?;
     let writer = std::sync::Mutex::new(file);
     let counter = std::sync::atomic::AtomicUsize::new(0);
     let total = todo.len();
     todo.par_iter().try_for_each(|p| -> Result<(), SimError> {
+        if stop.load(std::sync::atomic::Ordering::Relaxed) {
+            return Ok(());
+        }
         let record = p.run(sweep.file.duration_s, sweep.file.period_s)?;
-        let mut line = serde_json::to_string(&record).map_err(|e| io_error(&runs_path, e))?;
+        let mut line = serde_json::to_string(&record).map_err(|e| write_error(&runs_path, e))?;
         line.push('\n');
         {
             let mut f = writer.lock().unwrap_or_else(|e| e.into_inner());
             // One write per line: a kill tears at most the line being written.
             f.write_all(line.as_bytes())
-                .map_err(|e| io_error(&runs_path, e))?;
+                .map_err(|e| write_error(&runs_path, e))?;
         }
         let n = counter.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         progress(n, total);
@@ -763,7 +908,7 @@ pub fn execute(
     Ok(Execution {
         selected,
         already_done: selected - total,
-        run_now: total,
+        run_now: counter.into_inner(),
     })
 }
 
@@ -771,9 +916,9 @@ fn check_manifest(out: &Path, manifest: &Manifest) -> Result<(), SimError> {
     let path = out.join("sweep.json");
     match std::fs::read_to_string(&path) {
         Ok(text) => {
-            let found: Manifest = serde_json::from_str(&text).map_err(|e| io_error(&path, e))?;
+            let found: Manifest = serde_json::from_str(&text).map_err(|e| dir_error(&path, e))?;
             if &found != manifest {
-                return Err(io_error(
+                return Err(dir_error(
                     &path,
                     format!(
                         "this directory holds shard {} of sweep `{}` ({}), not shard {} of `{}` ({}): use another --out",
@@ -784,10 +929,30 @@ fn check_manifest(out: &Path, manifest: &Manifest) -> Result<(), SimError> {
             Ok(())
         }
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            let text = serde_json::to_string_pretty(manifest).map_err(|e| io_error(&path, e))?;
-            std::fs::write(&path, text).map_err(|e| io_error(&path, e))
+            let text = serde_json::to_string_pretty(manifest).map_err(|e| write_error(&path, e))?;
+            write_atomically(&path, &text)
         }
-        Err(e) => Err(io_error(&path, e)),
+        Err(e) => Err(read_error(&path, e)),
+    }
+}
+
+/// A recorded run must be the sweep's point of that index (the same controller, gains,
+/// reference and event): a record from another sweep is refused.
+fn check_record(path: &Path, r: &RunRecord, p: &Point) -> Result<(), SimError> {
+    let same = r.controller == p.controller.as_str()
+        && r.gains == p.gains
+        && r.reference == p.reference.name()
+        && r.event == p.event.name();
+    if same {
+        Ok(())
+    } else {
+        Err(dir_error(
+            path,
+            format!(
+                "run {} is recorded as {} ({}) on {} / {}, but the sweep's run {} is {} ({}) on {} / {}: not a record of this sweep",
+                r.run, r.controller, r.gains, r.reference, r.event, p.index, p.controller, p.gains, p.reference.name(), p.event.name()
+            ),
+        ))
     }
 }
 
@@ -802,11 +967,11 @@ pub fn merge(dirs: &[PathBuf]) -> Result<(Manifest, Runs, Vec<usize>), SimError>
     let mut shards = BTreeSet::new();
     for dir in dirs {
         let path = dir.join("sweep.json");
-        let text = std::fs::read_to_string(&path).map_err(|e| io_error(&path, e))?;
-        let m: Manifest = serde_json::from_str(&text).map_err(|e| io_error(&path, e))?;
+        let text = std::fs::read_to_string(&path).map_err(|e| read_error(&path, e))?;
+        let m: Manifest = serde_json::from_str(&text).map_err(|e| dir_error(&path, e))?;
         if let Some(f) = &first {
             if f.fingerprint != m.fingerprint || f.runs != m.runs {
-                return Err(io_error(
+                return Err(dir_error(
                     &path,
                     format!(
                         "holds sweep `{}` ({}), not `{}` ({})",
@@ -816,10 +981,13 @@ pub fn merge(dirs: &[PathBuf]) -> Result<(Manifest, Runs, Vec<usize>), SimError>
             }
         }
         shards.insert(m.shard.index);
-        runs.extend(read_runs(&dir.join("runs.jsonl"), false)?);
+        let path = dir.join("runs.jsonl");
+        for (index, r) in read_runs(&path, false, m.runs)? {
+            add_run(&path, &format!("run {index}"), r, m.runs, &mut runs)?;
+        }
         first.get_or_insert(m);
     }
-    let manifest = first.ok_or_else(|| io_error(Path::new("."), "no directory to merge"))?;
+    let manifest = first.ok_or_else(|| dir_error(Path::new("."), "no directory to merge"))?;
     let missing: Vec<usize> = (0..manifest.runs)
         .filter(|i| !runs.contains_key(i))
         .collect();
@@ -830,8 +998,32 @@ pub fn merge(dirs: &[PathBuf]) -> Result<(Manifest, Runs, Vec<usize>), SimError>
 pub fn write_runs(path: &Path, runs: &BTreeMap<usize, RunRecord>) -> Result<(), SimError> {
     let mut text = String::new();
     for r in runs.values() {
-        text.push_str(&serde_json::to_string(r).map_err(|e| io_error(path, e))?);
+        text.push_str(&serde_json::to_string(r).map_err(|e| write_error(path, e))?);
         text.push('\n');
     }
-    std::fs::write(path, text).map_err(|e| io_error(path, e))
+    write_atomically(path, &text)
+}
+
+/// Writes `text` to `path` in full or not at all: a temporary file beside it, renamed.
+fn write_atomically(path: &Path, text: &str) -> Result<(), SimError> {
+    if std::fs::metadata(path).is_ok_and(|m| !m.is_file()) {
+        return Err(dir_error(
+            path,
+            "is not a regular file: refusing to replace it",
+        ));
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut temp = tempfile::Builder::new()
+        .prefix(".sweep.")
+        .suffix(".part")
+        .tempfile_in(dir)
+        .map_err(|e| write_error(path, e))?;
+    temp.write_all(text.as_bytes())
+        .and_then(|()| temp.as_file().sync_all())
+        .map_err(|e| write_error(path, e))?;
+    temp.persist(path).map_err(|e| write_error(path, e.error))?;
+    Ok(())
 }

@@ -8,6 +8,7 @@
 use crate::{run_single, PlantConfig, RunSpec};
 use pma_control::{ControllerConfig, ControllerKind, SineReference};
 use pma_model::GaussianRng;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// One tuned gain: its range and whether it is searched on a log scale.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -145,18 +146,32 @@ impl Default for FireflyOptions {
 
 /// Evaluates every position, in parallel on rayon's pool (the caller's `install` sets
 /// its size). Each evaluation depends on its position only, so the result is the same
-/// for any number of threads.
-fn evaluate_all(pos: &[Vec<f64>], objective: &(impl Fn(&[f64]) -> f64 + Sync)) -> Vec<f64> {
+/// for any number of threads. Once `stop` is raised the rest are skipped (infinite cost).
+fn evaluate_all(
+    pos: &[Vec<f64>],
+    stop: &AtomicBool,
+    objective: &(impl Fn(&[f64]) -> f64 + Sync),
+) -> Vec<f64> {
     use rayon::prelude::*;
-    pos.par_iter().map(|p| objective(p)).collect()
+    pos.par_iter()
+        .map(|p| {
+            if stop.load(Ordering::Relaxed) {
+                f64::INFINITY
+            } else {
+                objective(p)
+            }
+        })
+        .collect()
 }
 
 /// Minimises `objective` over the unit cube `[0, 1]^dims`. Returns the best point, its
 /// value and the number of evaluations. The random moves are drawn in one sequence; the
-/// evaluations of a generation run in parallel.
+/// evaluations of a generation run in parallel. Raising `stop` ends the search after the
+/// evaluations under way (the caller sees the flag and discards the result).
 pub fn firefly(
     dims: usize,
     opts: &FireflyOptions,
+    stop: &AtomicBool,
     objective: impl Fn(&[f64]) -> f64 + Sync,
 ) -> (Vec<f64>, f64, usize) {
     let mut rng = GaussianRng::new(opts.seed);
@@ -164,11 +179,14 @@ pub fn firefly(
     let mut pos: Vec<Vec<f64>> = (0..n)
         .map(|_| (0..dims).map(|_| rng.uniform()).collect())
         .collect();
-    let mut cost = evaluate_all(&pos, &objective);
+    let mut cost = evaluate_all(&pos, stop, &objective);
     let mut evals = n;
     let decay = 0.1f64.powf(1.0 / opts.generations.max(1) as f64);
     let mut alpha = opts.alpha0;
     for _ in 0..opts.generations {
+        if stop.load(Ordering::Relaxed) {
+            break;
+        }
         let snapshot = pos.clone();
         let snap_cost = cost.clone();
         for i in 0..n {
@@ -193,7 +211,7 @@ pub fn firefly(
                 }
             }
         }
-        let new_cost = evaluate_all(&pos, &objective);
+        let new_cost = evaluate_all(&pos, stop, &objective);
         evals += n;
         for (i, c) in new_cost.into_iter().enumerate() {
             // Elitism per firefly: keep the better of old and new position.
@@ -292,9 +310,10 @@ pub fn tune(
     plant: &PlantConfig,
     opts: &FireflyOptions,
     objective: &Objective,
+    stop: &AtomicBool,
 ) -> Option<TuneResult> {
     let dims = search_space(kind)?.len();
-    let (u, _, evaluations) = firefly(dims, opts, |u| {
+    let (u, _, evaluations) = firefly(dims, opts, stop, |u| {
         config_at(kind, u).map_or(f64::INFINITY, |c| {
             sine_score(&c, plant, objective.duration_s).cost(objective)
         })
@@ -316,9 +335,12 @@ mod tests {
     #[test]
     fn firefly_finds_the_minimum_of_a_shifted_bowl() {
         let target = [0.3, 0.7, 0.55];
-        let (x, f, evals) = firefly(3, &FireflyOptions::default(), |u| {
-            u.iter().zip(&target).map(|(a, b)| (a - b) * (a - b)).sum()
-        });
+        let (x, f, evals) = firefly(
+            3,
+            &FireflyOptions::default(),
+            &AtomicBool::new(false),
+            |u| u.iter().zip(&target).map(|(a, b)| (a - b) * (a - b)).sum(),
+        );
         assert_eq!(evals, 20 * 41);
         assert!(f < 1e-3, "f = {f}, x = {x:?}");
     }
@@ -351,7 +373,15 @@ mod tests {
                 .num_threads(threads)
                 .build()
                 .expect("pool")
-                .install(|| tune(ControllerKind::Pid, &plant, &opts, &objective))
+                .install(|| {
+                    tune(
+                        ControllerKind::Pid,
+                        &plant,
+                        &opts,
+                        &objective,
+                        &AtomicBool::new(false),
+                    )
+                })
         };
         assert_eq!(run(1), run(2));
     }
