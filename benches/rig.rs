@@ -5,7 +5,8 @@
 //! (`docs/safety.md`).
 use criterion::{criterion_group, criterion_main, Criterion};
 use pma_control::ControllerKind;
-use pma_loop::{LoopSettings, MuscleTask};
+use pma_control::MuscleTask;
+use pma_loop::LoopSettings;
 use pma_rig::config::EMBEDDED_VIRTUAL;
 use pma_rig::supervisor::{VentAction, WatchdogFactory};
 use pma_rig::{
@@ -23,14 +24,18 @@ fn rig(c: &mut Criterion) {
     let backend =
         RigBackend::configure(&cfg, Box::new(daq), Pacing::Lockstep(clock)).expect("configure");
     let reference = cfg.reference(backend.configure_reading_m());
-    let mut rig = Supervised::new(backend, cfg.limits, cfg.period_s, None);
+    let mut rig = Supervised::new(backend, cfg.limits, None);
     let controller = cfg
         .build_controller(&ControllerKind::AprcNdo.default_config())
         .expect("controller");
     let mut task = MuscleTask::new(controller, &reference);
-    let settings = LoopSettings::new(cfg.period_s, 1.0).expect("settings");
+    let settings = LoopSettings::new(1.0).expect("settings");
     c.bench_function("rig_lockstep_supervised_x1000", |b| {
-        b.iter(|| black_box(pma_loop::run(&mut rig, &mut task, &mut (), &settings).periods))
+        b.iter(|| {
+            let outcome =
+                pma_loop::run(&mut rig, &mut task, &mut (), &settings).expect("a sound duration");
+            black_box(outcome.periods)
+        })
     });
 }
 
@@ -110,13 +115,13 @@ fn fault_to_vent(cfg: &RigConfig) -> Duration {
         let vent: VentAction = Box::new(move || watchdog_handle.write(vent_v).is_ok());
         Some(vent)
     });
-    let mut rig = Supervised::new(backend, cfg.limits, cfg.period_s, Some(factory));
+    let mut rig = Supervised::new(backend, cfg.limits, Some(factory));
     let controller = cfg
         .build_controller(&ControllerKind::AprcNdo.default_config())
         .expect("controller");
     let mut task = MuscleTask::new(controller, &reference);
-    let settings = LoopSettings::new(cfg.period_s, 1.0).expect("settings");
-    let outcome = pma_loop::run(&mut rig, &mut task, &mut (), &settings);
+    let settings = LoopSettings::new(1.0).expect("settings");
+    let outcome = pma_loop::run(&mut rig, &mut task, &mut (), &settings).expect("a sound duration");
     assert!(matches!(outcome.end, pma_loop::End::Fault { .. }));
     let fault = fault_at.lock().expect("lock").expect("a NaN was read");
     let vent = vent_at.lock().expect("lock").expect("vented");

@@ -1,10 +1,10 @@
 //! Speed of the single-muscle core: one controller update, one plant period, and a whole
 //! 20 s closed loop (its real-time factor is 20 s divided by the reported time).
 use criterion::{criterion_group, criterion_main, Criterion};
+use pma_bench::{run_single, MuscleBench, PlantConfig, RunSpec};
 use pma_control::{
     build_controller, CommandLimits, ControllerKind, Measurement, Reference, SineReference,
 };
-use pma_sim::{run_single, MuscleBench, PlantConfig, RunSpec};
 use std::hint::black_box;
 
 fn controller_update(c: &mut Criterion) {

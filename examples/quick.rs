@@ -1,6 +1,6 @@
 //! Runs every controller on every plant preset with the paper's sine and prints the metrics.
+use pma_bench::{run_single, PlantConfig, RunSpec, PRESET_NAMES};
 use pma_control::{ChirpReference, ControllerKind, Reference, SineReference};
-use pma_sim::{run_single, PlantConfig, RunSpec, PRESET_NAMES};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let refs: [(&str, &dyn Reference); 2] = [

@@ -3,9 +3,9 @@
 use crate::output::OutFile;
 use crate::say;
 use anyhow::{Context, Result};
-use pma_sim::experiments::paper::{compute, PaperResults, MP_SWEEP_GAIN};
-use pma_sim::experiments::ComparisonRow;
-use pma_sim::{PlantConfig, RunSpec};
+use pma_bench::{PlantConfig, RunSpec};
+use pma_studies::experiments::paper::{compute, PaperResults, MP_SWEEP_GAIN};
+use pma_studies::experiments::ComparisonRow;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -150,7 +150,7 @@ fn equal_activity_section(md: &mut String, r: &PaperResults) {
          (1525 runs, best of seeds 1-3) for the sine IAE *within a budget* on the mean |du/dt| \
          of the command (`pma-exo tune --max-variation`). The unconstrained tuning above \
          ends on the search box's bounds. `aprc` uses APRC-NDO's gains with the observer off. \
-         Protocol: `models/gains/equal-activity/README.md`.\n"
+         Protocol: `crates/pma-studies/models/gains/equal-activity/README.md`.\n"
     );
     for t in &r.equal_activity {
         let _ = writeln!(

@@ -10,8 +10,8 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
-use pma_sim::experiments::paper::{Plot, Varied};
-use pma_sim::experiments::Series;
+use pma_studies::experiments::paper::{Plot, Varied};
+use pma_studies::experiments::Series;
 use std::ops::Range;
 use std::path::Path;
 
@@ -417,7 +417,7 @@ fn legend_sample(area: &Area, (x, y): (i32, i32), e: &LegendEntry) -> DrawResult
 pub fn rte_distributions(
     path: &Path,
     name: &str,
-    runs: &std::collections::BTreeMap<usize, pma_sim::sweep::RunRecord>,
+    runs: &std::collections::BTreeMap<usize, pma_studies::sweep::RunRecord>,
 ) -> DrawResult {
     let mut groups: Vec<(String, String, Vec<f64>)> = Vec::new();
     for r in runs.values() {
@@ -516,7 +516,7 @@ pub fn shock(
     path: &Path,
     title: &str,
     setting: &str,
-    traces: &[pma_sim::sweep::Trace],
+    traces: &[pma_studies::sweep::Trace],
     events: &[(f64, String)],
 ) -> DrawResult {
     let root = BitMapBackend::new(path, SIZE).into_drawing_area();
@@ -580,7 +580,7 @@ const COMMAND_COLOUR: RGBColor = RGBColor(150, 150, 210);
 
 fn shock_cell(
     area: &Area,
-    tr: &pma_sim::sweep::Trace,
+    tr: &pma_studies::sweep::Trace,
     col: RGBColor,
     (x, y): (Range<f64>, Range<f64>),
     events: &[(f64, String)],

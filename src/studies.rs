@@ -1,6 +1,5 @@
 //! The studies `paper` adds to the paper's experiments, run as the shipped sweeps
-//! (`models/sweeps/`): shocks, Fig. 9 (added loads) and a Monte Carlo population.
-use crate::commands::sweep::load;
+//! (`crates/pma-studies/models/sweeps/`): shocks, Fig. 9 (added loads) and a Monte Carlo population.
 use anyhow::{bail, Result};
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -8,8 +7,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 #[derive(Debug, thiserror::Error)]
 #[error("interrupted")]
 pub struct Interrupted;
-use pma_sim::shock::{BLOCK_S, BLOCK_START_S, IMPACT_START_S, JUMP_DOWN_S, JUMP_UP_S};
-use pma_sim::sweep::{self, Shard, Summary, Sweep};
+use pma_studies::shock::{BLOCK_S, BLOCK_START_S, IMPACT_START_S, JUMP_DOWN_S, JUMP_UP_S};
+use pma_studies::sweep::{self, Shard, Summary, Sweep};
 use std::path::Path;
 
 /// What the studies produced.
@@ -32,7 +31,7 @@ fn run_sweep(
     Summary,
     std::collections::BTreeMap<usize, sweep::RunRecord>,
 )> {
-    let s = load(name)?;
+    let s = sweep::load(name)?;
     let dir = out.join("sweeps").join(name);
     sweep::execute(&s, &dir, Shard::default(), &|_, _| {}, stop)?;
     if stop.load(Ordering::Relaxed) {
@@ -133,17 +132,17 @@ pub fn run_all(out: &Path, stop: &AtomicBool) -> Result<Studies> {
     let mut report = String::new();
     report.push_str(&section(
         "Not in the paper: shocks",
-        "`models/sweeps/shocks.toml` (14 s per run): the reference jumps 5 -> 25 mm at 4 s and back at 10 s; on the sine, an obstacle holds the load from 8 s to 9 s; or 150 N for 30 ms at 8.5 s, up or down. Every controller at equal activity (3 bar/s), APRC-NDO also with the paper's gains and m_p in {0.5, 1, 5, 15}; plants `mismatch` and `realistic`. Plots: `shock_<event>_<plant>.png`.",
+        "`crates/pma-studies/models/sweeps/shocks.toml` (14 s per run): the reference jumps 5 -> 25 mm at 4 s and back at 10 s; on the sine, an obstacle holds the load from 8 s to 9 s; or 150 N for 30 ms at 8.5 s, up or down. Every controller at equal activity (3 bar/s), APRC-NDO also with the paper's gains and m_p in {0.5, 1, 5, 15}; plants `mismatch` and `realistic`. Plots: `shock_<event>_<plant>.png`.",
         &shock_summary,
     ));
     report.push_str(&section(
         "Fig. 9: the chirp with added loads",
-        "`models/sweeps/fig9.toml`: 0, 2.5 and 5 kg added to the `mismatch` load (2.5 kg), gains unchanged (the controllers assume 2 kg).",
+        "`crates/pma-studies/models/sweeps/fig9.toml`: 0, 2.5 and 5 kg added to the `mismatch` load (2.5 kg), gains unchanged (the controllers assume 2 kg).",
         &fig9,
     ));
     report.push_str(&section(
         "Not in the paper: robustness over 200 plants",
-        "`models/sweeps/monte_carlo.toml`: every Table I parameter independently within +-20 %, load 1-5 kg, valve lag 0-30 ms, sensor noise 0-20 um RMS; equal-activity (3 bar/s) gains. Plot: `robustness.png`.",
+        "`crates/pma-studies/models/sweeps/monte_carlo.toml`: every Table I parameter independently within +-20 %, load 1-5 kg, valve lag 0-30 ms, sensor noise 0-20 um RMS; equal-activity (3 bar/s) gains. Plot: `robustness.png`.",
         &mc,
     ));
     Ok(Studies {

@@ -2,10 +2,11 @@
 //! bench, the leg and the rig, the mapping of their periods onto frames, and one
 //! [`Recorder`] for each (a viewer's error is kept and reported after the run).
 use anyhow::Result;
+use pma_bench::{MuscleBench, Sample};
+use pma_control::MuscleStep;
 use pma_leg::patient::SpasmEvent;
 use pma_leg::{LegOutput, LegPlant, LegSample, LegSim, VisualShape};
-use pma_loop::{MuscleStep, Period, Recorder, Start};
-use pma_sim::{MuscleBench, Sample};
+use pma_loop::{Period, Recorder, Start};
 use pma_viz::{Frame, Marker, Shape, Sink, Viz, VizError};
 
 /// Per-muscle series, in this order, under `muscles/<name>/`.

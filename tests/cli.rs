@@ -58,11 +58,11 @@ fn single_prints_the_metrics_as_json() {
     assert_eq!(v["controller"], "aprc-ndo");
     assert_eq!(v["plant"], "ideal");
     // The binary reports what the library computes for the same run.
-    let lib = pma_sim::run_single(
+    let lib = pma_bench::run_single(
         &pma_control::ControllerKind::AprcNdo.default_config(),
-        &pma_sim::PlantConfig::preset("ideal").unwrap(),
+        &pma_bench::PlantConfig::preset("ideal").unwrap(),
         &pma_control::SineReference::paper(),
-        &pma_sim::RunSpec {
+        &pma_bench::RunSpec {
             duration_s: 2.0,
             ..Default::default()
         },
@@ -146,7 +146,7 @@ fn bad_input_gives_one_line_errors() {
     assert_one_line_error(&["single", "--plant", &f], "plant.toml");
     let f = write(
         "lag.toml",
-        &include_str!("../models/plants/realistic_known_lag.toml").replace(
+        &include_str!("../crates/pma-bench/models/plants/realistic_known_lag.toml").replace(
             "valve_time_constant_s = 0.020\n\n[muscle]",
             "valve_time_constant_s = -0.020\n\n[muscle]",
         ),
@@ -624,7 +624,7 @@ fn regression_6_degenerate_runs_are_refused() {
     let sc = dir.join("slow.toml");
     std::fs::write(
         &sc,
-        include_str!("../models/scenarios/gait_training.toml")
+        include_str!("../crates/pma-leg/models/scenarios/gait_training.toml")
             .replace("period_s = 0.001", "period_s = 100"),
     )
     .unwrap();
@@ -639,7 +639,7 @@ fn regression_7_runs_of_centuries_are_refused_without_yes() {
     let sc = dir.join("fine.toml");
     std::fs::write(
         &sc,
-        include_str!("../models/scenarios/gait_training.toml")
+        include_str!("../crates/pma-leg/models/scenarios/gait_training.toml")
             .replace("period_s = 0.001", "period_s = 1e-9"),
     )
     .unwrap();
@@ -700,12 +700,12 @@ fn regression_11_help_warnings_and_file_names() {
     let sc = dir.join("zero.toml");
     std::fs::write(
         &sc,
-        include_str!("../models/scenarios/gait_training.toml")
+        include_str!("../crates/pma-leg/models/scenarios/gait_training.toml")
             .replace("period_s = 0.001", "period_s = 0"),
     )
     .unwrap();
     assert_one_line_error(&["simulate", sc.to_str().unwrap()], "zero.toml");
-    let text = include_str!("../models/scenarios/gait_training.toml");
+    let text = include_str!("../crates/pma-leg/models/scenarios/gait_training.toml");
     let start = text.find("[gait]").unwrap();
     let end = start + text[start..].find("\n\n").unwrap();
     let no_gait = dir.join("no_gait.toml");
@@ -734,7 +734,7 @@ fn regression_11_help_warnings_and_file_names() {
 /// `gait_training` with `extra` appended, in a temporary file.
 fn scenario_with(name: &str, extra: &str) -> std::path::PathBuf {
     let path = temp(name).join("scenario.toml");
-    let base = include_str!("../models/scenarios/gait_training.toml");
+    let base = include_str!("../crates/pma-leg/models/scenarios/gait_training.toml");
     std::fs::write(&path, format!("{base}\n{extra}\n")).unwrap();
     path
 }
@@ -750,7 +750,7 @@ fn pendulum_json(args: &[&str]) -> serde_json::Value {
 #[test]
 fn pendulum_without_patient_or_damping_conserves_energy() {
     let path = temp("undamped").join("scenario.toml");
-    let base = include_str!("../models/scenarios/gait_training.toml");
+    let base = include_str!("../crates/pma-leg/models/scenarios/gait_training.toml");
     let undamped = base.replace("damping_nm_s_per_rad = 0.5", "damping_nm_s_per_rad = 0.0");
     assert_ne!(undamped, base);
     std::fs::write(&path, undamped).unwrap();

@@ -47,8 +47,8 @@ fn leftovers(dir: &Path, keep: &[&str]) -> Vec<String> {
         .collect()
 }
 
-const IDEAL: &str = include_str!("../models/plants/ideal.toml");
-const TRAINING: &str = include_str!("../models/scenarios/gait_training.toml");
+const IDEAL: &str = include_str!("../crates/pma-bench/models/plants/ideal.toml");
+const TRAINING: &str = include_str!("../crates/pma-leg/models/scenarios/gait_training.toml");
 
 /// Regression: `single --plant P --csv P`, `--gains G --csv G`, `simulate S.toml --csv
 /// S.toml`, `pendulum S --csv S` and `tune --plant P --out P` destroyed their input and
@@ -59,7 +59,7 @@ fn an_output_that_is_one_of_the_inputs_is_refused_and_the_input_kept() {
     let plant = write(&dir.join("plant.toml"), IDEAL);
     let gains = write(
         &dir.join("gains.toml"),
-        include_str!("../models/gains/pid.toml"),
+        include_str!("../crates/pma-control/models/gains/pid.toml"),
     );
     let scenario = write(&dir.join("scenario.toml"), TRAINING);
     let cases: Vec<(Vec<&str>, &str)> = vec![
@@ -189,7 +189,7 @@ fn diverging_leg_inputs_are_refused_with_their_plausible_range() {
     let dir = temp_dir("diverging");
     let muscles = write(
         &dir.join("muscles.toml"),
-        &include_str!("../models/muscles.toml").replacen(
+        &include_str!("../crates/pma-leg/models/muscles.toml").replacen(
             "pulley_radius_m = 0.015",
             "pulley_radius_m = 10",
             1,
@@ -206,7 +206,7 @@ fn diverging_leg_inputs_are_refused_with_their_plausible_range() {
         &["simulate", &huge_pulley, "--duration", "4"],
         "pulley_radius_m",
     );
-    let spasms = include_str!("../models/scenarios/gait_spasms.toml");
+    let spasms = include_str!("../crates/pma-leg/models/scenarios/gait_spasms.toml");
     let patient_cases = [
         (
             "spasm",
@@ -242,7 +242,7 @@ fn diverging_leg_inputs_are_refused_with_their_plausible_range() {
 #[test]
 fn a_degenerate_sweep_period_is_refused() {
     let dir = temp_dir("sweep-period");
-    let base = include_str!("../models/sweeps/fig9.toml");
+    let base = include_str!("../crates/pma-studies/models/sweeps/fig9.toml");
     for (period, duration) in [("2.0", "1.0"), ("0.5", "20.0")] {
         let text = format!("period_s = {period}\n{base}").replacen(
             "duration_s = 20.0",
@@ -273,13 +273,13 @@ fn resource_exhaustion_is_refused_at_validation() {
     assert_refused(&["single", "--plant", &dead], "dead_time_s");
     let rig = write(
         &dir.join("rig.toml"),
-        &include_str!("../models/rig/virtual.toml")
+        &include_str!("../crates/pma-rig/models/virtual.toml")
             .replace("[virtual]", "[virtual]\nsensor_latency_s = 1e9"),
     );
     assert_refused(&["rig", "check", "--config", &rig], "sensor_latency_s");
     let mc = write(
         &dir.join("mc.toml"),
-        &include_str!("../models/sweeps/monte_carlo.toml")
+        &include_str!("../crates/pma-studies/models/sweeps/monte_carlo.toml")
             .replace("size = 200", "size = 100000000"),
     );
     let out = dir.join("mc-out");
@@ -336,7 +336,7 @@ fn messages_name_the_right_thing() {
     );
     let spasms = write(
         &dir.join("neg.toml"),
-        &include_str!("../models/scenarios/gait_spasms.toml").replacen(
+        &include_str!("../crates/pma-leg/models/scenarios/gait_spasms.toml").replacen(
             "amplitude_nm = [10.0, 30.0]",
             "amplitude_nm = [-30.0, -10.0]",
             1,

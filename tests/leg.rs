@@ -194,7 +194,7 @@ fn tmp(name: &str, text: &str) -> String {
 }
 
 fn scenario_text() -> String {
-    include_str!("../models/scenarios/gait_training.toml").to_owned()
+    include_str!("../crates/pma-leg/models/scenarios/gait_training.toml").to_owned()
 }
 
 fn load_err(text: &str, extra_files: &[(&str, &str)]) -> String {
@@ -235,7 +235,7 @@ fn bad_scenarios_and_urdfs_are_named_in_one_line() {
     one_line(&e);
     assert!(e.contains("nominal_valve_time_constant_s"), "{e}");
     // Unknown link in a muscle.
-    let muscles = include_str!("../models/muscles.toml").replacen(
+    let muscles = include_str!("../crates/pma-leg/models/muscles.toml").replacen(
         "body_link = \"thigh\"",
         "body_link = \"femur\"",
         1,
@@ -245,7 +245,7 @@ fn bad_scenarios_and_urdfs_are_named_in_one_line() {
     one_line(&e);
     assert!(e.contains("femur") && e.contains("hip_flexor"), "{e}");
     // Regression (first-hour defect 8): a duplicated muscle name was silently merged.
-    let muscles = include_str!("../models/muscles.toml").replacen(
+    let muscles = include_str!("../crates/pma-leg/models/muscles.toml").replacen(
         "name = \"knee_flexor\"",
         "name = \"hip_flexor\"",
         1,

@@ -9,9 +9,9 @@
 //! its controllers were reset on the exact resting contraction instead of the encoder
 //! reading); the shared loop keeps neither (time is `k T`, controllers start from what is
 //! measured), so the leg's pins are the shared loop's own.
+use pma_bench::{run_single, PlantConfig, RunSpec, Sample, Samples};
 use pma_control::{ControllerConfig, ControllerKind, SineReference};
 use pma_leg::{LegSim, Scenario};
-use pma_sim::{run_single, PlantConfig, RunSpec, Sample, Samples};
 
 /// FNV-1a over the bits of a sequence of floats.
 #[derive(Clone, Copy)]
@@ -29,7 +29,7 @@ impl Fnv {
     }
 }
 
-/// The baselines' tuned gains at 3497363 (models/gains/*.toml were tuned again since, with
+/// The baselines' tuned gains at 3497363 (crates/pma-control/models/gains/*.toml were tuned again since, with
 /// another random generator): the pins compare the loop, not the tuning.
 mod gains_at_3497363 {
     use pma_control::{NdoSmcGains, PidGains, PsmcGains, StaGains};

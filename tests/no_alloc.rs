@@ -1,10 +1,11 @@
 //! The hot loop allocates nothing: every period of the bench and of the supervised,
 //! logged virtual rig runs without a single heap allocation on the loop's thread
 //! (counted per thread by a global allocator, from the first period to the last).
+use pma_bench::{MuscleBench, PlantConfig, RunSpec};
+use pma_control::MuscleStep;
 use pma_control::{ControllerKind, SineReference};
-use pma_loop::{MuscleStep, Period, Recorder, Start};
+use pma_loop::{Period, Recorder, Start};
 use pma_rig::{Rig, RigConfig, RunOptions};
-use pma_sim::{MuscleBench, PlantConfig, RunSpec};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::atomic::AtomicBool;
@@ -82,7 +83,7 @@ fn the_bench_loop_allocates_nothing_per_period() {
     for kind in ControllerKind::ALL {
         for plant in ["ideal", "realistic"] {
             let mut counter = Counter::default();
-            pma_sim::run_single(
+            pma_bench::run_single(
                 &kind.default_config(),
                 &PlantConfig::preset(plant).expect("preset"),
                 &SineReference::paper(),

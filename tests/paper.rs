@@ -1,6 +1,6 @@
 //! The paper's experiments (Section IV) in simulation: what reproduces.
-use pma_sim::experiments::paper::compute;
-use pma_sim::{PlantConfig, RunSpec};
+use pma_bench::{PlantConfig, RunSpec};
+use pma_studies::experiments::paper::compute;
 
 #[test]
 fn paper_experiments_reproduce_the_qualitative_claims() {
@@ -51,7 +51,7 @@ fn paper_experiments_reproduce_the_qualitative_claims() {
         "{a:?} {b:?}"
     );
 
-    // Equal command activity (models/gains/equal-activity/README.md): every gain set keeps
+    // Equal command activity (crates/pma-studies/models/gains/equal-activity/README.md): every gain set keeps
     // its budget on the sine it was tuned on; APRC-NDO beats PSMC, STA, PID and its own
     // ablation at every budget on sine and chirp. (NDO-SMC is not in this list: it has
     // the lowest IAE at every budget, 1.2-1.8x below APRC-NDO; see the report.)

@@ -4,13 +4,13 @@
 //! an `Ok` that survives building what it describes, or a one-line error; never a panic,
 //! an abort or an allocation beyond a bound (this binary's allocator refuses any single
 //! allocation above 256 MiB, which aborts the test).
+use pma_bench::{MuscleBench, PlantConfig};
 use pma_control::ControllerConfig;
 use pma_leg::config::{parse_muscles, EMBEDDED_MUSCLES, EMBEDDED_SCENARIOS};
 use pma_leg::{LegSim, LoadedScenario, Scenario};
 use pma_rig::config::{EMBEDDED_PCI6052E, EMBEDDED_VIRTUAL};
 use pma_rig::{RigConfig, VirtualDaq};
-use pma_sim::sweep::Sweep;
-use pma_sim::{MuscleBench, PlantConfig};
+use pma_studies::sweep::Sweep;
 use proptest::prelude::*;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::Path;
@@ -206,23 +206,23 @@ fn config() -> ProptestConfig {
 }
 
 const PLANTS: [&str; 4] = [
-    include_str!("../models/plants/ideal.toml"),
-    include_str!("../models/plants/mismatch.toml"),
-    include_str!("../models/plants/realistic.toml"),
-    include_str!("../models/plants/realistic_known_lag.toml"),
+    include_str!("../crates/pma-bench/models/plants/ideal.toml"),
+    include_str!("../crates/pma-bench/models/plants/mismatch.toml"),
+    include_str!("../crates/pma-bench/models/plants/realistic.toml"),
+    include_str!("../crates/pma-bench/models/plants/realistic_known_lag.toml"),
 ];
 
 const GAINS: [&str; 4] = [
-    include_str!("../models/gains/aprc-ndo-paper.toml"),
-    include_str!("../models/gains/pid.toml"),
-    include_str!("../models/gains/psmc.toml"),
-    include_str!("../models/gains/sta.toml"),
+    include_str!("../crates/pma-control/models/gains/aprc-ndo-paper.toml"),
+    include_str!("../crates/pma-control/models/gains/pid.toml"),
+    include_str!("../crates/pma-control/models/gains/psmc.toml"),
+    include_str!("../crates/pma-control/models/gains/sta.toml"),
 ];
 
 const SWEEPS: [&str; 3] = [
-    include_str!("../models/sweeps/shocks.toml"),
-    include_str!("../models/sweeps/fig9.toml"),
-    include_str!("../models/sweeps/monte_carlo.toml"),
+    include_str!("../crates/pma-studies/models/sweeps/shocks.toml"),
+    include_str!("../crates/pma-studies/models/sweeps/fig9.toml"),
+    include_str!("../crates/pma-studies/models/sweeps/monte_carlo.toml"),
 ];
 
 proptest! {
@@ -260,7 +260,7 @@ proptest! {
         let text = apply(SWEEPS[which], &m);
         match Sweep::from_toml_str(&text, "fuzz.toml", Path::new("models/sweeps")) {
             Ok(s) => {
-                prop_assert!(!s.points.is_empty() && s.points.len() <= pma_sim::sweep::MAX_RUNS);
+                prop_assert!(!s.points.is_empty() && s.points.len() <= pma_studies::sweep::MAX_RUNS);
                 for p in s.points.iter().take(3) {
                     p.resolve_plant().map(drop).unwrap_or_else(|e| assert_one_line(&e));
                 }

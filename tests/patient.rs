@@ -2,13 +2,13 @@
 //! reflex's velocity dependence and delay, reproducible spasms, the inverse dynamics the
 //! voluntary effort uses, and the pendulum test's physics.
 use pma_control::ControllerKind;
+use pma_leg::gait::GaitReference;
 use pma_leg::patient::{
     JointPatientSettings, PatientSettings, PatientTorques, SpasticityPreset, SpasticitySettings,
 };
-use pma_leg::pendulum::{self, PendulumSetup};
 use pma_leg::{LegOutput, LegPlant, LegReport, LegSim, Patient, Scenario, Vented};
 use pma_loop::{FnRecorder, LoopSettings, Period};
-use pma_sim::gait::GaitReference;
+use pma_studies::pendulum::{self, PendulumSetup};
 
 const CONTROLLERS: [ControllerKind; 5] = [
     ControllerKind::AprcNdo,
@@ -119,7 +119,7 @@ fn isokinetic(patient: &mut Patient, speed_rad_s: f64, onset_s: f64, h_s: f64) -
 fn patient(settings: &PatientSettings, h_s: f64) -> Patient {
     let loaded = Scenario::load("gait_training").unwrap();
     let sim = LegSim::new(&loaded).unwrap();
-    let gait = GaitReference::normative(pma_sim::gait::GaitSpeed::Slow, 1.6, 1.6).unwrap();
+    let gait = GaitReference::normative(pma_leg::gait::GaitSpeed::Slow, 1.6, 1.6).unwrap();
     Patient::new(settings, h_s, gait, *sim.leg().inertia(), [0.5, 0.5]).unwrap()
 }
 
@@ -224,7 +224,7 @@ fn assisting_at_100_percent_with_vented_muscles_follows_the_reference() {
             worst = worst.max(e.abs());
         }
     });
-    let settings = LoopSettings::new(loaded.scenario.period_s, duration).unwrap();
+    let settings = LoopSettings::new(duration).unwrap();
     sim.run_task(&mut task, &mut rec, &settings).unwrap();
     let rms = (sq / n as f64).sqrt();
     eprintln!("assist 100 %, vented: RMS {rms:.4} deg, max {worst:.4} deg over {duration} s");
@@ -235,7 +235,7 @@ fn pendulum_r2(preset: SpasticityPreset) -> pendulum::PendulumReport {
     let mut loaded = Scenario::load("gait_training").unwrap();
     loaded.scenario.patient = knee_reflex(preset);
     let sim = pendulum::seated(&loaded, PendulumSetup::default()).unwrap();
-    let settings = LoopSettings::new(loaded.scenario.period_s, 10.0).unwrap();
+    let settings = LoopSettings::new(10.0).unwrap();
     pendulum::run(sim, PendulumSetup::default(), &settings, &mut ()).unwrap()
 }
 

@@ -1,12 +1,13 @@
 //! The hardware backend on the virtual rig: the shared loop, tracking, every fault path,
 //! signals, panics, replay and bad configurations.
+use pma_bench::{MuscleBench, PlantConfig};
 use pma_control::ControllerKind;
-use pma_loop::{FnRecorder, LoopSettings, MuscleStep, MuscleTask, Period};
+use pma_control::{MuscleStep, MuscleTask};
+use pma_loop::{FnRecorder, LoopSettings, Period};
 use pma_rig::config::{ClockMode, EMBEDDED_VIRTUAL};
 use pma_rig::{
     AnalogChannel, Daq, DaqError, DigitalLine, OutputHandle, Rig, RigBackend, RigConfig, RunOptions,
 };
-use pma_sim::{MuscleBench, PlantConfig};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -151,8 +152,8 @@ fn the_virtual_rig_and_the_bench_run_the_same_loop_command_for_command() {
     let mut rec = FnRecorder(|p: &Period<'_, MuscleBench, MuscleStep>| {
         bench_commands.push(p.output.control.pressure_cmd_pa)
     });
-    let settings = LoopSettings::new(cfg.period_s, 5.0).expect("settings");
-    pma_loop::run(&mut bench, &mut task, &mut rec, &settings);
+    let settings = LoopSettings::new(5.0).expect("settings");
+    pma_loop::run(&mut bench, &mut task, &mut rec, &settings).expect("a sound duration");
     assert_eq!(rig_commands.len(), 5000);
     assert_eq!(rig_commands, bench_commands);
     // And the commands did something: the load travelled the sine.

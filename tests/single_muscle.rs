@@ -1,11 +1,11 @@
 //! The single-muscle core against physics and the paper's claims, through the public API.
+use pma_bench::{run_single, MuscleBench, PlantConfig, RunSpec, Sample, Samples, PRESET_NAMES};
 use pma_control::{
     AprcGains, ChirpReference, ControllerConfig, ControllerKind, Reference, SineReference,
 };
 use pma_model::GRAVITY_M_S2;
-use pma_sim::{run_single, MuscleBench, PlantConfig, RunSpec, Sample, Samples, PRESET_NAMES};
 
-fn sine_run(kind_cfg: &ControllerConfig, plant: &str) -> pma_sim::RunResult {
+fn sine_run(kind_cfg: &ControllerConfig, plant: &str) -> pma_bench::RunResult {
     let plant = PlantConfig::preset(plant).expect("preset");
     run_single(
         kind_cfg,
@@ -316,27 +316,6 @@ fn every_controller_runs_on_every_plant_without_nan() {
             }
         }
     }
-}
-
-#[test]
-fn baseline_defaults_are_the_shipped_tuned_gain_files() {
-    for (kind, file) in [
-        (ControllerKind::Psmc, "psmc"),
-        (ControllerKind::NdoSmc, "ndo-smc"),
-        (ControllerKind::Sta, "sta"),
-        (ControllerKind::Pid, "pid"),
-    ] {
-        let path = format!("{}/models/gains/{file}.toml", env!("CARGO_MANIFEST_DIR"));
-        let text = std::fs::read_to_string(&path).unwrap();
-        let cfg = ControllerConfig::from_toml_str(&text).unwrap();
-        assert_eq!(cfg, kind.default_config(), "{path}");
-    }
-    let path = format!(
-        "{}/models/gains/aprc-ndo-paper.toml",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let cfg = ControllerConfig::from_toml_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    assert_eq!(cfg, ControllerKind::AprcNdo.default_config());
 }
 
 #[test]

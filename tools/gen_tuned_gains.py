@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Writes crates/pma-control/src/tuned_gains.rs from models/gains/<baseline>.toml, so the
+"""Writes crates/pma-control/src/tuned_gains.rs from crates/pma-control/models/gains/<baseline>.toml,
+so the
 compiled-in defaults are the shipped tuned gain files (a test checks they agree).
 
 Usage: python3 tools/gen_tuned_gains.py
@@ -19,7 +20,7 @@ out = [
     "",
 ]
 for name, (const, ty) in NAMES.items():
-    gains = tomllib.loads((ROOT / "models" / "gains" / f"{name}.toml").read_text())
+    gains = tomllib.loads((ROOT / "crates" / "pma-control" / "models" / "gains" / f"{name}.toml").read_text())
     gains.pop("controller")
     out.append(f"pub const {const}: {ty} = {ty} {{")
     out += [f"    {k}: {float(v)!r}," for k, v in gains.items()]

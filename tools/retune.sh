@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
 # Regenerates every tuned gain file with the release binary (deterministic: same seeds,
 # same results on any machine and thread count), then the compiled-in defaults.
-#   models/gains/<controller>.toml, aprc-ndo-tuned.toml: unconstrained, seed 1;
-#   models/gains/equal-activity/<budget>/<controller>.toml: best sine IAE of seeds 1-3
-#   within the budget (models/gains/equal-activity/README.md).
-# Every file is tuned into a staging directory first; models/gains/ is only touched once
-# the whole set succeeded, so an interrupted or failed retune leaves the shipped gains as
+#   crates/pma-control/models/gains/<controller>.toml, aprc-ndo-tuned.toml: unconstrained, seed 1;
+#   crates/pma-studies/models/gains/equal-activity/<budget>/<controller>.toml: best sine IAE of seeds 1-3
+#   within the budget (crates/pma-studies/models/gains/equal-activity/README.md).
+# Every file is tuned into a staging directory first; the gain directories are only
+# touched once the whole set succeeded, so an interrupted or failed retune leaves the shipped gains as
 # they were.
 # Usage: tools/retune.sh [path/to/pma-exo]   (about 4 min on 2 cores)
 set -euo pipefail
@@ -14,14 +14,14 @@ bin=${1:-target/release/pma-exo}
 search=(--plant mismatch --population 25 --generations 60 --duration 20)
 stage=$(mktemp -d)
 trap 'rm -rf "$stage"' EXIT
-mkdir -p "$stage/gains/equal-activity"
+mkdir -p "$stage/gains" "$stage/equal-activity"
 for c in psmc ndo-smc sta pid aprc-ndo; do
   out=$stage/gains/$c.toml
   [ "$c" = aprc-ndo ] && out=$stage/gains/aprc-ndo-tuned.toml
   "$bin" tune --controller "$c" "${search[@]}" --seed 1 --out "$out"
 done
 for budget in 1.5 3 6; do
-  mkdir -p "$stage/gains/equal-activity/$budget"
+  mkdir -p "$stage/equal-activity/$budget"
   for c in aprc-ndo ndo-smc psmc sta pid; do
     best=""
     for seed in 1 2 3; do
@@ -34,12 +34,13 @@ for budget in 1.5 3 6; do
       fi
     done
     [ -n "$best" ] || { echo "no seed met $budget bar/s for $c" >&2; exit 1; }
-    { echo "# Equal-activity protocol (models/gains/equal-activity/README.md): best sine IAE of seeds 1-3 within $budget bar/s."; cat "$best"; } \
-      > "$stage/gains/equal-activity/$budget/$c.toml"
+    { echo "# Equal-activity protocol (crates/pma-studies/models/gains/equal-activity/README.md): best sine IAE of seeds 1-3 within $budget bar/s."; cat "$best"; } \
+      > "$stage/equal-activity/$budget/$c.toml"
   done
 done
 # The whole set is there: move it in (each rename is atomic).
-(cd "$stage/gains" && find . -name '*.toml') | while read -r f; do
-  mv -f "$stage/gains/$f" "models/gains/$f"
+mv -f "$stage"/gains/*.toml crates/pma-control/models/gains/
+for budget in 1.5 3 6; do
+  mv -f "$stage/equal-activity/$budget"/*.toml "crates/pma-studies/models/gains/equal-activity/$budget/"
 done
 python3 tools/gen_tuned_gains.py

@@ -2,7 +2,7 @@
 # A sweep spread over a Slurm job array: task i runs part i+1 of N, each into its own
 # directory; when all are done, one merge joins them.
 #
-#   sbatch --array=0-7 examples/slurm/sweep-array.sh models/sweeps/monte_carlo.toml results
+#   sbatch --array=0-7 examples/slurm/sweep-array.sh crates/pma-studies/models/sweeps/monte_carlo.toml results
 #   # afterwards (or as a job with --dependency=afterok:<array job id>):
 #   pma-exo sweep merge results/shard-* --out results/merged
 #

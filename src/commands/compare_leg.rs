@@ -4,8 +4,8 @@ use crate::output::OutFile;
 use crate::say;
 use anyhow::{Context, Result};
 use pma_control::{ControllerConfig, ControllerKind};
-use pma_leg::compare::{compare, CompareRow};
 use pma_leg::Scenario;
+use pma_studies::compare::{compare, CompareRow};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 

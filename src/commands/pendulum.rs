@@ -4,9 +4,9 @@ use crate::output::{self, CsvOut};
 use crate::say;
 use anyhow::Result;
 use pma_leg::patient::{SpasticityPreset, SpasticitySettings};
-use pma_leg::pendulum::{self, PendulumReport, PendulumSetup};
 use pma_leg::{LegOutput, LegPlant, Scenario};
 use pma_loop::{LoopSettings, Period, Recorder};
+use pma_studies::pendulum::{self, PendulumReport, PendulumSetup};
 use std::path::PathBuf;
 
 /// A spasticity preset on the command line.
@@ -129,7 +129,8 @@ pub fn run(a: Args) -> Result<i32> {
         )?;
     }
     let sim = pendulum::seated(&loaded, setup)?;
-    let settings = LoopSettings::new(loaded.scenario.period_s, a.duration)?;
+    let settings = LoopSettings::new(a.duration)?;
+    settings.periods(loaded.scenario.period_s)?;
     let csv = match &a.csv {
         Some(p) => Some(CsvRecorder {
             out: CsvOut::create(p, &COLUMNS.map(str::to_owned))?,

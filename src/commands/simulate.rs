@@ -21,7 +21,7 @@ pub struct Args {
     /// Controller on every muscle (default: APRC-NDO with the scenario's gains).
     #[arg(long, value_name = crate::CONTROLLERS)]
     controller: Option<ControllerKind>,
-    /// Gain file of the controller (default: its shipped leg gains, see models/gains/leg).
+    /// Gain file of the controller (default: its shipped leg gains, see crates/pma-control/models/gains/leg).
     #[arg(long, requires = "controller")]
     gains: Option<PathBuf>,
     /// Simulated seconds (default: the scenario's); at least two strides.
@@ -140,12 +140,8 @@ pub fn run(a: Args) -> Result<i32> {
     let config = leg_config(a.controller, a.gains.as_deref(), &loaded)?;
     let mut sim = LegSim::with_controller(&loaded, &config)?;
     let settings = sim.settings(duration)?;
-    output::check_wall_time(
-        "this simulation",
-        settings.periods() as f64,
-        LEG_PERIOD_S,
-        a.yes,
-    )?;
+    let periods = settings.periods(sc.period_s)?;
+    output::check_wall_time("this simulation", periods as f64, LEG_PERIOD_S, a.yes)?;
     let names: Vec<String> = sim
         .muscles()
         .iter()
@@ -175,10 +171,10 @@ pub fn run(a: Args) -> Result<i32> {
         config
     );
     let viz = viz::leg(&a.rerun, &sim, &meta)?;
-    let bar = output::progress_bar(settings.periods(), "periods");
+    let bar = output::progress_bar(periods, "periods");
     let progress = Progress {
         bar: bar.clone(),
-        every: (settings.periods() / 100).max(1),
+        every: (periods / 100).max(1),
     };
     let stop = output::stop_flag()?;
     let settings = settings.with_stop_flag(&stop);
@@ -207,17 +203,17 @@ pub fn run(a: Args) -> Result<i32> {
 }
 
 /// The controller of every muscle: the scenario's APRC-NDO by default, a gain file, or
-/// the controller's gains tuned for the leg (`models/gains/leg/`).
+/// the controller's gains tuned for the leg (`crates/pma-leg/models/gains/`).
 pub fn leg_config(
     kind: Option<ControllerKind>,
     gains: Option<&std::path::Path>,
     loaded: &pma_leg::LoadedScenario,
 ) -> Result<ControllerConfig> {
     Ok(match (kind, gains) {
-        (None, _) => pma_leg::tune::base_config(loaded, ControllerKind::AprcNdo),
+        (None, _) => pma_leg::gains::base_config(loaded, ControllerKind::AprcNdo),
         (Some(k), Some(path)) => super::load_gains(k, Some(path))?,
         // APRC has no leg gain file of its own: the scenario's APRC-NDO gains without NDO.
-        (Some(k @ ControllerKind::Aprc), None) => pma_leg::tune::base_config(loaded, k),
+        (Some(k @ ControllerKind::Aprc), None) => pma_leg::gains::base_config(loaded, k),
         (Some(k), None) => pma_leg::gains::leg_gains(k)?,
     })
 }

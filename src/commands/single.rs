@@ -3,9 +3,10 @@ use super::{check_duration, load_gains, viz, RefName, RerunArgs};
 use crate::output::{self, CsvOut, INTERRUPTED};
 use crate::say;
 use anyhow::{bail, Result};
+use pma_bench::{run_single_until, MuscleBench, PlantConfig, RunSpec, Sample};
 use pma_control::ControllerKind;
-use pma_loop::{MuscleStep, Period, Recorder};
-use pma_sim::{run_single_until, MuscleBench, PlantConfig, RunSpec, Sample};
+use pma_control::MuscleStep;
+use pma_loop::{Period, Recorder};
 use std::path::PathBuf;
 
 /// Estimated wall time of one bench period (release build, with margin).
@@ -94,8 +95,8 @@ pub fn run(a: Args) -> Result<i32> {
         duration_s: a.duration,
         ..RunSpec::default()
     };
-    let settings = spec.validate()?;
-    output::check_wall_time("this run", settings.periods() as f64, BENCH_PERIOD_S, a.yes)?;
+    spec.validate()?;
+    output::check_wall_time("this run", spec.periods()? as f64, BENCH_PERIOD_S, a.yes)?;
     if let Some(csv) = &a.csv {
         let mut inputs = Vec::new();
         if let Some(p) = output::input_file(&a.plant) {

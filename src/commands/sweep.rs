@@ -2,7 +2,7 @@
 use crate::output;
 use crate::say;
 use anyhow::{bail, Context, Result};
-use pma_sim::sweep::{self, Shard, Sweep};
+use pma_studies::sweep::{self, Shard};
 use std::path::{Path, PathBuf};
 
 /// `sweep`'s arguments.
@@ -42,35 +42,6 @@ enum MergeCommand {
     },
 }
 
-/// The shipped sweeps (`models/sweeps/`).
-pub const SHIPPED: [(&str, &str); 3] = [
-    ("shocks", include_str!("../../models/sweeps/shocks.toml")),
-    ("fig9", include_str!("../../models/sweeps/fig9.toml")),
-    (
-        "monte_carlo",
-        include_str!("../../models/sweeps/monte_carlo.toml"),
-    ),
-];
-
-/// A shipped sweep by name, or a file.
-pub fn load(name_or_path: &str) -> Result<Sweep> {
-    if let Some((name, text)) = SHIPPED.iter().find(|(n, _)| *n == name_or_path) {
-        return Ok(Sweep::from_toml_str(
-            text,
-            &format!("models/sweeps/{name}.toml"),
-            Path::new("."),
-        )?);
-    }
-    if !name_or_path.ends_with(".toml") {
-        let names: Vec<&str> = SHIPPED.iter().map(|(n, _)| *n).collect();
-        bail!(
-            "unknown sweep `{name_or_path}` (expected {} or a .toml file)",
-            names.join(", ")
-        );
-    }
-    Ok(Sweep::load(Path::new(name_or_path))?)
-}
-
 /// Runs `sweep`.
 pub fn run(a: Args) -> Result<i32> {
     if let Some(MergeCommand::Merge { dirs, out }) = a.merge {
@@ -79,7 +50,7 @@ pub fn run(a: Args) -> Result<i32> {
     let (Some(file), Some(out)) = (a.file, a.out) else {
         bail!("a sweep file and --out are required (or `sweep merge DIR...`)");
     };
-    let sweep = load(&file)?;
+    let sweep = sweep::load(&file)?;
     let selected = sweep
         .points
         .iter()
@@ -128,7 +99,7 @@ fn merge(dirs: &[PathBuf], out: &Path) -> Result<i32> {
     let (manifest, runs, missing) = sweep::merge(dirs)?;
     std::fs::create_dir_all(out).with_context(|| format!("cannot create `{}`", out.display()))?;
     sweep::write_runs(&out.join("runs.jsonl"), &runs)?;
-    let merged = pma_sim::sweep::Manifest {
+    let merged = pma_studies::sweep::Manifest {
         shard: Shard::default(),
         ..manifest
     };

@@ -85,30 +85,30 @@ pub fn run(a: Args) -> Result<i32> {
             bail!("--max-variation must be a finite number of bar/s > 0 (got {v})");
         }
     }
-    let plant = pma_sim::PlantConfig::load(&a.plant)?;
-    let spec = pma_sim::RunSpec {
+    let plant = pma_bench::PlantConfig::load(&a.plant)?;
+    let spec = pma_bench::RunSpec {
         duration_s: a.duration,
         ..Default::default()
     };
-    let periods = spec.settings()?.periods() as f64;
+    let periods = spec.periods()? as f64;
     output::check_wall_time("this tuning", periods * evaluations, 1e-6, a.yes)?;
     if let (Some(out), Some(plant)) = (&a.out, output::input_file(&a.plant)) {
         output::refuse_input_as_output(&[("plant file", plant)], &[("--out", out)])?;
     }
     let out = a.out.as_deref().map(OutFile::create).transpose()?;
-    let opts = pma_sim::tune::FireflyOptions {
+    let opts = pma_studies::tune::FireflyOptions {
         population: a.population,
         generations: a.generations,
         seed: a.seed,
         ..Default::default()
     };
-    let objective = pma_sim::tune::Objective {
+    let objective = pma_studies::tune::Objective {
         duration_s: a.duration,
         max_variation_pa_per_s: a.max_variation.map(|v| v * 1e5),
     };
     let stop = output::stop_flag()?;
     let found = super::with_threads(a.threads, || {
-        pma_sim::tune::tune(a.controller, &plant, &opts, &objective, &stop)
+        pma_studies::tune::tune(a.controller, &plant, &opts, &objective, &stop)
     })?;
     if interrupted(&stop, a.out.as_deref()) {
         return Ok(output::INTERRUPTED);
@@ -193,7 +193,7 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
         )?;
     }
     let out = a.out.as_deref().map(OutFile::create).transpose()?;
-    let opts = pma_sim::tune::FireflyOptions {
+    let opts = pma_studies::tune::FireflyOptions {
         population: a.population,
         generations: a.generations,
         seed: a.seed,
@@ -201,7 +201,7 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
     };
     let stop = output::stop_flag()?;
     let found = super::with_threads(a.threads, || {
-        pma_leg::tune::tune(&loaded, a.controller, &opts, a.duration, &stop)
+        pma_studies::leg_tune::tune(&loaded, a.controller, &opts, a.duration, &stop)
     })?;
     if interrupted(&stop, a.out.as_deref()) {
         return Ok(output::INTERRUPTED);
@@ -212,7 +212,7 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
             a.controller
         );
     };
-    if t.objective >= pma_leg::tune::FAILED_RUN {
+    if t.objective >= pma_studies::leg_tune::FAILED_RUN {
         bail!(
             "every one of the {} runs failed or went non-finite: no gains to report",
             t.evaluations

@@ -4,39 +4,38 @@ use crate::{
     DisturbanceObserver, KinematicObserver, Measurement, NominalModel, RefSample, Saturation,
 };
 
-/// Gains of APRC(-NDO). The defaults are the paper's (Section IV-A); `delta` and the
-/// observer bandwidth are not given there and are chosen here (see the field docs).
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
-pub struct AprcGains {
-    /// `c1` of the sliding manifolds (3), (4) (1/s).
-    pub c1_per_s: f64,
-    /// `c2` of the sliding manifolds (1/s^2).
-    pub c2_per_s2: f64,
-    /// Proxy-object coupling `Kp` of eq. (7) (1/s^2).
-    pub kp_per_s2: f64,
-    /// Proxy-object coupling `Ki` (1/s^3).
-    pub ki_per_s3: f64,
-    /// Proxy-object coupling `Kd` (1/s).
-    pub kd_per_s: f64,
-    /// Disturbance observer gain `kappa` of eq. (37) (1/s); unused by plain APRC.
-    pub kappa_per_s: f64,
-    /// Adaptation rate `gamma` of eq. (10); `0` holds the gain at `gain_initial`.
-    pub gamma: f64,
-    /// Proxy mass `m_p` of eq. (11).
-    pub proxy_mass: f64,
-    /// Boundary layer `delta` of eq. (10) (m/s). Not given in the paper; 0.5 mm/s (2 % of
-    /// the sine reference's peak velocity) stops adaptation on measurement noise while
-    /// any real proxy slip still raises the gain.
-    pub boundary_layer_m_s: f64,
-    /// `Gamma_hat(0)`; the paper starts from 0.
-    pub gain_initial: f64,
-    /// Bandwidth of the kinematic observer that supplies velocity and acceleration
-    /// (rad/s). Not part of the paper (its rig differentiated position); 200 rad/s keeps
-    /// the velocity lag error at 4.4 um/s on the 0.25 Hz sine (`3 jerk / omega^2`) and
-    /// the velocity noise from 20 um of position noise around 2 mm/s.
-    pub estimator_bandwidth_rad_s: f64,
+crate::gain_table! {
+    /// Gains of APRC(-NDO). The defaults are the paper's (Section IV-A); `delta` and the
+    /// observer bandwidth are not given there and are chosen here (see the field docs).
+    pub struct AprcGains {
+        /// `c1` of the sliding manifolds (3), (4) (1/s).
+        c1_per_s: Positive, Log(1.0, 1e4);
+        /// `c2` of the sliding manifolds (1/s^2).
+        c2_per_s2: Positive, Log(1e-1, 1e5);
+        /// Proxy-object coupling `Kp` of eq. (7) (1/s^2).
+        kp_per_s2: Positive, Log(1e1, 1e6);
+        /// Proxy-object coupling `Ki` (1/s^3).
+        ki_per_s3: Positive, Log(1e0, 1e6);
+        /// Proxy-object coupling `Kd` (1/s).
+        kd_per_s: Positive, Log(1e0, 1e4);
+        /// Disturbance observer gain `kappa` of eq. (37) (1/s); unused by plain APRC.
+        kappa_per_s: Finite, Log(10.0, 2e4);
+        /// Adaptation rate `gamma` of eq. (10); `0` holds the gain at `gain_initial`.
+        gamma: NonNegative, Log(1e-1, 1e3);
+        /// Proxy mass `m_p` of eq. (11).
+        proxy_mass: Finite, Log(1e-1, 1e2);
+        /// Boundary layer `delta` of eq. (10) (m/s). Not given in the paper; 0.5 mm/s (2 % of
+        /// the sine reference's peak velocity) stops adaptation on measurement noise while
+        /// any real proxy slip still raises the gain.
+        boundary_layer_m_s: NonNegative;
+        /// `Gamma_hat(0)`; the paper starts from 0.
+        gain_initial: NonNegative;
+        /// Bandwidth of the kinematic observer that supplies velocity and acceleration
+        /// (rad/s). Not part of the paper (its rig differentiated position); 200 rad/s keeps
+        /// the velocity lag error at 4.4 um/s on the 0.25 Hz sine (`3 jerk / omega^2`) and
+        /// the velocity noise from 20 um of position noise around 2 mm/s.
+        estimator_bandwidth_rad_s: Positive, Log(50.0, 1000.0);
+    }
 }
 
 impl AprcGains {

@@ -22,6 +22,7 @@ mod aprc;
 mod command;
 mod config;
 mod estimator;
+pub mod gains;
 mod implicit;
 mod metrics;
 mod ndo;
@@ -30,7 +31,10 @@ mod nominal;
 mod pid;
 mod psmc;
 mod reference;
+#[cfg(feature = "serde")]
+pub mod shipped;
 mod sta;
+mod task;
 #[cfg(feature = "serde")]
 pub mod text;
 
@@ -41,11 +45,16 @@ pub use implicit::implicit_sign_solve;
 pub use metrics::{Metrics, TrackingStats};
 pub use ndo::DisturbanceObserver;
 pub use ndo_smc::{NdoSmc, NdoSmcGains};
-pub use nominal::{NominalModel, DEFAULT_MODE_SWITCH_DEADBAND_PA, DEFAULT_MODE_SWITCH_FRACTION};
+pub use nominal::{
+    NominalModel, NominalSpec, DEFAULT_MODE_SWITCH_DEADBAND_PA, DEFAULT_MODE_SWITCH_FRACTION,
+};
 pub use pid::{Pid, PidGains};
 pub use psmc::{Psmc, PsmcGains};
-pub use reference::{ChirpReference, Reference, SineReference, StepReference};
+pub use reference::{
+    quintic_blend, ChirpReference, JumpReference, Reference, SineReference, SmoothStart, Trajectory,
+};
 pub use sta::{StaGains, SuperTwisting};
+pub use task::{MuscleStep, MuscleTask, PositionOf, Tracking, TrackingMetrics, TrackingSummary};
 
 /// Desired trajectory at one instant, with analytic derivatives.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

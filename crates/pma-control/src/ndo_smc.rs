@@ -4,27 +4,26 @@ use crate::{
     Measurement, NominalModel, RefSample,
 };
 
-/// Gains of NDO-SMC: `s = e' + c1 e + c2 ∫e`, `e = x_d - x`, reaching law
-/// `s' = -k s - eta sat(s/phi)` (the paper replaces `sign` by `sat`), disturbance from the
-/// same observer as APRC-NDO.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
-pub struct NdoSmcGains {
-    /// Sliding surface `c1` (1/s).
-    pub c1_per_s: f64,
-    /// Sliding surface integral weight `c2` (1/s^2).
-    pub c2_per_s2: f64,
-    /// Linear reaching gain `k` (1/s).
-    pub k_per_s: f64,
-    /// Switching gain `eta` (m/s^2).
-    pub eta_m_s2: f64,
-    /// Boundary layer `phi` of `sat` (m/s).
-    pub phi_m_s: f64,
-    /// Disturbance observer gain (1/s).
-    pub kappa_per_s: f64,
-    /// Kinematic observer bandwidth (rad/s).
-    pub estimator_bandwidth_rad_s: f64,
+crate::gain_table! {
+    /// Gains of NDO-SMC: `s = e' + c1 e + c2 ∫e`, `e = x_d - x`, reaching law
+    /// `s' = -k s - eta sat(s/phi)` (the paper replaces `sign` by `sat`), disturbance from the
+    /// same observer as APRC-NDO.
+    pub struct NdoSmcGains {
+        /// Sliding surface `c1` (1/s).
+        c1_per_s: Positive, Log(1.0, 1e4);
+        /// Sliding surface integral weight `c2` (1/s^2).
+        c2_per_s2: NonNegative, Log(1e-1, 1e5);
+        /// Linear reaching gain `k` (1/s).
+        k_per_s: NonNegative, Log(1e-1, 1e3);
+        /// Switching gain `eta` (m/s^2).
+        eta_m_s2: NonNegative, Log(1e-2, 1e2);
+        /// Boundary layer `phi` of `sat` (m/s).
+        phi_m_s: Positive, Log(1e-4, 1e-1);
+        /// Disturbance observer gain (1/s).
+        kappa_per_s: Positive, Log(10.0, 2e4);
+        /// Kinematic observer bandwidth (rad/s).
+        estimator_bandwidth_rad_s: Positive, Log(50.0, 1000.0);
+    }
 }
 
 impl Default for NdoSmcGains {

@@ -89,6 +89,70 @@ impl Default for NominalModel {
     }
 }
 
+/// What the controllers believe: Table I and this load mass.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+pub struct NominalSpec {
+    /// Assumed load mass (kg).
+    pub mass_kg: f64,
+    /// See [`NominalModel::mode_switch_deadband_pa`].
+    #[cfg_attr(feature = "serde", serde(default = "default_deadband"))]
+    pub mode_switch_deadband_pa: f64,
+    /// See [`NominalModel::mode_switch_fraction`].
+    #[cfg_attr(feature = "serde", serde(default = "default_fraction"))]
+    pub mode_switch_fraction: f64,
+    /// Valve lag the controllers compensate (s), [`NominalModel::valve_time_constant_s`];
+    /// 0 (the default, the paper) takes the pressure to equal the command.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub valve_time_constant_s: f64,
+}
+
+fn default_deadband() -> f64 {
+    DEFAULT_MODE_SWITCH_DEADBAND_PA
+}
+
+fn default_fraction() -> f64 {
+    DEFAULT_MODE_SWITCH_FRACTION
+}
+
+impl NominalSpec {
+    /// Checks the assumed load and the settings; fields named as in the file's section.
+    pub fn validate(&self) -> Result<(), pma_model::Invalid> {
+        use pma_model::error::{non_negative, within};
+        within(
+            "mass_kg",
+            self.mass_kg,
+            f64::MIN_POSITIVE,
+            pma_model::MAX_LOAD_KG,
+            "must be > 0 and at most 600 kg",
+        )?;
+        within(
+            "valve_time_constant_s",
+            self.valve_time_constant_s,
+            0.0,
+            pma_model::MAX_VALVE_DELAY_S,
+            "must be 0..=1 s",
+        )?;
+        non_negative("mode_switch_deadband_pa", self.mode_switch_deadband_pa)?;
+        non_negative("mode_switch_fraction", self.mode_switch_fraction)?;
+        Ok(())
+    }
+
+    /// The model the controllers get: Table I (the paper uses it for every muscle) with
+    /// this load and these settings.
+    pub fn model(&self) -> NominalModel {
+        NominalModel {
+            muscle: pma_model::MuscleParams::TABLE_I,
+            mass_kg: self.mass_kg,
+            load_force_n: self.mass_kg * pma_model::GRAVITY_M_S2,
+            mode_switch_deadband_pa: self.mode_switch_deadband_pa,
+            mode_switch_fraction: self.mode_switch_fraction,
+            valve_time_constant_s: self.valve_time_constant_s,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -4,21 +4,20 @@ use crate::{
     NominalModel, RefSample,
 };
 
-/// Gains of the PID baseline: `u = bias + Kp e + Ki ∫e + Kd e'`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
-pub struct PidGains {
-    /// Proportional gain (Pa/m).
-    pub kp_pa_per_m: f64,
-    /// Integral gain (Pa/(m s)).
-    pub ki_pa_per_m_s: f64,
-    /// Derivative gain on the velocity error (Pa s/m).
-    pub kd_pa_s_per_m: f64,
-    /// Constant bias pressure (Pa).
-    pub bias_pa: f64,
-    /// Kinematic observer bandwidth (rad/s).
-    pub estimator_bandwidth_rad_s: f64,
+crate::gain_table! {
+    /// Gains of the PID baseline: `u = bias + Kp e + Ki ∫e + Kd e'`.
+    pub struct PidGains {
+        /// Proportional gain (Pa/m).
+        kp_pa_per_m: NonNegative, Log(1e5, 1e11);
+        /// Integral gain (Pa/(m s)).
+        ki_pa_per_m_s: NonNegative, Log(1e5, 1e12);
+        /// Derivative gain on the velocity error (Pa s/m).
+        kd_pa_s_per_m: NonNegative, Log(1e2, 1e7);
+        /// Constant bias pressure (Pa).
+        bias_pa: Finite, Lin(0.0, 2e5);
+        /// Kinematic observer bandwidth (rad/s).
+        estimator_bandwidth_rad_s: Positive, Log(50.0, 1000.0);
+    }
 }
 
 impl Default for PidGains {

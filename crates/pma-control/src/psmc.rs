@@ -4,29 +4,28 @@ use crate::{
     Measurement, NominalModel, RefSample,
 };
 
-/// Gains of PSMC. Kikuuwe et al. (2010) is model-free: a PID couples a massless proxy to
-/// the object and the proxy slides on `sigma = (x_d - p) + H (x_d' - p')` with force bound
-/// `F`. A muscle needs a positive pressure to hold any load, so the PID force is added to
-/// a constant bias pressure (the mid-range of the holding pressures), and `F` bounds the
-/// deviation from that bias.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
-pub struct PsmcGains {
-    /// Proportional gain (Pa/m).
-    pub kp_pa_per_m: f64,
-    /// Integral gain (Pa/(m s)).
-    pub ki_pa_per_m_s: f64,
-    /// Derivative gain (Pa s/m).
-    pub kd_pa_s_per_m: f64,
-    /// Sliding-surface time constant `H` (s).
-    pub h_s: f64,
-    /// Force bound `F` (Pa).
-    pub force_max_pa: f64,
-    /// Bias pressure (Pa).
-    pub bias_pa: f64,
-    /// Kinematic observer bandwidth (rad/s).
-    pub estimator_bandwidth_rad_s: f64,
+crate::gain_table! {
+    /// Gains of PSMC. Kikuuwe et al. (2010) is model-free: a PID couples a massless proxy to
+    /// the object and the proxy slides on `sigma = (x_d - p) + H (x_d' - p')` with force bound
+    /// `F`. A muscle needs a positive pressure to hold any load, so the PID force is added to
+    /// a constant bias pressure (the mid-range of the holding pressures), and `F` bounds the
+    /// deviation from that bias.
+    pub struct PsmcGains {
+        /// Proportional gain (Pa/m).
+        kp_pa_per_m: NonNegative, Log(1e5, 1e11);
+        /// Integral gain (Pa/(m s)).
+        ki_pa_per_m_s: NonNegative, Log(1e5, 1e12);
+        /// Derivative gain (Pa s/m).
+        kd_pa_s_per_m: NonNegative, Log(1e2, 1e7);
+        /// Sliding-surface time constant `H` (s).
+        h_s: NonNegative, Log(1e-3, 1.0);
+        /// Force bound `F` (Pa).
+        force_max_pa: Positive, Log(1e3, 6e5);
+        /// Bias pressure (Pa).
+        bias_pa: Finite, Lin(0.0, 2e5);
+        /// Kinematic observer bandwidth (rad/s).
+        estimator_bandwidth_rad_s: Positive, Log(50.0, 1000.0);
+    }
 }
 
 impl Default for PsmcGains {

@@ -99,26 +99,91 @@ impl Reference for ChirpReference {
     }
 }
 
-/// A step from `initial_m` to `final_m` at `time_s` (derivatives zero: a true step).
+/// A jump: `low_m` until `up_s`, `high_m` until `down_s`, `low_m` again after (derivatives
+/// zero: true steps, the shock of a reference that changes at once).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StepReference {
-    /// Level before the step (m).
-    pub initial_m: f64,
-    /// Level after the step (m).
-    pub final_m: f64,
-    /// Step time (s).
-    pub time_s: f64,
+pub struct JumpReference {
+    /// Level before and after (m).
+    pub low_m: f64,
+    /// Level between the jumps (m).
+    pub high_m: f64,
+    /// Jump up (s).
+    pub up_s: f64,
+    /// Jump down (s); infinite for a single step.
+    pub down_s: f64,
 }
 
-impl Reference for StepReference {
+impl Reference for JumpReference {
     fn sample(&self, t: f64) -> RefSample {
+        let high = (self.up_s..self.down_s).contains(&t);
         RefSample {
-            position_m: if t >= self.time_s {
-                self.final_m
-            } else {
-                self.initial_m
-            },
+            position_m: if high { self.high_m } else { self.low_m },
             ..RefSample::default()
+        }
+    }
+}
+
+/// The quintic blend `s = 10 u^3 - 15 u^4 + 6 u^5` at `u` in `[0, 1]` of a blend lasting
+/// `duration_s`, with its first two time derivatives: from rest to rest, no jump in
+/// acceleration. Every smooth start of the workspace (the rig's reference, the gait from
+/// standing) uses this one.
+pub fn quintic_blend(u: f64, duration_s: f64) -> (f64, f64, f64) {
+    let s = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u);
+    let ds = 30.0 * u * u * (1.0 - u) * (1.0 - u) / duration_s;
+    let dds = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / (duration_s * duration_s);
+    (s, ds, dds)
+}
+
+/// A base trajectory (of the rig's reference, say).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Trajectory {
+    /// Sine.
+    Sine(SineReference),
+    /// Chirp.
+    Chirp(ChirpReference),
+    /// Constant.
+    Hold(f64),
+}
+
+impl Trajectory {
+    /// The trajectory at `t`.
+    pub fn sample(&self, t: f64) -> RefSample {
+        match self {
+            Trajectory::Sine(s) => s.sample(t),
+            Trajectory::Chirp(c) => c.sample(t),
+            Trajectory::Hold(x) => RefSample {
+                position_m: *x,
+                ..RefSample::default()
+            },
+        }
+    }
+}
+
+/// A trajectory entered from the resting position `x0` with the [`quintic_blend`]
+/// `s(t)`: `x_d = x0 + s (x(t) - x0)`, with analytic derivatives. A rig starts wherever its load rests; jumping to the
+/// trajectory's first point would slam the muscle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SmoothStart {
+    /// The trajectory.
+    pub trajectory: Trajectory,
+    /// Where the blend starts (m).
+    pub start_m: f64,
+    /// Blend duration (s); 0 starts on the trajectory at once.
+    pub ramp_s: f64,
+}
+
+impl Reference for SmoothStart {
+    fn sample(&self, t: f64) -> RefSample {
+        let r = self.trajectory.sample(t);
+        if self.ramp_s <= 0.0 || t >= self.ramp_s {
+            return r;
+        }
+        let (s, ds, dds) = quintic_blend((t / self.ramp_s).max(0.0), self.ramp_s);
+        let gap = r.position_m - self.start_m;
+        RefSample {
+            position_m: self.start_m + s * gap,
+            velocity_m_s: ds * gap + s * r.velocity_m_s,
+            acceleration_m_s2: dds * gap + 2.0 * ds * r.velocity_m_s + s * r.acceleration_m_s2,
         }
     }
 }
@@ -177,5 +242,33 @@ mod tests {
             hi = hi.max(x);
         }
         assert!(lo.abs() < 1e-9 && (hi - 0.030).abs() < 1e-9);
+    }
+
+    #[test]
+    fn smooth_start_derivatives_match_finite_differences() {
+        let r = SmoothStart {
+            trajectory: Trajectory::Sine(SineReference::paper()),
+            start_m: -0.01,
+            ramp_s: 2.0,
+        };
+        assert_eq!(r.sample(0.0).position_m, -0.01);
+        assert_eq!(r.sample(0.0).velocity_m_s, 0.0);
+        assert_eq!(r.sample(3.0), SineReference::paper().sample(3.0));
+        let h = 1e-5;
+        for &t in &[0.3, 1.0, 1.7, 1.99] {
+            let (a, b, c) = (r.sample(t - h), r.sample(t), r.sample(t + h));
+            let v = (c.position_m - a.position_m) / (2.0 * h);
+            let acc = (c.velocity_m_s - a.velocity_m_s) / (2.0 * h);
+            assert!(
+                (v - b.velocity_m_s).abs() < 1e-6,
+                "t {t}: {v} vs {}",
+                b.velocity_m_s
+            );
+            assert!(
+                (acc - b.acceleration_m_s2).abs() < 1e-5,
+                "t {t}: {acc} vs {}",
+                b.acceleration_m_s2
+            );
+        }
     }
 }

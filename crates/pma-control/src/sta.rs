@@ -4,21 +4,20 @@ use crate::{
     NominalModel, RefSample,
 };
 
-/// Gains of the super-twisting algorithm on `s = e' + c1 e`:
-/// `s' = -k1 |s|^(1/2) sgn(s) + w`, `w' = -k2 sgn(s)`, on top of the nominal model's
-/// equivalent control (as NDO-SMC and APRC-NDO, it uses Table I).
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
-pub struct StaGains {
-    /// Sliding surface `c1` (1/s).
-    pub c1_per_s: f64,
-    /// Proportional STA gain `k1` (m^0.5 / s^1.5).
-    pub k1: f64,
-    /// Integral STA gain `k2` (m/s^3).
-    pub k2: f64,
-    /// Kinematic observer bandwidth (rad/s).
-    pub estimator_bandwidth_rad_s: f64,
+crate::gain_table! {
+    /// Gains of the super-twisting algorithm on `s = e' + c1 e`:
+    /// `s' = -k1 |s|^(1/2) sgn(s) + w`, `w' = -k2 sgn(s)`, on top of the nominal model's
+    /// equivalent control (as NDO-SMC and APRC-NDO, it uses Table I).
+    pub struct StaGains {
+        /// Sliding surface `c1` (1/s).
+        c1_per_s: Positive, Log(1.0, 1e4);
+        /// Proportional STA gain `k1` (m^0.5 / s^1.5).
+        k1: NonNegative, Log(1e-2, 1e2);
+        /// Integral STA gain `k2` (m/s^3).
+        k2: NonNegative, Log(1e-2, 1e4);
+        /// Kinematic observer bandwidth (rad/s).
+        estimator_bandwidth_rad_s: Positive, Log(50.0, 1000.0);
+    }
 }
 
 impl Default for StaGains {

@@ -1,40 +1,39 @@
 //! Scenario and muscle-geometry files (TOML, `deny_unknown_fields`, units in the names).
-use crate::error::{finite_non_negative, finite_positive, invalid, within, LegError};
+use crate::error::{invalid, LegError};
+use crate::gait::GaitSpeed;
 use crate::patient::PatientSettings;
 use pma_control::AprcGains;
+use pma_model::error::{non_negative, positive, within};
+use pma_model::MuscleScale;
 use pma_model::{SensorParams, ValveParams};
-use pma_sim::gait::GaitSpeed;
-use pma_sim::MuscleScale;
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// The embedded leg model (`models/exo_leg.urdf`).
-pub const EMBEDDED_URDF: &str = include_str!("../../../models/exo_leg.urdf");
-/// The embedded muscle geometry (`models/muscles.toml`).
-pub const EMBEDDED_MUSCLES: &str = include_str!("../../../models/muscles.toml");
-/// The embedded default scenario (`models/scenarios/gait_training.toml`).
-pub const EMBEDDED_GAIT_TRAINING: &str =
-    include_str!("../../../models/scenarios/gait_training.toml");
-/// The embedded realistic scenario (`models/scenarios/gait_realistic.toml`).
-pub const EMBEDDED_GAIT_REALISTIC: &str =
-    include_str!("../../../models/scenarios/gait_realistic.toml");
+/// The embedded leg model (`crates/pma-leg/models/exo_leg.urdf`).
+pub const EMBEDDED_URDF: &str = include_str!("../models/exo_leg.urdf");
+/// The embedded muscle geometry (`crates/pma-leg/models/muscles.toml`).
+pub const EMBEDDED_MUSCLES: &str = include_str!("../models/muscles.toml");
+/// The embedded default scenario (`crates/pma-leg/models/scenarios/gait_training.toml`).
+pub const EMBEDDED_GAIT_TRAINING: &str = include_str!("../models/scenarios/gait_training.toml");
+/// The embedded realistic scenario (`crates/pma-leg/models/scenarios/gait_realistic.toml`).
+pub const EMBEDDED_GAIT_REALISTIC: &str = include_str!("../models/scenarios/gait_realistic.toml");
 
-/// Every embedded scenario: name and text (`models/scenarios/<name>.toml`).
+/// Every embedded scenario: name and text (`crates/pma-leg/models/scenarios/<name>.toml`).
 pub const EMBEDDED_SCENARIOS: [(&str, &str); 5] = [
     ("gait_training", EMBEDDED_GAIT_TRAINING),
     ("gait_realistic", EMBEDDED_GAIT_REALISTIC),
     (
         "gait_spastic",
-        include_str!("../../../models/scenarios/gait_spastic.toml"),
+        include_str!("../models/scenarios/gait_spastic.toml"),
     ),
     (
         "gait_spasms",
-        include_str!("../../../models/scenarios/gait_spasms.toml"),
+        include_str!("../models/scenarios/gait_spasms.toml"),
     ),
     (
         "gait_resistive",
-        include_str!("../../../models/scenarios/gait_resistive.toml"),
+        include_str!("../models/scenarios/gait_resistive.toml"),
     ),
 ];
 
@@ -69,7 +68,7 @@ impl Side {
     }
 }
 
-/// One muscle's geometry (see `models/muscles.toml`).
+/// One muscle's geometry (see `crates/pma-leg/models/muscles.toml`).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MuscleGeometry {
@@ -273,7 +272,7 @@ pub struct ControlSettings {
     pub nominal_valve_time_constant_s: f64,
 }
 
-/// A gait-training scenario (`models/scenarios/*.toml`).
+/// A gait-training scenario (`crates/pma-leg/models/scenarios/*.toml`).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Scenario {
@@ -378,7 +377,7 @@ impl Scenario {
 
     /// Range checks.
     pub fn validate(&self) -> Result<(), LegError> {
-        finite_positive("duration_s", self.duration_s)?;
+        positive("duration_s", self.duration_s)?;
         within(
             "period_s",
             self.period_s,
@@ -387,11 +386,11 @@ impl Scenario {
             "must be 0.0001..=0.01 s (the controllers are discretised for 0.1-10 ms)",
         )?;
         if !(1..=100).contains(&self.physics_substeps) {
-            return Err(LegError::Invalid {
-                name: "physics_substeps".into(),
-                value: f64::from(self.physics_substeps),
-                expected: "must be 1..=100",
-            });
+            return Err(invalid(
+                "physics_substeps",
+                f64::from(self.physics_substeps),
+                "must be 1..=100",
+            ));
         }
         within(
             "gait.stride_period_s",
@@ -400,13 +399,13 @@ impl Scenario {
             10.0,
             "must be 0.5..=10 s (normal strides last about 1 s, training strides 1.4-3 s)",
         )?;
-        finite_non_negative("gait.ramp_s", self.gait.ramp_s)?;
+        non_negative("gait.ramp_s", self.gait.ramp_s)?;
         for (n, j) in [("hip", self.joints.hip), ("knee", self.joints.knee)] {
-            finite_non_negative(
+            non_negative(
                 format!("joints.{n}.damping_nm_s_per_rad"),
                 j.damping_nm_s_per_rad,
             )?;
-            finite_non_negative(format!("joints.{n}.friction_nm"), j.friction_nm)?;
+            non_negative(format!("joints.{n}.friction_nm"), j.friction_nm)?;
             within(
                 format!("joints.{n}.damping_nm_s_per_rad"),
                 j.damping_nm_s_per_rad,
@@ -423,12 +422,12 @@ impl Scenario {
             )?;
         }
         self.plant.valve.validate()?;
-        finite_positive(
+        positive(
             "plant.muscle_rated_force_n",
             self.plant.muscle_rated_force_n,
         )?;
         self.plant.encoder.sensor(0).validate()?;
-        finite_positive("control.cocontraction_pa", self.control.cocontraction_pa)?;
+        positive("control.cocontraction_pa", self.control.cocontraction_pa)?;
         if self.control.cocontraction_pa > self.plant.valve.pressure_max_pa {
             return Err(invalid(
                 "control.cocontraction_pa",
@@ -436,23 +435,23 @@ impl Scenario {
                 "must be at most the valve's plant.valve.pressure_max_pa",
             ));
         }
-        finite_positive(
+        positive(
             "control.nominal_inertia_fraction",
             self.control.nominal_inertia_fraction,
         )?;
-        finite_non_negative(
+        non_negative(
             "control.cocontraction_gain_m_per_pa",
             self.control.cocontraction_gain_m_per_pa,
         )?;
-        finite_non_negative(
+        non_negative(
             "control.cocontraction_max_m",
             self.control.cocontraction_max_m,
         )?;
-        finite_positive(
+        positive(
             "control.cocontraction_filter_s",
             self.control.cocontraction_filter_s,
         )?;
-        finite_non_negative(
+        non_negative(
             "control.nominal_valve_time_constant_s",
             self.control.nominal_valve_time_constant_s,
         )?;
@@ -471,9 +470,9 @@ impl Scenario {
         Ok(LoadedScenario {
             scenario,
             urdf_text: EMBEDDED_URDF.to_owned(),
-            urdf_source: "models/exo_leg.urdf".into(),
-            muscles: parse_muscles(EMBEDDED_MUSCLES, "models/muscles.toml")?,
-            muscles_source: "models/muscles.toml".into(),
+            urdf_source: "crates/pma-leg/models/exo_leg.urdf".into(),
+            muscles: parse_muscles(EMBEDDED_MUSCLES, "crates/pma-leg/models/muscles.toml")?,
+            muscles_source: "crates/pma-leg/models/muscles.toml".into(),
         })
     }
 
@@ -499,7 +498,10 @@ impl Scenario {
                 let full = dir.join(p);
                 (read(&full)?, full.display().to_string())
             }
-            None => (EMBEDDED_URDF.to_owned(), "models/exo_leg.urdf".into()),
+            None => (
+                EMBEDDED_URDF.to_owned(),
+                "crates/pma-leg/models/exo_leg.urdf".into(),
+            ),
         };
         let (muscles, muscles_source) = match &scenario.muscle_geometry {
             Some(p) => {
@@ -507,8 +509,8 @@ impl Scenario {
                 (parse_muscles(&read(Path::new(&full))?, &full)?, full)
             }
             None => (
-                parse_muscles(EMBEDDED_MUSCLES, "models/muscles.toml")?,
-                "models/muscles.toml".into(),
+                parse_muscles(EMBEDDED_MUSCLES, "crates/pma-leg/models/muscles.toml")?,
+                "crates/pma-leg/models/muscles.toml".into(),
             ),
         };
         Ok(LoadedScenario {

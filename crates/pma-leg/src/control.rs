@@ -1,7 +1,8 @@
 //! The leg's controller set as a [`Task`] of the closed loop: one muscle controller per
 //! muscle, a co-contraction regulator per joint, and the gait reference.
 use crate::config::{MuscleGeometry, Scenario};
-use crate::error::LegError;
+use crate::error::{invalid, LegError};
+use crate::gait::{GaitReference, GaitSample, JointSample};
 use crate::leg::LegInertia;
 use crate::plant::MuscleActuator;
 use pma_control::{
@@ -10,7 +11,6 @@ use pma_control::{
 };
 use pma_loop::Task;
 use pma_model::{DampingMode, MuscleParams};
-use pma_sim::gait::{GaitReference, GaitSample, JointSample};
 
 /// Co-contraction regulation of one joint.
 ///
@@ -144,13 +144,13 @@ impl LegControllers {
             controllers.push(build_controller(config, model, limits)?);
             levers.push(Lever::of(&m.geometry, m.joint));
         }
-        let levers: [Lever; 4] = levers
-            .try_into()
-            .map_err(|v: Vec<Lever>| LegError::Invalid {
-                name: "number of muscles".into(),
-                value: v.len() as f64,
-                expected: "must be 4: a flexor and an extensor on hip and knee",
-            })?;
+        let levers: [Lever; 4] = levers.try_into().map_err(|v: Vec<Lever>| {
+            invalid(
+                "number of muscles",
+                v.len() as f64,
+                "must be 4: a flexor and an extensor on hip and knee",
+            )
+        })?;
         let regulator = CoContraction {
             target_pa: sc.control.cocontraction_pa,
             gain_m_per_pa: sc.control.cocontraction_gain_m_per_pa,

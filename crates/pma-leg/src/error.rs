@@ -43,16 +43,6 @@ pub enum LegError {
         /// The error.
         source: Box<LegError>,
     },
-    /// A parameter is out of range.
-    #[error("{name} = {value} is invalid: {expected}")]
-    Invalid {
-        /// Parameter.
-        name: String,
-        /// Value.
-        value: f64,
-        /// Requirement.
-        expected: &'static str,
-    },
     /// A `[low, high]` range is inverted or out of bounds.
     #[error("{name} = [{low}, {high}] is invalid: {expected}")]
     Range {
@@ -94,12 +84,9 @@ pub enum LegError {
     /// A controller gain set is invalid.
     #[error(transparent)]
     Controller(#[from] pma_control::ConfigError),
-    /// A model parameter is invalid.
+    /// A value is invalid (non-finite, out of its range or of its plausible range).
     #[error(transparent)]
-    Model(#[from] pma_model::ModelError),
-    /// A gait parameter is invalid.
-    #[error(transparent)]
-    Gait(#[from] pma_sim::SimError),
+    Invalid(#[from] pma_model::Invalid),
     /// The run's duration or period is invalid.
     #[error(transparent)]
     Settings(#[from] pma_loop::SettingsError),
@@ -118,49 +105,10 @@ impl LegError {
 }
 
 /// A parameter's invalid value, with what it must be.
-pub(crate) fn invalid(name: impl Into<String>, value: f64, expected: &'static str) -> LegError {
-    LegError::Invalid {
-        name: name.into(),
-        value,
-        expected,
-    }
-}
-
-pub(crate) fn finite_positive(name: impl Into<String>, value: f64) -> Result<f64, LegError> {
-    if value.is_finite() && value > 0.0 {
-        Ok(value)
-    } else {
-        Err(invalid(name, value, "must be a finite number > 0"))
-    }
-}
-
-pub(crate) fn finite_non_negative(name: impl Into<String>, value: f64) -> Result<f64, LegError> {
-    if value.is_finite() && value >= 0.0 {
-        Ok(value)
-    } else {
-        Err(invalid(name, value, "must be a finite number >= 0"))
-    }
-}
-
-pub(crate) fn finite(name: impl Into<String>, value: f64) -> Result<f64, LegError> {
-    if value.is_finite() {
-        Ok(value)
-    } else {
-        Err(invalid(name, value, "must be a finite number"))
-    }
-}
-
-/// A finite `value` within `[low, high]`; `expected` states the range and why.
-pub(crate) fn within(
-    name: impl Into<String>,
+pub(crate) fn invalid(
+    name: impl Into<std::borrow::Cow<'static, str>>,
     value: f64,
-    low: f64,
-    high: f64,
     expected: &'static str,
-) -> Result<f64, LegError> {
-    if value.is_finite() && (low..=high).contains(&value) {
-        Ok(value)
-    } else {
-        Err(invalid(name, value, expected))
-    }
+) -> LegError {
+    pma_model::Invalid::new(name, value, expected).into()
 }

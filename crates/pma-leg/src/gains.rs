@@ -1,5 +1,6 @@
-//! Gains tuned for the leg (`models/gains/leg/`), one file per controller, each found by
+//! Gains tuned for the leg (`crates/pma-leg/models/gains/`), one file per controller, each found by
 //! `pma-exo tune-leg gait_training --controller NAME` with the same budget.
+use crate::config::LoadedScenario;
 use crate::error::LegError;
 use pma_control::{ControllerConfig, ControllerKind};
 
@@ -7,23 +8,23 @@ use pma_control::{ControllerConfig, ControllerKind};
 pub const LEG_GAINS: [(ControllerKind, &str); 5] = [
     (
         ControllerKind::AprcNdo,
-        include_str!("../../../models/gains/leg/aprc-ndo.toml"),
+        include_str!("../models/gains/aprc-ndo.toml"),
     ),
     (
         ControllerKind::Psmc,
-        include_str!("../../../models/gains/leg/psmc.toml"),
+        include_str!("../models/gains/psmc.toml"),
     ),
     (
         ControllerKind::NdoSmc,
-        include_str!("../../../models/gains/leg/ndo-smc.toml"),
+        include_str!("../models/gains/ndo-smc.toml"),
     ),
     (
         ControllerKind::Sta,
-        include_str!("../../../models/gains/leg/sta.toml"),
+        include_str!("../models/gains/sta.toml"),
     ),
     (
         ControllerKind::Pid,
-        include_str!("../../../models/gains/leg/pid.toml"),
+        include_str!("../models/gains/pid.toml"),
     ),
 ];
 
@@ -33,8 +34,19 @@ pub fn leg_gains(kind: ControllerKind) -> Result<ControllerConfig, LegError> {
         return Ok(kind.default_config());
     };
     let config = ControllerConfig::from_toml_str(text).map_err(|e| LegError::Parse {
-        file: format!("models/gains/leg/{kind}.toml"),
+        file: format!("crates/pma-leg/models/gains/{kind}.toml"),
         message: e.to_string(),
     })?;
     Ok(config)
+}
+
+/// The configuration a tuning starts from and keeps outside its search space: the
+/// scenario's APRC-NDO gains for APRC-NDO and APRC, the controller's defaults otherwise.
+pub fn base_config(loaded: &LoadedScenario, kind: ControllerKind) -> ControllerConfig {
+    let g = loaded.scenario.control.gains;
+    match kind {
+        ControllerKind::AprcNdo => ControllerConfig::AprcNdo(g),
+        ControllerKind::Aprc => ControllerConfig::Aprc(g),
+        other => other.default_config(),
+    }
 }

@@ -4,19 +4,17 @@
 //! tracking length references derived from normative gait.
 #![warn(missing_docs)]
 
-pub mod compare;
 pub mod config;
 pub mod control;
 mod error;
 pub mod gains;
+pub mod gait;
 pub mod leg;
 pub mod metrics;
 pub mod patient;
-pub mod pendulum;
 pub mod plant;
 pub mod safety;
 pub mod sim;
-pub mod tune;
 
 pub use config::{LoadedScenario, MuscleGeometry, Scenario, Side};
 pub use control::{LegControllers, LegOutput, Vented};

@@ -13,9 +13,10 @@
 //!
 //! Flexion is positive at both joints; a torque is positive when it flexes. The sources and
 //! the calibration of the presets are in `docs/patient.md`.
-use crate::error::{finite, finite_non_negative, finite_positive, invalid, LegError};
+use crate::error::{invalid, LegError};
+use crate::gait::GaitReference;
 use crate::leg::LegInertia;
-use pma_sim::gait::GaitReference;
+use pma_model::error::{finite, non_negative, positive};
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use serde::Deserialize;
@@ -324,11 +325,11 @@ impl SpasticitySettings {
             threshold_rad_s: self.threshold_rad_s.unwrap_or(base.threshold_rad_s),
             delay_s: self.delay_s.unwrap_or(base.delay_s),
         };
-        finite_non_negative(
+        non_negative(
             format!("{at}.extensor_gain_nm_s_per_rad"),
             r.extensor_gain_nm_s_per_rad,
         )?;
-        finite_non_negative(
+        non_negative(
             format!("{at}.flexor_gain_nm_s_per_rad"),
             r.flexor_gain_nm_s_per_rad,
         )?;
@@ -346,9 +347,9 @@ impl SpasticitySettings {
         // `none` has an infinite threshold: nothing to check unless a gain was given.
         let active = r.extensor_gain_nm_s_per_rad > 0.0 || r.flexor_gain_nm_s_per_rad > 0.0;
         if active {
-            finite_non_negative(format!("{at}.threshold_rad_s"), r.threshold_rad_s)?;
+            non_negative(format!("{at}.threshold_rad_s"), r.threshold_rad_s)?;
         }
-        finite_non_negative(format!("{at}.delay_s"), r.delay_s)?;
+        non_negative(format!("{at}.delay_s"), r.delay_s)?;
         if r.delay_s > MAX_DELAY_S {
             return Err(invalid(
                 format!("{at}.delay_s"),
@@ -423,7 +424,7 @@ impl StiffnessSettings {
             )?,
         };
         for (field, nm) in [("lower_nm", m.lower_nm), ("upper_nm", m.upper_nm)] {
-            finite_non_negative(format!("{at}.{field}"), nm)?;
+            non_negative(format!("{at}.{field}"), nm)?;
             at_most(
                 format!("{at}.{field}"),
                 nm,
@@ -435,7 +436,7 @@ impl StiffnessSettings {
             ("lower_per_rad", m.lower_per_rad),
             ("upper_per_rad", m.upper_per_rad),
         ] {
-            finite_non_negative(format!("{at}.{field}"), rate)?;
+            non_negative(format!("{at}.{field}"), rate)?;
             if rate > MAX_STIFFNESS_RATE_PER_RAD {
                 return Err(invalid(
                     format!("{at}.{field}"),
@@ -468,7 +469,7 @@ impl PassiveMoment {
 
 impl SpasmSettings {
     fn validate(&self, at: &str) -> Result<(), LegError> {
-        finite_non_negative(format!("{at}.rate_per_min"), self.rate_per_min)?;
+        non_negative(format!("{at}.rate_per_min"), self.rate_per_min)?;
         if self.rate_per_min > MAX_SPASM_RATE_PER_MIN {
             return Err(invalid(
                 format!("{at}.rate_per_min"),
@@ -507,15 +508,15 @@ impl SpasmSettings {
         }
         for (i, e) in self.events.iter().enumerate() {
             let at = format!("{at}.events[{i}]");
-            finite_non_negative(format!("{at}.t_s"), e.t_s)?;
-            finite_non_negative(format!("{at}.amplitude_nm"), e.amplitude_nm)?;
+            non_negative(format!("{at}.t_s"), e.t_s)?;
+            non_negative(format!("{at}.amplitude_nm"), e.amplitude_nm)?;
             at_most(
                 format!("{at}.amplitude_nm"),
                 e.amplitude_nm,
                 MAX_PATIENT_TORQUE_NM,
                 "must be at most 300 N m (the strongest voluntary hip torque of adults)",
             )?;
-            finite_positive(format!("{at}.duration_s"), e.duration_s)?;
+            positive(format!("{at}.duration_s"), e.duration_s)?;
             at_most(
                 format!("{at}.duration_s"),
                 e.duration_s,
@@ -543,7 +544,7 @@ impl EffortSettings {
                 "must be -1..=1 (a patient resists or assists with at most the whole of the gait's own joint torque)",
             ));
         }
-        finite_non_negative(format!("{at}.delay_s"), self.delay_s)?;
+        non_negative(format!("{at}.delay_s"), self.delay_s)?;
         if self.delay_s > MAX_DELAY_S {
             return Err(invalid(
                 format!("{at}.delay_s"),

@@ -109,7 +109,7 @@ impl LegPlant {
     }
 
     /// Puts a patient in the leg (`None`: the passive limb).
-    pub(crate) fn set_patient(&mut self, patient: Option<Patient>) {
+    pub fn set_patient(&mut self, patient: Option<Patient>) {
         self.patient = patient;
     }
 
@@ -118,18 +118,19 @@ impl LegPlant {
         self.patient.as_ref()
     }
 
-    pub(crate) fn patient_mut(&mut self) -> Option<&mut Patient> {
+    /// The patient, to plan or change it.
+    pub fn patient_mut(&mut self) -> Option<&mut Patient> {
         self.patient.as_mut()
     }
 
     /// Unhooks the muscles' cables (`false`): they pull on nothing, as for a test of the
     /// limb alone whose range the cables and the muscles' stroke would not allow.
-    pub(crate) fn attach_muscles(&mut self, attached: bool) {
+    pub fn attach_muscles(&mut self, attached: bool) {
         self.muscles_attached = attached;
     }
 
     /// Mutable leg (mounting, holding a joint).
-    pub(crate) fn leg_mut(&mut self) -> &mut Leg {
+    pub fn leg_mut(&mut self) -> &mut Leg {
         &mut self.leg
     }
 
@@ -154,7 +155,7 @@ impl LegPlant {
     }
 
     /// Sets every valve to `pressures_pa` at once (a resting state).
-    pub(crate) fn set_pressures(&mut self, pressures_pa: [f64; 4]) -> Result<(), LegError> {
+    pub fn set_pressures(&mut self, pressures_pa: [f64; 4]) -> Result<(), LegError> {
         for (m, p) in self.muscles.iter_mut().zip(pressures_pa) {
             m.valve = Valve::new(*m.valve.params(), p)?;
         }
@@ -326,14 +327,11 @@ impl Backend for LegPlant {
         })
     }
 
-    fn wait(&mut self, period_s: f64) -> Result<u32, LegError> {
-        if period_s != self.period_s {
-            return Err(LegError::Invalid {
-                name: "period_s".into(),
-                value: period_s,
-                expected: "must equal the period the leg was built with",
-            });
-        }
+    fn period_s(&self) -> f64 {
+        self.period_s
+    }
+
+    fn wait(&mut self) -> Result<u32, LegError> {
         self.advance();
         self.check_physics()?;
         Ok(1)

@@ -2,7 +2,8 @@
 //! through the one loop of `pma-loop`.
 use crate::config::{LoadedScenario, MuscleGeometry, Scenario};
 use crate::control::{LegControllers, LegOutput};
-use crate::error::LegError;
+use crate::error::{invalid, LegError};
+use crate::gait::GaitReference;
 use crate::leg::{Leg, Mount, JOINT_NAMES};
 use crate::metrics::{LegMetrics, LegReport};
 use crate::patient::{Patient, SpasmEvent};
@@ -11,7 +12,6 @@ use crate::safety::PatientMetrics;
 use pma_control::{ControllerConfig, Diagnostics};
 use pma_loop::{LoopSettings, Period, Recorder};
 use pma_model::{MuscleParams, Valve};
-use pma_sim::gait::GaitReference;
 
 /// One period of the leg as logs show it: the state at the reading and what the
 /// controllers made of it.
@@ -201,7 +201,8 @@ impl LegSim {
         Ok(())
     }
 
-    pub(crate) fn plant_mut(&mut self) -> &mut LegPlant {
+    /// The plant, to mount or hold the leg (studies such as the pendulum test).
+    pub fn plant_mut(&mut self) -> &mut LegPlant {
         &mut self.plant
     }
 
@@ -221,17 +222,13 @@ impl LegSim {
         if let Some(p) = self.plant.patient_mut() {
             p.plan(t_end + self.scenario.period_s);
         }
-        pma_loop::run(&mut self.plant, task, recorder, settings).into_result()
+        pma_loop::run(&mut self.plant, task, recorder, settings)?.into_result()
     }
 
     /// The scenario's gait reference.
     pub fn gait_reference(&self) -> Result<GaitReference, LegError> {
         let g = &self.scenario.gait;
-        Ok(GaitReference::normative(
-            g.speed,
-            g.stride_period_s,
-            g.ramp_s,
-        )?)
+        GaitReference::normative(g.speed, g.stride_period_s, g.ramp_s)
     }
 
     /// The scenario.
@@ -259,9 +256,11 @@ impl LegSim {
         self.plant.time()
     }
 
-    /// The loop settings of a run of `duration_s` at the scenario's period.
+    /// The loop settings of a run of `duration_s` (at least a period of the scenario).
     pub fn settings(&self, duration_s: f64) -> Result<LoopSettings<'static>, LegError> {
-        Ok(LoopSettings::new(self.scenario.period_s, duration_s)?)
+        let settings = LoopSettings::new(duration_s)?;
+        settings.periods(self.scenario.period_s)?;
+        Ok(settings)
     }
 
     /// Runs for `duration_s` with `recorder` observing every period (`&mut ()` for none).
@@ -308,14 +307,10 @@ impl LegSim {
             &mut self.controllers,
             &mut (&mut metrics, &mut patient, recorder),
             settings,
-        )
+        )?
         .into_result()?;
         let interrupted = matches!(outcome.end, pma_loop::End::Stopped);
-        let ran_s = if interrupted {
-            outcome.periods as f64 * sc.period_s
-        } else {
-            settings.duration_s()
-        };
+        let ran_s = outcome.ran_s;
         let names: Vec<String> = self
             .plant
             .muscles()
@@ -336,11 +331,11 @@ fn build_muscles(
     geometry: &[MuscleGeometry],
 ) -> Result<Vec<MuscleActuator>, LegError> {
     if geometry.len() != 4 {
-        return Err(LegError::Invalid {
-            name: "number of muscles".into(),
-            value: geometry.len() as f64,
-            expected: "must be 4: a flexor and an extensor on hip and knee",
-        });
+        return Err(invalid(
+            "number of muscles",
+            geometry.len() as f64,
+            "must be 4: a flexor and an extensor on hip and knee",
+        ));
     }
     let links: [(&str, [&str; 2]); 2] =
         [("hip", ["pelvis", "thigh"]), ("knee", ["thigh", "shank"])];
@@ -395,11 +390,11 @@ fn build_muscles(
             .map(|m| m.geometry.side)
             .collect();
         if sides.len() != 2 || sides[0] == sides[1] {
-            return Err(LegError::Invalid {
-                name: format!("muscles on {joint_name}"),
-                value: sides.len() as f64,
-                expected: "each joint needs exactly one flexor and one extensor",
-            });
+            return Err(invalid(
+                format!("muscles on {joint_name}"),
+                sides.len() as f64,
+                "each joint needs exactly one flexor and one extensor",
+            ));
         }
     }
     Ok(out)

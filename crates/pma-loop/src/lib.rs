@@ -13,26 +13,29 @@
 //! One period of [`run`], after [`Backend::start`]:
 //! `wait (plant advances / deadline) -> read -> truth -> task.update -> write ->
 //! task.applied -> record`.
-//! Any error stops the loop, brings the backend to its safe state and is reported in the
-//! [`Outcome`] with the period it happened in. The loop allocates nothing per period and
-//! knows nothing of rapier, rerun or any DAQ.
+//! The backend owns the period ([`Backend::period_s`]): a simulation integrates over it,
+//! hardware sleeps to its deadlines. Any error stops the loop, brings the backend to its
+//! safe state and is reported in the [`Outcome`] with the period it happened in; a panic
+//! in the loop stops the backend too (a guard, as it unwinds). The loop allocates nothing
+//! per period and knows nothing of rapier, rerun or any DAQ.
 //!
 //! ```
 //! use pma_loop::{run, Backend, LoopSettings, Started, Task, End};
 //! use std::convert::Infallible;
 //!
-//! /// A first-order plant `x' = u - x`, integrated exactly.
+//! /// A first-order plant `x' = u - x`, integrated exactly over periods of 10 ms.
 //! struct Lag { x: f64, u: f64 }
 //! impl Backend for Lag {
 //!     type Reading = f64;
 //!     type Command = f64;
 //!     type Truth = f64;
 //!     type Error = Infallible;
+//!     fn period_s(&self) -> f64 { 0.01 }
 //!     fn start(&mut self) -> Result<Started<f64, f64>, Infallible> {
 //!         Ok(Started { t_s: 0.0, reading: self.x, command: self.u })
 //!     }
-//!     fn wait(&mut self, period_s: f64) -> Result<u32, Infallible> {
-//!         self.x = self.u + (self.x - self.u) * (-period_s).exp();
+//!     fn wait(&mut self) -> Result<u32, Infallible> {
+//!         self.x = self.u + (self.x - self.u) * (-self.period_s()).exp();
 //!         Ok(1)
 //!     }
 //!     fn read(&mut self) -> Result<f64, Infallible> { Ok(self.x) }
@@ -51,20 +54,19 @@
 //!     fn command(out: &f64) -> f64 { *out }
 //! }
 //!
-//! let settings = LoopSettings::new(0.01, 5.0).unwrap();
+//! let settings = LoopSettings::new(5.0).unwrap();
 //! let mut plant = Lag { x: 0.0, u: 0.0 };
-//! let outcome = run(&mut plant, &mut P, &mut (), &settings);
+//! let outcome = run(&mut plant, &mut P, &mut (), &settings).unwrap();
 //! assert!(matches!(outcome.end, End::Completed));
 //! assert_eq!(outcome.periods, 500);
+//! assert_eq!(outcome.ran_s, 5.0);
 //! assert!((plant.x - 1.0).abs() < 1e-6);
 //! assert_eq!(plant.u, 0.0); // stopped: the safe state
 //! ```
 #![warn(missing_docs)]
 
-mod muscle;
 mod recorder;
 
-pub use muscle::{MuscleStep, MuscleTask, TrackingMetrics, TrackingSummary};
 pub use recorder::{FnRecorder, Recorder};
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -88,7 +90,7 @@ pub struct Started<R, C> {
 /// Lifecycle: [`start`](Backend::start) once (the plant at rest, actuators live), then
 /// every period [`wait`](Backend::wait), [`read`](Backend::read),
 /// [`truth`](Backend::truth), [`write`](Backend::write); finally
-/// [`stop`](Backend::stop), on every exit path.
+/// [`stop`](Backend::stop), on every exit path. The backend owns the period.
 pub trait Backend {
     /// What the sensors deliver each period.
     type Reading: Copy;
@@ -100,12 +102,14 @@ pub trait Backend {
     /// Why a read, write or wait failed.
     type Error: std::error::Error + Send + Sync + 'static;
 
+    /// The control period (s): the one owner of it.
+    fn period_s(&self) -> f64;
     /// Activates the backend at rest and returns the first reading.
     fn start(&mut self) -> Result<Started<Self::Reading, Self::Command>, Self::Error>;
     /// Lets one period pass with the last command held: a simulation integrates over
-    /// `period_s`, hardware sleeps to the next deadline. Returns how many periods elapsed
-    /// (1, or more when deadlines were missed and skipped).
-    fn wait(&mut self, period_s: f64) -> Result<u32, Self::Error>;
+    /// [`period_s`](Backend::period_s), hardware sleeps to the next deadline. Returns how
+    /// many periods elapsed (1, or more when deadlines were missed and skipped).
+    fn wait(&mut self) -> Result<u32, Self::Error>;
     /// Reads the sensors.
     fn read(&mut self) -> Result<Self::Reading, Self::Error>;
     /// Sends a command; returns the command as applied (after the backend's clamping or
@@ -215,6 +219,9 @@ pub struct Outcome<E> {
     pub missed_periods: u64,
     /// Time of the last reading (s).
     pub t_end_s: f64,
+    /// How long the run covered (s): the duration asked for when it completed, its
+    /// periods otherwise (stopped or faulted). Figures per second of run divide by it.
+    pub ran_s: f64,
     /// Wall-clock time of the loop (s).
     pub wall_s: f64,
     /// How it ended.
@@ -233,6 +240,7 @@ impl<E> Outcome<E> {
             periods: self.periods,
             missed_periods: self.missed_periods,
             t_end_s: self.t_end_s,
+            ran_s: self.ran_s,
             wall_s: self.wall_s,
             end,
         })
@@ -258,35 +266,21 @@ pub enum SettingsError {
     },
 }
 
-/// How long and how fast the loop runs, and what can stop it early.
+/// How long the loop runs, and what can stop it early. The period is the backend's.
 #[derive(Debug, Clone, Copy)]
 pub struct LoopSettings<'a> {
-    period_s: f64,
     duration_s: f64,
-    periods: u64,
     stop: Option<&'a AtomicBool>,
 }
 
 impl<'a> LoopSettings<'a> {
-    /// `duration_s` rounded to whole periods of `period_s`; at least one period.
-    pub fn new(period_s: f64, duration_s: f64) -> Result<Self, SettingsError> {
-        if !(period_s.is_finite() && period_s > 0.0) {
-            return Err(SettingsError::Period(period_s));
-        }
+    /// A run of `duration_s` (finite, > 0), rounded to whole periods of the backend.
+    pub fn new(duration_s: f64) -> Result<Self, SettingsError> {
         if !(duration_s.is_finite() && duration_s > 0.0) {
             return Err(SettingsError::Duration(duration_s));
         }
-        let periods = (duration_s / period_s).round();
-        if periods < 1.0 {
-            return Err(SettingsError::TooShort {
-                duration_s,
-                period_s,
-            });
-        }
         Ok(Self {
-            period_s,
             duration_s,
-            periods: periods as u64,
             stop: None,
         })
     }
@@ -297,17 +291,23 @@ impl<'a> LoopSettings<'a> {
         self
     }
 
-    /// Control period (s).
-    pub fn period_s(&self) -> f64 {
-        self.period_s
+    /// Number of periods of `period_s` the run covers (its duration rounded to whole
+    /// periods): at least one.
+    pub fn periods(&self, period_s: f64) -> Result<u64, SettingsError> {
+        if !(period_s.is_finite() && period_s > 0.0) {
+            return Err(SettingsError::Period(period_s));
+        }
+        let periods = (self.duration_s / period_s).round();
+        if periods < 1.0 {
+            return Err(SettingsError::TooShort {
+                duration_s: self.duration_s,
+                period_s,
+            });
+        }
+        Ok(periods as u64)
     }
 
-    /// Number of periods.
-    pub fn periods(&self) -> u64 {
-        self.periods
-    }
-
-    /// The duration asked for (s); the run covers [`periods`](Self::periods) whole periods.
+    /// The duration asked for (s).
     pub fn duration_s(&self) -> f64 {
         self.duration_s
     }
@@ -317,29 +317,51 @@ impl<'a> LoopSettings<'a> {
     }
 }
 
+/// Stops the backend when dropped unless disarmed: a panic unwinding through the loop
+/// leaves it in its safe state.
+struct StopOnUnwind<'b, B: Backend> {
+    backend: &'b mut B,
+    armed: bool,
+}
+
+impl<B: Backend> Drop for StopOnUnwind<'_, B> {
+    fn drop(&mut self) {
+        if self.armed {
+            self.backend.stop();
+        }
+    }
+}
+
 /// Runs `task` against `backend` for `settings`, with `recorder` observing every period.
 ///
 /// The backend is stopped (its safe state) on every exit path, before the recorder hears
-/// how the run ended. Time is `t_0 + n T` with `n` the periods elapsed, so a simulation
-/// sees exactly the instants `k T`.
+/// how the run ended; a panic in the loop stops it as it unwinds. Time is `t_0 + n T` with
+/// `n` the periods elapsed and `T` the backend's period, so a simulation sees exactly the
+/// instants `k T`. Fails before anything runs if the duration is not a period at least.
 pub fn run<B, T, R>(
     backend: &mut B,
     task: &mut T,
     recorder: &mut R,
     settings: &LoopSettings,
-) -> Outcome<B::Error>
+) -> Result<Outcome<B::Error>, SettingsError>
 where
     B: Backend,
     T: Task<Reading = B::Reading, Command = B::Command>,
     R: Recorder<B, T::Output>,
 {
+    let period_s = backend.period_s();
+    let periods = settings.periods(period_s)?;
     let wall = Instant::now();
     let mut state = LoopState {
         periods: 0,
         elapsed: 0,
         t_s: 0.0,
     };
-    let end = match drive(backend, task, recorder, settings, &mut state) {
+    let mut guard = StopOnUnwind {
+        backend,
+        armed: true,
+    };
+    let end = match drive(guard.backend, task, recorder, settings, periods, &mut state) {
         Ok(end) => end,
         Err((period, error)) => End::Fault {
             period,
@@ -347,15 +369,21 @@ where
             error,
         },
     };
-    backend.stop();
+    guard.armed = false;
+    guard.backend.stop();
     recorder.end(&end, state.t_s);
-    Outcome {
+    let ran_s = match end {
+        End::Completed => settings.duration_s(),
+        _ => state.periods as f64 * period_s,
+    };
+    Ok(Outcome {
         periods: state.periods,
         missed_periods: state.elapsed.saturating_sub(state.periods),
         t_end_s: state.t_s,
+        ran_s,
         wall_s: wall.elapsed().as_secs_f64(),
         end,
-    }
+    })
 }
 
 struct LoopState {
@@ -369,6 +397,7 @@ fn drive<B, T, R>(
     task: &mut T,
     recorder: &mut R,
     settings: &LoopSettings,
+    periods: u64,
     state: &mut LoopState,
 ) -> Result<End<B::Error>, (u64, B::Error)>
 where
@@ -376,7 +405,7 @@ where
     T: Task<Reading = B::Reading, Command = B::Command>,
     R: Recorder<B, T::Output>,
 {
-    let period = settings.period_s;
+    let period = backend.period_s();
     let started = backend.start().map_err(|e| (0, e))?;
     let t0 = started.t_s;
     state.t_s = t0;
@@ -397,12 +426,12 @@ where
         held: &held,
         backend,
     });
-    while state.elapsed < settings.periods {
+    while state.elapsed < periods {
         if settings.stop_requested() {
             return Ok(End::Stopped);
         }
         let k = state.periods + 1;
-        let n = backend.wait(period).map_err(|e| (k, e))?.max(1);
+        let n = backend.wait().map_err(|e| (k, e))?.max(1);
         let dt = f64::from(n) * period;
         state.elapsed += u64::from(n);
         let t = t0 + state.elapsed as f64 * period;

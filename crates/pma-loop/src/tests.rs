@@ -4,6 +4,7 @@ use std::fmt;
 /// A backend that logs every call and fails on request.
 #[derive(Default)]
 struct Dummy {
+    period: f64,
     calls: Vec<String>,
     fail_read_at: Option<u64>,
     fail_start: bool,
@@ -29,6 +30,9 @@ impl Backend for Dummy {
     type Command = f64;
     type Truth = u64;
     type Error = DummyError;
+    fn period_s(&self) -> f64 {
+        self.period
+    }
     fn start(&mut self) -> Result<Started<f64, f64>, DummyError> {
         self.calls.push("start".into());
         if self.fail_start {
@@ -40,8 +44,8 @@ impl Backend for Dummy {
             command: -1.0,
         })
     }
-    fn wait(&mut self, period_s: f64) -> Result<u32, DummyError> {
-        self.calls.push(format!("wait {period_s}"));
+    fn wait(&mut self) -> Result<u32, DummyError> {
+        self.calls.push(format!("wait {}", self.period));
         let n = if self.skip_at == Some(self.reads + 1) {
             3
         } else {
@@ -127,10 +131,13 @@ fn inc(acts_at_start: bool) -> Inc {
 
 #[test]
 fn a_period_is_wait_read_update_write_and_the_run_ends_stopped() {
-    let mut b = Dummy::default();
+    let mut b = Dummy {
+        period: 0.5,
+        ..Dummy::default()
+    };
     let mut log = Log::default();
-    let s = LoopSettings::new(0.5, 1.0).unwrap();
-    let out = run(&mut b, &mut inc(false), &mut log, &s);
+    let s = LoopSettings::new(1.0).unwrap();
+    let out = run(&mut b, &mut inc(false), &mut log, &s).unwrap();
     assert!(matches!(out.end, End::Completed));
     assert_eq!(out.periods, 2);
     assert_eq!(
@@ -150,11 +157,12 @@ fn a_period_is_wait_read_update_write_and_the_run_ends_stopped() {
 fn a_task_that_acts_at_start_has_its_command_held_over_the_first_period() {
     let mut b = Dummy {
         x: 5.0,
+        period: 1.0,
         ..Dummy::default()
     };
     let mut log = Log::default();
-    let s = LoopSettings::new(1.0, 1.0).unwrap();
-    run(&mut b, &mut inc(true), &mut log, &s);
+    let s = LoopSettings::new(1.0).unwrap();
+    run(&mut b, &mut inc(true), &mut log, &s).unwrap();
     assert_eq!(b.calls[..3], ["start", "write 6", "wait 1"]);
     assert_eq!(log.started, Some((10.0, 6.0)));
     assert_eq!(log.rows[0].2, 6.0);
@@ -164,6 +172,7 @@ fn a_task_that_acts_at_start_has_its_command_held_over_the_first_period() {
 fn the_written_command_is_what_the_backend_applied() {
     let mut b = Dummy {
         x: 150.0,
+        period: 1.0,
         ..Dummy::default()
     };
     let mut log = Log::default();
@@ -171,8 +180,9 @@ fn the_written_command_is_what_the_backend_applied() {
         &mut b,
         &mut inc(false),
         &mut log,
-        &LoopSettings::new(1.0, 2.0).unwrap(),
-    );
+        &LoopSettings::new(2.0).unwrap(),
+    )
+    .unwrap();
     assert_eq!(log.rows[0].3, 151.0);
     assert_eq!(log.rows[0].4, 100.0);
     assert_eq!(log.rows[1].2, 100.0);
@@ -182,6 +192,7 @@ fn the_written_command_is_what_the_backend_applied() {
 fn a_read_error_stops_the_backend_and_names_the_period() {
     let mut b = Dummy {
         fail_read_at: Some(3),
+        period: 1.0,
         ..Dummy::default()
     };
     let mut log = Log::default();
@@ -189,8 +200,9 @@ fn a_read_error_stops_the_backend_and_names_the_period() {
         &mut b,
         &mut inc(false),
         &mut log,
-        &LoopSettings::new(1.0, 10.0).unwrap(),
-    );
+        &LoopSettings::new(10.0).unwrap(),
+    )
+    .unwrap();
     assert!(
         matches!(out.end, End::Fault { period: 3, .. }),
         "{:?}",
@@ -207,14 +219,16 @@ fn a_read_error_stops_the_backend_and_names_the_period() {
 fn a_failed_start_still_stops_the_backend() {
     let mut b = Dummy {
         fail_start: true,
+        period: 1.0,
         ..Dummy::default()
     };
     let out = run(
         &mut b,
         &mut inc(false),
         &mut (),
-        &LoopSettings::new(1.0, 1.0).unwrap(),
-    );
+        &LoopSettings::new(1.0).unwrap(),
+    )
+    .unwrap();
     assert!(matches!(out.end, End::Fault { period: 0, .. }));
     assert_eq!(out.periods, 0);
     assert_eq!(b.calls, ["start", "stop"]);
@@ -224,6 +238,7 @@ fn a_failed_start_still_stops_the_backend() {
 fn missed_periods_are_skipped_and_the_task_sees_the_longer_dt() {
     let mut b = Dummy {
         skip_at: Some(2),
+        period: 1.0,
         ..Dummy::default()
     };
     let mut task = inc(false);
@@ -232,8 +247,9 @@ fn missed_periods_are_skipped_and_the_task_sees_the_longer_dt() {
         &mut b,
         &mut task,
         &mut log,
-        &LoopSettings::new(1.0, 5.0).unwrap(),
-    );
+        &LoopSettings::new(5.0).unwrap(),
+    )
+    .unwrap();
     assert_eq!(task.dts, [1.0, 3.0, 1.0]);
     assert_eq!(out.periods, 3);
     assert_eq!(out.missed_periods, 2);
@@ -244,9 +260,12 @@ fn missed_periods_are_skipped_and_the_task_sees_the_longer_dt() {
 #[test]
 fn a_raised_stop_flag_ends_the_run_stopped() {
     let flag = AtomicBool::new(true);
-    let mut b = Dummy::default();
-    let s = LoopSettings::new(1.0, 5.0).unwrap().with_stop_flag(&flag);
-    let out = run(&mut b, &mut inc(false), &mut (), &s);
+    let mut b = Dummy {
+        period: 1.0,
+        ..Dummy::default()
+    };
+    let s = LoopSettings::new(5.0).unwrap().with_stop_flag(&flag);
+    let out = run(&mut b, &mut inc(false), &mut (), &s).unwrap();
     assert!(matches!(out.end, End::Stopped));
     assert_eq!(out.periods, 0);
     assert_eq!(b.stopped, 1);
@@ -254,13 +273,82 @@ fn a_raised_stop_flag_ends_the_run_stopped() {
 
 #[test]
 fn settings_reject_what_would_not_run() {
+    let tenth = LoopSettings::new(1e-4).unwrap();
     assert!(matches!(
-        LoopSettings::new(1e-3, 1e-4),
+        tenth.periods(1e-3),
         Err(SettingsError::TooShort { .. })
     ));
-    assert!(LoopSettings::new(0.0, 1.0).is_err());
-    assert!(LoopSettings::new(f64::NAN, 1.0).is_err());
-    assert!(LoopSettings::new(1e-3, -1.0).is_err());
-    assert!(LoopSettings::new(1e-3, f64::INFINITY).is_err());
-    assert_eq!(LoopSettings::new(1e-3, 20.0).unwrap().periods(), 20_000);
+    assert!(LoopSettings::new(1.0).unwrap().periods(0.0).is_err());
+    assert!(LoopSettings::new(1.0).unwrap().periods(f64::NAN).is_err());
+    assert!(LoopSettings::new(-1.0).is_err());
+    assert!(LoopSettings::new(f64::INFINITY).is_err());
+    assert_eq!(
+        LoopSettings::new(20.0).unwrap().periods(1e-3).unwrap(),
+        20_000
+    );
+    // A backend whose period does not fit the duration runs nothing.
+    let mut b = Dummy {
+        period: 1.0,
+        ..Dummy::default()
+    };
+    assert!(run(&mut b, &mut inc(false), &mut (), &tenth).is_err());
+    assert!(b.calls.is_empty());
+}
+
+/// Regression: `run` stopped the backend only on a normal return, so only the rig (with
+/// its own catch_unwind, hook and drop guard) was safe when a task panicked.
+#[test]
+fn a_panicking_task_still_stops_the_backend() {
+    struct Panics;
+    impl Task for Panics {
+        type Reading = f64;
+        type Command = f64;
+        type Output = f64;
+        fn update(&mut self, _t: f64, _x: &f64, _dt: f64) -> f64 {
+            panic!("a task that panics")
+        }
+        fn command(out: &f64) -> f64 {
+            *out
+        }
+    }
+    let mut b = Dummy {
+        period: 1.0,
+        ..Dummy::default()
+    };
+    let s = LoopSettings::new(3.0).unwrap();
+    let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let _ = run(&mut b, &mut Panics, &mut (), &s);
+    }));
+    assert!(caught.is_err());
+    assert_eq!(b.stopped, 1);
+    assert_eq!(b.calls.last().map(String::as_str), Some("stop"));
+}
+
+#[test]
+fn the_outcome_says_how_long_the_run_covered() {
+    let mut b = Dummy {
+        period: 1.0,
+        fail_read_at: Some(3),
+        ..Dummy::default()
+    };
+    let out = run(
+        &mut b,
+        &mut inc(false),
+        &mut (),
+        &LoopSettings::new(10.0).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(out.ran_s, 2.0);
+    let mut b = Dummy {
+        period: 0.5,
+        ..Dummy::default()
+    };
+    let out = run(
+        &mut b,
+        &mut inc(false),
+        &mut (),
+        &LoopSettings::new(2.0).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(out.ran_s, 2.0);
 }

@@ -1,81 +1,116 @@
+//! One error for a value that cannot be, and the checks that produce it: every crate of
+//! the workspace validates its files, flags and parameters with these.
+use std::borrow::Cow;
 use thiserror::Error;
 
-/// A parameter set that cannot describe a physical device.
+/// A value a file, a flag or a caller gave that cannot describe the thing it describes:
+/// not finite, out of its range, or out of its plausible range. `name` is the field as
+/// the user wrote it (`plant.valve.dead_time_s`, `patient.knee.spasms.amplitude_nm`).
 #[derive(Debug, Clone, PartialEq, Error)]
-pub enum ModelError {
-    /// A parameter is NaN or infinite.
-    #[error("parameter `{name}` is not finite ({value})")]
-    NotFinite {
-        /// Field name.
-        name: &'static str,
-        /// Offending value.
+#[error("{name} = {value} is invalid: {expected}")]
+pub struct Invalid {
+    /// The field.
+    pub name: Cow<'static, str>,
+    /// The value given.
+    pub value: f64,
+    /// What it must be, and why.
+    pub expected: Cow<'static, str>,
+}
+
+impl Invalid {
+    /// `name = value` is not `expected`.
+    pub fn new(
+        name: impl Into<Cow<'static, str>>,
         value: f64,
-    },
-    /// A parameter is outside its admissible range.
-    #[error("parameter `{name}` = {value} is out of range: {expected}")]
-    OutOfRange {
-        /// Field name.
-        name: &'static str,
-        /// Offending value.
-        value: f64,
-        /// What the parameter must satisfy.
-        expected: &'static str,
-    },
-}
-
-/// Rejects NaN and infinities.
-pub(crate) fn finite(name: &'static str, value: f64) -> Result<f64, ModelError> {
-    if value.is_finite() {
-        Ok(value)
-    } else {
-        Err(ModelError::NotFinite { name, value })
-    }
-}
-
-/// Requires a finite value `> 0`.
-pub(crate) fn positive(name: &'static str, value: f64) -> Result<f64, ModelError> {
-    finite(name, value)?;
-    if value > 0.0 {
-        Ok(value)
-    } else {
-        Err(ModelError::OutOfRange {
-            name,
+        expected: impl Into<Cow<'static, str>>,
+    ) -> Self {
+        Self {
+            name: name.into(),
             value,
-            expected: "must be > 0",
-        })
+            expected: expected.into(),
+        }
+    }
+
+    /// The same error with the field named from `prefix` (`valve` + `dead_time_s` gives
+    /// `valve.dead_time_s`).
+    pub fn within_section(self, prefix: &str) -> Self {
+        Self {
+            name: format!("{prefix}.{}", self.name).into(),
+            ..self
+        }
     }
 }
 
-/// Requires a finite value `>= 0`.
-pub(crate) fn non_negative(name: &'static str, value: f64) -> Result<f64, ModelError> {
-    finite(name, value)?;
-    if value >= 0.0 {
+/// `value` if `ok`, otherwise `name = value` is not `expected`.
+pub fn check(
+    ok: bool,
+    name: impl Into<Cow<'static, str>>,
+    value: f64,
+    expected: impl Into<Cow<'static, str>>,
+) -> Result<f64, Invalid> {
+    if ok {
         Ok(value)
     } else {
-        Err(ModelError::OutOfRange {
-            name,
-            value,
-            expected: "must be >= 0",
-        })
+        Err(Invalid::new(name, value, expected))
     }
 }
 
-/// Requires a finite value within `[low, high]`; `expected` states the range and why.
-pub(crate) fn within(
-    name: &'static str,
+/// A finite value.
+pub fn finite(name: impl Into<Cow<'static, str>>, value: f64) -> Result<f64, Invalid> {
+    check(value.is_finite(), name, value, "must be a finite number")
+}
+
+/// A finite value `> 0`.
+pub fn positive(name: impl Into<Cow<'static, str>>, value: f64) -> Result<f64, Invalid> {
+    check(
+        value.is_finite() && value > 0.0,
+        name,
+        value,
+        "must be a finite number > 0",
+    )
+}
+
+/// A finite value `>= 0`.
+pub fn non_negative(name: impl Into<Cow<'static, str>>, value: f64) -> Result<f64, Invalid> {
+    check(
+        value.is_finite() && value >= 0.0,
+        name,
+        value,
+        "must be a finite number >= 0",
+    )
+}
+
+/// A finite value within `[low, high]`; `expected` states the range and why.
+pub fn within(
+    name: impl Into<Cow<'static, str>>,
     value: f64,
     low: f64,
     high: f64,
-    expected: &'static str,
-) -> Result<f64, ModelError> {
-    finite(name, value)?;
-    if (low..=high).contains(&value) {
-        Ok(value)
-    } else {
-        Err(ModelError::OutOfRange {
-            name,
-            value,
-            expected,
-        })
+    expected: impl Into<Cow<'static, str>>,
+) -> Result<f64, Invalid> {
+    check(
+        value.is_finite() && (low..=high).contains(&value),
+        name,
+        value,
+        expected,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn checks_name_the_field_and_the_requirement() {
+        assert_eq!(positive("mass_kg", 2.0), Ok(2.0));
+        let e = positive("mass_kg", -1.0).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "mass_kg = -1 is invalid: must be a finite number > 0"
+        );
+        let e = finite("x", f64::NAN).unwrap_err().within_section("load");
+        assert_eq!(e.name, "load.x");
+        assert!(within("t", 2.0, 0.0, 1.0, "must be 0..=1 s").is_err());
+        assert!(non_negative("t", 0.0).is_ok());
     }
 }

@@ -16,16 +16,18 @@
 //! ```
 #![warn(missing_docs)]
 
-mod error;
+pub mod error;
 mod load;
 mod muscle;
 mod rng;
+mod scale;
 mod sensor;
 mod valve;
 
-pub use error::ModelError;
+pub use error::Invalid;
 pub use load::{LoadProfile, LoadStep, GRAVITY_M_S2, MAX_LOAD_KG};
 pub use muscle::{DampingMode, MuscleParams, MAX_FACTOR_ON_TABLE_I};
 pub use rng::GaussianRng;
+pub use scale::MuscleScale;
 pub use sensor::{PositionSensor, SensorParams};
 pub use valve::{Valve, ValveParams, MAX_VALVE_DELAY_S, MAX_VALVE_PRESSURE_PA};

@@ -1,4 +1,4 @@
-use crate::error::{non_negative, positive, within, ModelError};
+use crate::error::{non_negative, positive, within, Invalid};
 
 /// Heaviest load accepted (kg): a DMSP-40 pulls at most 6 kN (Festo Info 501), about 600 kg.
 pub const MAX_LOAD_KG: f64 = 600.0;
@@ -59,7 +59,7 @@ impl LoadProfile {
     }
 
     /// Checks for a positive mass and a non-negative, finite step.
-    pub fn validate(&self) -> Result<(), ModelError> {
+    pub fn validate(&self) -> Result<(), Invalid> {
         positive("mass_kg", self.mass_kg)?;
         within("mass_kg", self.mass_kg, 0.0, MAX_LOAD_KG, LOAD_RANGE)?;
         if let Some(s) = self.step {

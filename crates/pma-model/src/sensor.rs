@@ -1,4 +1,4 @@
-use crate::error::{finite, non_negative, within, ModelError};
+use crate::error::{check, finite, non_negative, within, Invalid};
 use crate::GaussianRng;
 
 /// Displacement sensor: measuring range, A/D resolution and white noise. The paper's rig
@@ -35,16 +35,15 @@ impl SensorParams {
     }
 
     /// Checks finite values, a non-empty range and at most 32 bits.
-    pub fn validate(&self) -> Result<(), ModelError> {
+    pub fn validate(&self) -> Result<(), Invalid> {
         finite("range_min_m", self.range_min_m)?;
         finite("range_max_m", self.range_max_m)?;
-        if self.range_max_m <= self.range_min_m {
-            return Err(ModelError::OutOfRange {
-                name: "range_max_m",
-                value: self.range_max_m,
-                expected: "must exceed range_min_m",
-            });
-        }
+        check(
+            self.range_max_m > self.range_min_m,
+            "range_max_m",
+            self.range_max_m,
+            "must exceed range_min_m",
+        )?;
         non_negative("noise_rms_m", self.noise_rms_m)?;
         within(
             "noise_rms_m",
@@ -53,13 +52,12 @@ impl SensorParams {
             1e-2,
             "must be 0..=0.01 RMS in the sensor's unit (m, or rad for an encoder): sensor noise is micrometres or millidegrees",
         )?;
-        if self.resolution_bits > 32 {
-            return Err(ModelError::OutOfRange {
-                name: "resolution_bits",
-                value: f64::from(self.resolution_bits),
-                expected: "must be 0..=32",
-            });
-        }
+        check(
+            self.resolution_bits <= 32,
+            "resolution_bits",
+            f64::from(self.resolution_bits),
+            "must be 0..=32",
+        )?;
         Ok(())
     }
 
@@ -89,7 +87,7 @@ pub struct PositionSensor {
 
 impl PositionSensor {
     /// A sensor from validated parameters.
-    pub fn new(params: SensorParams) -> Result<Self, ModelError> {
+    pub fn new(params: SensorParams) -> Result<Self, Invalid> {
         params.validate()?;
         Ok(Self {
             params,

@@ -1,4 +1,4 @@
-use crate::error::{non_negative, positive, within, ModelError};
+use crate::error::{non_negative, positive, within, Invalid};
 use crate::DampingMode;
 
 /// Shortest command period the dead-time buffer is sized for (s). Commands sent faster
@@ -51,7 +51,7 @@ impl ValveParams {
     }
 
     /// Checks ranges: positive maximum, non-negative lag and dead time, positive rate limit.
-    pub fn validate(&self) -> Result<(), ModelError> {
+    pub fn validate(&self) -> Result<(), Invalid> {
         positive("pressure_max_pa", self.pressure_max_pa)?;
         within(
             "pressure_max_pa",
@@ -119,7 +119,7 @@ pub struct Valve {
 
 impl Valve {
     /// A valve at `initial_pa` (clamped), all buffers allocated here.
-    pub fn new(params: ValveParams, initial_pa: f64) -> Result<Self, ModelError> {
+    pub fn new(params: ValveParams, initial_pa: f64) -> Result<Self, Invalid> {
         params.validate()?;
         let p = params.clamp(initial_pa);
         let capacity = (params.dead_time_s / MIN_COMMAND_PERIOD_S).ceil() as usize + 2;

@@ -33,6 +33,7 @@ pub struct RigBackend {
     daq: Box<dyn Daq>,
     signals: Signals,
     calibration: Calibration,
+    period_s: f64,
     output_range_v: (f64, f64),
     vent_v: f64,
     pacing: Pacing,
@@ -115,6 +116,7 @@ impl RigBackend {
             daq,
             signals: s,
             calibration: c,
+            period_s: config.period_s,
             output_range_v: out,
             vent_v,
             pacing,
@@ -235,8 +237,12 @@ impl Backend for RigBackend {
         })
     }
 
+    fn period_s(&self) -> f64 {
+        self.period_s
+    }
+
     /// Toggles the charge pump, then lets the period pass.
-    fn wait(&mut self, _period_s: f64) -> Result<u32, DaqError> {
+    fn wait(&mut self) -> Result<u32, DaqError> {
         self.toggle_charge_pump()?;
         match (&self.pacing, self.pacer.as_mut()) {
             (Pacing::Lockstep(clock), _) => {

@@ -1,19 +1,21 @@
-//! The rig's configuration file (`models/rig/*.toml`): device, signals, calibration,
+//! The rig's configuration file (`crates/pma-rig/models/*.toml`): device, signals, calibration,
 //! limits, control, reference and, for the virtual rig, the simulated muscle.
 use crate::daq::{AnalogChannel, DigitalLine};
 use crate::error::RigError;
+use pma_bench::PlantConfig;
 use pma_control::{
-    ChirpReference, ControllerConfig, ControllerKind, NominalModel, RefSample, Reference,
-    SineReference,
+    ChirpReference, ControllerConfig, ControllerKind, NominalModel, NominalSpec, SineReference,
+    SmoothStart, Trajectory,
 };
-use pma_sim::{NominalSpec, PlantConfig};
+use pma_model::error::{check, finite, non_negative, positive, within};
+use pma_model::Invalid;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// The embedded default configuration (`models/rig/virtual.toml`).
-pub const EMBEDDED_VIRTUAL: &str = include_str!("../../../models/rig/virtual.toml");
-/// The seed rig's configuration (`models/rig/pci6052e.toml`).
-pub const EMBEDDED_PCI6052E: &str = include_str!("../../../models/rig/pci6052e.toml");
+/// The embedded default configuration (`crates/pma-rig/models/virtual.toml`).
+pub const EMBEDDED_VIRTUAL: &str = include_str!("../models/virtual.toml");
+/// The seed rig's configuration (`crates/pma-rig/models/pci6052e.toml`).
+pub const EMBEDDED_PCI6052E: &str = include_str!("../models/pci6052e.toml");
 
 /// Which driver talks to the board.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -206,31 +208,32 @@ impl MuscleRating {
 
     fn validate(&self) -> Result<(), RigError> {
         check(
-            "muscle.pressure_max_pa",
             self.pressure_max_pa.is_finite()
                 && self.pressure_max_pa > 0.0
                 && self.pressure_max_pa <= 8.0e5,
+            "muscle.pressure_max_pa",
             self.pressure_max_pa,
             "must be > 0 and at most 8 bar (the highest rating of a Festo DMSP)",
         )?;
         check(
-            "muscle.nominal_length_m",
             self.nominal_length_m.is_finite() && (0.03..=10.0).contains(&self.nominal_length_m),
+            "muscle.nominal_length_m",
             self.nominal_length_m,
             "must be 0.03..=10 m (Festo DMSP lengths are 40-9000 mm)",
         )?;
         check(
-            "muscle.contraction_max_fraction",
             self.contraction_max_fraction > 0.0 && self.contraction_max_fraction <= 0.3,
+            "muscle.contraction_max_fraction",
             self.contraction_max_fraction,
             "must be > 0 and at most 0.3 (a DMSP contracts by at most 25 %)",
         )?;
         check(
-            "muscle.stretch_max_fraction",
             self.stretch_max_fraction > 0.0 && self.stretch_max_fraction <= 0.2,
+            "muscle.stretch_max_fraction",
             self.stretch_max_fraction,
             "must be > 0 and at most 0.2",
-        )
+        )?;
+        Ok(())
     }
 }
 
@@ -379,62 +382,24 @@ pub struct RigConfig {
     pub virtual_rig: Option<VirtualConfig>,
 }
 
-fn check(
-    field: &'static str,
-    ok: bool,
-    value: f64,
-    expected: &'static str,
-) -> Result<(), RigError> {
-    if ok {
-        Ok(())
-    } else {
-        Err(RigError::Invalid {
-            field,
-            value,
-            expected,
-        })
-    }
-}
-
-fn positive(field: &'static str, v: f64) -> Result<(), RigError> {
-    check(
-        field,
-        v.is_finite() && v > 0.0,
-        v,
-        "must be a finite number > 0",
-    )
-}
-
-fn finite(field: &'static str, v: f64) -> Result<(), RigError> {
-    check(field, v.is_finite(), v, "must be a finite number")
-}
-
-fn non_negative(field: &'static str, v: f64) -> Result<(), RigError> {
-    check(
-        field,
-        v.is_finite() && v >= 0.0,
-        v,
-        "must be a finite number >= 0",
-    )
-}
-
 /// Highest reference frequency (Hz): a muscle under a load follows a few hertz at most
 /// (Table I's corners are 0.06-1 Hz; the paper's chirp ends at 0.5 Hz).
 pub const REFERENCE_FREQUENCY_MAX_HZ: f64 = 5.0;
 
-fn frequency(field: &'static str, v: f64) -> Result<(), RigError> {
-    check(
+fn frequency(field: &'static str, v: f64) -> Result<f64, Invalid> {
+    within(
         field,
-        v.is_finite() && (0.0..=REFERENCE_FREQUENCY_MAX_HZ).contains(&v),
         v,
+        0.0,
+        REFERENCE_FREQUENCY_MAX_HZ,
         "must be 0..=5 Hz (a loaded muscle follows a few hertz at most)",
     )
 }
 
-fn nonzero(field: &'static str, v: f64) -> Result<(), RigError> {
+fn nonzero(field: &'static str, v: f64) -> Result<f64, Invalid> {
     check(
-        field,
         v.is_finite() && v != 0.0,
+        field,
         v,
         "must be a finite, non-zero number",
     )
@@ -455,12 +420,12 @@ impl RigConfig {
     pub fn load(name_or_path: &str) -> Result<(Self, PathBuf), RigError> {
         match name_or_path {
             "virtual" => Ok((
-                Self::from_toml_str(EMBEDDED_VIRTUAL, "models/rig/virtual.toml")?,
-                PathBuf::from("models/rig"),
+                Self::from_toml_str(EMBEDDED_VIRTUAL, "crates/pma-rig/models/virtual.toml")?,
+                PathBuf::from("crates/pma-rig/models"),
             )),
             "pci6052e" => Ok((
-                Self::from_toml_str(EMBEDDED_PCI6052E, "models/rig/pci6052e.toml")?,
-                PathBuf::from("models/rig"),
+                Self::from_toml_str(EMBEDDED_PCI6052E, "crates/pma-rig/models/pci6052e.toml")?,
+                PathBuf::from("crates/pma-rig/models"),
             )),
             path => {
                 let text = std::fs::read_to_string(path).map_err(|e| RigError::Io {
@@ -480,8 +445,8 @@ impl RigConfig {
     /// board.
     pub fn validate(&self) -> Result<(), RigError> {
         check(
-            "period_s",
             self.period_s >= PERIOD_RANGE_S.0 && self.period_s <= PERIOD_RANGE_S.1,
+            "period_s",
             self.period_s,
             "must be 0.0001..=0.01 s (the controllers are discretised for 0.1-10 ms; the paper ran at 1 ms)",
         )?;
@@ -497,8 +462,8 @@ impl RigConfig {
         nonzero("calibration.position_m_per_v", c.position_m_per_v)?;
         finite("calibration.position_offset_v", c.position_offset_v)?;
         check(
-            "calibration.valve_pa_per_v",
             c.valve_pa_per_v.is_finite() && c.valve_pa_per_v > 0.0,
+            "calibration.valve_pa_per_v",
             c.valve_pa_per_v,
             "must be a finite number > 0: a higher set point must mean more pressure (a negative scale would turn every vent into full pressure)",
         )?;
@@ -509,8 +474,8 @@ impl RigConfig {
         self.control.nominal_model_check()?;
         self.reference_check()?;
         check(
-            "realtime.priority",
             (1..=99).contains(&self.realtime.priority),
+            "realtime.priority",
             f64::from(self.realtime.priority),
             "must be 1..=99",
         )?;
@@ -549,8 +514,8 @@ impl RigConfig {
         finite("limits.position_min_m", l.position_min_m)?;
         finite("limits.position_max_m", l.position_max_m)?;
         check(
-            "limits.position_max_m",
             l.position_max_m > l.position_min_m,
+            "limits.position_max_m",
             l.position_max_m,
             "must exceed limits.position_min_m",
         )?;
@@ -600,11 +565,12 @@ impl RigConfig {
             });
         }
         check(
-            "limits.overrun_max_share",
             l.overrun_max_share > 0.0 && l.overrun_max_share <= 0.5,
+            "limits.overrun_max_share",
             l.overrun_max_share,
             "must be > 0 and at most 0.5",
-        )
+        )?;
+        Ok(())
     }
 
     /// The controller kind.
@@ -709,15 +675,7 @@ impl RigConfig {
 
     /// The controller's model.
     pub fn nominal_model(&self) -> NominalModel {
-        let n = &self.control.nominal;
-        NominalModel {
-            muscle: pma_model::MuscleParams::TABLE_I,
-            mass_kg: n.mass_kg,
-            load_force_n: n.mass_kg * pma_model::GRAVITY_M_S2,
-            mode_switch_deadband_pa: n.mode_switch_deadband_pa,
-            mode_switch_fraction: n.mode_switch_fraction,
-            valve_time_constant_s: n.valve_time_constant_s,
-        }
+        self.control.nominal.model()
     }
 
     /// The reference, entered from `start_m` over its ramp.
@@ -765,19 +723,10 @@ impl RigConfig {
 
 impl ControlConfig {
     fn nominal_model_check(&self) -> Result<(), RigError> {
-        positive("control.nominal.mass_kg", self.nominal.mass_kg)?;
-        non_negative(
-            "control.nominal.valve_time_constant_s",
-            self.nominal.valve_time_constant_s,
-        )?;
-        non_negative(
-            "control.nominal.mode_switch_deadband_pa",
-            self.nominal.mode_switch_deadband_pa,
-        )?;
-        non_negative(
-            "control.nominal.mode_switch_fraction",
-            self.nominal.mode_switch_fraction,
-        )
+        self.nominal
+            .validate()
+            .map_err(|e| e.within_section("control.nominal"))?;
+        Ok(())
     }
 
     /// The controller configuration: the gain file (relative to `dir`) or the defaults.
@@ -809,22 +758,22 @@ impl VirtualConfig {
             message: e.to_string(),
         })?;
         check(
-            "virtual.converter_bits",
             self.converter_bits <= 24,
+            "virtual.converter_bits",
             f64::from(self.converter_bits),
             "must be 0..=24",
         )?;
         check(
-            "virtual.sensor_latency_s",
             self.sensor_latency_s.is_finite()
                 && (0.0..=VIRTUAL_LATENCY_MAX_S).contains(&self.sensor_latency_s),
+            "virtual.sensor_latency_s",
             self.sensor_latency_s,
             "must be 0..=1 s",
         )?;
         check(
-            "virtual.sensor_noise_rms_m",
             self.sensor_noise_rms_m.is_finite()
                 && (0.0..=VIRTUAL_NOISE_MAX_M).contains(&self.sensor_noise_rms_m),
+            "virtual.sensor_noise_rms_m",
             self.sensor_noise_rms_m,
             "must be 0..=0.001 m RMS",
         )?;
@@ -837,63 +786,6 @@ pub const VIRTUAL_LATENCY_MAX_S: f64 = 1.0;
 /// Largest sensor noise the virtual rig simulates (m RMS).
 pub const VIRTUAL_NOISE_MAX_M: f64 = 1e-3;
 
-/// A base trajectory of the rig.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Trajectory {
-    /// Sine.
-    Sine(SineReference),
-    /// Chirp.
-    Chirp(ChirpReference),
-    /// Constant.
-    Hold(f64),
-}
-
-impl Trajectory {
-    fn sample(&self, t: f64) -> RefSample {
-        match self {
-            Trajectory::Sine(s) => s.sample(t),
-            Trajectory::Chirp(c) => c.sample(t),
-            Trajectory::Hold(x) => RefSample {
-                position_m: *x,
-                ..RefSample::default()
-            },
-        }
-    }
-}
-
-/// A trajectory entered from the resting position `x0` with a quintic blend
-/// `s(t) = 10 u^3 - 15 u^4 + 6 u^5`, `u = t / ramp`: `x_d = x0 + s (x(t) - x0)`, with
-/// analytic derivatives. A rig starts wherever its load rests; jumping to the
-/// trajectory's first point would slam the muscle.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SmoothStart {
-    /// The trajectory.
-    pub trajectory: Trajectory,
-    /// Where the blend starts (m).
-    pub start_m: f64,
-    /// Blend duration (s); 0 starts on the trajectory at once.
-    pub ramp_s: f64,
-}
-
-impl Reference for SmoothStart {
-    fn sample(&self, t: f64) -> RefSample {
-        let r = self.trajectory.sample(t);
-        if self.ramp_s <= 0.0 || t >= self.ramp_s {
-            return r;
-        }
-        let u = (t / self.ramp_s).max(0.0);
-        let s = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u);
-        let ds = 30.0 * u * u * (1.0 - u) * (1.0 - u) / self.ramp_s;
-        let dds = 60.0 * u * (1.0 - u) * (1.0 - 2.0 * u) / (self.ramp_s * self.ramp_s);
-        let gap = r.position_m - self.start_m;
-        RefSample {
-            position_m: self.start_m + s * gap,
-            velocity_m_s: ds * gap + s * r.velocity_m_s,
-            acceleration_m_s2: dds * gap + 2.0 * ds * r.velocity_m_s + s * r.acceleration_m_s2,
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -905,33 +797,5 @@ mod tests {
         let c = RigConfig::from_toml_str(EMBEDDED_PCI6052E, "pci6052e.toml").unwrap();
         assert_eq!(c.device.driver, Driver::Comedi);
         assert_eq!(c.device.path, "/dev/comedi0");
-    }
-
-    #[test]
-    fn smooth_start_derivatives_match_finite_differences() {
-        let r = SmoothStart {
-            trajectory: Trajectory::Sine(SineReference::paper()),
-            start_m: -0.01,
-            ramp_s: 2.0,
-        };
-        assert_eq!(r.sample(0.0).position_m, -0.01);
-        assert_eq!(r.sample(0.0).velocity_m_s, 0.0);
-        assert_eq!(r.sample(3.0), SineReference::paper().sample(3.0));
-        let h = 1e-5;
-        for &t in &[0.3, 1.0, 1.7, 1.99] {
-            let (a, b, c) = (r.sample(t - h), r.sample(t), r.sample(t + h));
-            let v = (c.position_m - a.position_m) / (2.0 * h);
-            let acc = (c.velocity_m_s - a.velocity_m_s) / (2.0 * h);
-            assert!(
-                (v - b.velocity_m_s).abs() < 1e-6,
-                "t {t}: {v} vs {}",
-                b.velocity_m_s
-            );
-            assert!(
-                (acc - b.acceleration_m_s2).abs() < 1e-5,
-                "t {t}: {acc} vs {}",
-                b.acceleration_m_s2
-            );
-        }
     }
 }

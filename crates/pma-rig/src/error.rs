@@ -21,16 +21,9 @@ pub enum RigError {
         /// Parser message, on one line.
         message: String,
     },
-    /// A field is out of range.
-    #[error("{field} = {value} is invalid: {expected}")]
-    Invalid {
-        /// Field.
-        field: &'static str,
-        /// Value.
-        value: f64,
-        /// Requirement.
-        expected: &'static str,
-    },
+    /// A value is invalid (non-finite, out of its range or of its plausible range).
+    #[error(transparent)]
+    Invalid(#[from] pma_model::Invalid),
     /// A field is missing.
     #[error("{field} is missing: {why}")]
     Missing {
@@ -64,7 +57,7 @@ pub enum RigError {
     Controller(#[from] pma_control::ConfigError),
     /// The simulated plant.
     #[error(transparent)]
-    Sim(#[from] pma_sim::SimError),
+    Bench(#[from] pma_bench::SimError),
     /// The loop settings.
     #[error(transparent)]
     Settings(#[from] pma_loop::SettingsError),

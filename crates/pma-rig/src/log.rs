@@ -11,8 +11,9 @@
 use crate::backend::RigBackend;
 use crate::error::RigError;
 use crate::supervisor::{Alarm, Supervised};
+use pma_control::MuscleStep;
 use pma_control::{RefSample, Reference};
-use pma_loop::{Backend, End, MuscleStep, Period, Recorder, Start};
+use pma_loop::{Backend, End, Period, Recorder, Start};
 use sha2::{Digest, Sha256};
 use std::fs::File;
 use std::io::{BufWriter, Write};

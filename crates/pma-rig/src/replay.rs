@@ -8,10 +8,11 @@
 //! row; and every column the header determines is recomputed (time from the periods, the
 //! position from the sensor's volts, the reference, the supervisor's clamp and rate limit,
 //! the valve's volts). The controller's columns are compared and counted.
-use crate::config::{RigConfig, SmoothStart};
+use crate::config::RigConfig;
 use crate::error::RigError;
 use crate::log::{hex, DIGEST_PREFIX, LOG_FORMAT};
 use crate::supervisor::limit_command;
+use pma_control::SmoothStart;
 use pma_control::{Controller, ControllerConfig, Measurement, RefSample, Reference};
 use sha2::{Digest, Sha256};
 use std::path::Path;

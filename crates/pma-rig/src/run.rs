@@ -10,11 +10,9 @@ use crate::replay::{
 };
 use crate::supervisor::{Alarm, Fault, Supervised, VentAction, WatchdogFactory};
 use crate::timing::{enter_realtime, RealtimeStatus, TimingSummary};
-use crate::virtual_daq::{InjectedFault, Injection, VirtualDaq};
-use pma_control::{ControlOutput, Controller, ControllerConfig, Measurement, RefSample};
-use pma_loop::{
-    End, LoopSettings, MuscleStep, MuscleTask, Period, Recorder, Start, TrackingMetrics,
-};
+use crate::virtual_daq::{Injection, VirtualDaq};
+use pma_control::{ControllerConfig, MuscleStep, MuscleTask, Tracking};
+use pma_loop::{End, LoopSettings, Recorder};
 use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -110,50 +108,6 @@ impl RigReport {
             Some("interrupted") => 130,
             Some(_) => 3,
         }
-    }
-}
-
-/// A controller that panics at `at_s` (the test hook `--inject controller-panic@T`).
-struct PanicAt {
-    inner: Box<dyn Controller>,
-    at_s: f64,
-    t_s: f64,
-}
-
-impl Controller for PanicAt {
-    fn name(&self) -> &'static str {
-        self.inner.name()
-    }
-    fn reset(&mut self, m: Measurement, r: RefSample) {
-        self.t_s = 0.0;
-        self.inner.reset(m, r);
-    }
-    fn update(&mut self, r: &RefSample, m: &Measurement, dt: f64) -> ControlOutput {
-        self.t_s += dt;
-        if self.t_s >= self.at_s {
-            panic!("injected controller panic at {} s", self.t_s);
-        }
-        self.inner.update(r, m, dt)
-    }
-    fn applied(&mut self, applied_pa: f64) {
-        self.inner.applied(applied_pa);
-    }
-}
-
-/// Tracking figures on the measured position (a rig knows nothing else).
-struct RigMetrics(TrackingMetrics, u64);
-
-impl Recorder<Rig, MuscleStep> for RigMetrics {
-    fn start(&mut self, s: &Start<'_, Rig>) {
-        self.0 = TrackingMetrics::new(*s.held);
-    }
-    fn record(&mut self, p: &Period<'_, Rig, MuscleStep>) {
-        self.1 += 1;
-        self.0.push(
-            p.output.reference.position_m,
-            p.reading.position_m,
-            *p.written,
-        );
     }
 }
 
@@ -292,19 +246,8 @@ fn header(
     ))
 }
 
-/// Runs the rig of `config` (gain files relative to `config_dir`), `recorder` observing
-/// every period (Rerun, say). `stop` ends the run early (SIGINT, SIGTERM). The valve is
-/// vented on every exit path: the end of the run, a fault, `stop`, a panic.
-pub fn run<R>(
-    config: &RigConfig,
-    config_dir: &Path,
-    options: &RunOptions,
-    stop: &AtomicBool,
-    recorder: R,
-) -> Result<RigReport, RigError>
-where
-    R: Recorder<Rig, MuscleStep> + Send,
-{
+/// The configuration of a run: the file's, with the run's overrides, validated.
+fn configured(config: &RigConfig, options: &RunOptions) -> Result<RigConfig, RigError> {
     let mut cfg = config.clone();
     if let Some(d) = options.duration_s {
         cfg.duration_s = d;
@@ -320,103 +263,143 @@ where
     }
     cfg.validate()?;
     check_injections(&options.injections, cfg.duration_s)?;
-    let gains = match options.controller {
-        Some(c) => c,
-        None => cfg
-            .control
-            .controller_config(cfg.control_kind()?, config_dir)?,
-    };
-    let settings = LoopSettings::new(cfg.period_s, cfg.duration_s)?.with_stop_flag(stop);
-    let mut controller = cfg.build_controller(&gains)?;
-    let panic_at = options
-        .injections
-        .iter()
-        .find(|i| i.fault == InjectedFault::ControllerPanic);
-    if let Some(p) = panic_at {
-        if cfg.device.driver != Driver::Virtual {
-            return Err(RigError::Field {
-                field: "--inject",
-                message: "faults can only be injected into the virtual rig".into(),
-            });
-        }
-        controller = Box::new(PanicAt {
-            inner: controller,
-            at_s: p.at_s,
-            t_s: 0.0,
-        });
-    }
-    let board = VirtualOrBoard::open(&cfg, &options.injections)?;
-    let clock_name = if board.lockstep.is_some() {
+    Ok(cfg)
+}
+
+/// The rig configured and everything that guards it, before the valve goes live.
+struct Armed {
+    rig: Rig,
+    reference: pma_control::SmoothStart,
+    header: String,
+    alarm: Arc<Alarm>,
+    vent_v: f64,
+    realtime_pacing: bool,
+    clock: &'static str,
+    device: String,
+    _panic_vent: PanicVent,
+}
+
+/// Opens and configures the board (the vent value written, the sensor read), registers
+/// the valve with the panic hook and puts the supervisor, its watchdog and the log's
+/// alarm around the backend.
+fn arm(
+    cfg: &RigConfig,
+    gains: &ControllerConfig,
+    injections: &[Injection],
+) -> Result<Armed, RigError> {
+    let board = VirtualOrBoard::open(cfg, injections)?;
+    let clock = if board.lockstep.is_some() {
         "lockstep"
     } else {
         "realtime"
     };
-    let pacing = pacing_of(&cfg, board.daq.as_ref(), board.lockstep);
+    let pacing = pacing_of(cfg, board.daq.as_ref(), board.lockstep);
     let realtime_pacing = matches!(pacing, Pacing::Realtime(_));
-    let backend = RigBackend::configure(&cfg, board.daq, pacing)?;
+    let backend = RigBackend::configure(cfg, board.daq, pacing)?;
     let device = backend.device().to_owned();
-    let reference = cfg.reference(backend.configure_reading_m());
+    let start_m = backend.configure_reading_m();
     let vent_v = backend.vent_v();
-    let header = header(&cfg, &gains, backend.configure_reading_m())?;
-    let _panic_vent = PanicVent::register(backend.valve_handle()?, vent_v);
+    let header = header(cfg, gains, start_m)?;
+    let panic_vent = PanicVent::register(backend.valve_handle()?, vent_v);
     let watchdog_handle = backend.valve_handle()?;
     let factory: WatchdogFactory = Box::new(move || {
         let vent: VentAction = Box::new(move || watchdog_handle.write(vent_v).is_ok());
         Some(vent)
     });
     let alarm = Alarm::new();
-    let mut rig = Supervised::new(backend, cfg.limits, cfg.period_s, Some(factory))
-        .with_alarm(Arc::clone(&alarm));
-    let controller_name = controller.name().to_owned();
-    let mut task = MuscleTask::new(controller, &reference);
-    let mut metrics = RigMetrics(TrackingMetrics::new(0.0), 0);
-    let mut recorder = recorder;
-    let log_path = crate::log::expand_time(&cfg.log_path);
-    let (end, rt, log_summary) = std::thread::scope(|s| {
+    let rig = Supervised::new(backend, cfg.limits, Some(factory)).with_alarm(Arc::clone(&alarm));
+    Ok(Armed {
+        rig,
+        reference: cfg.reference(start_m),
+        header,
+        alarm,
+        vent_v,
+        realtime_pacing,
+        clock,
+        device,
+        _panic_vent: panic_vent,
+    })
+}
+
+/// How the loop thread ended.
+struct Finished {
+    end: Ended,
+    /// The run's covered time when the loop returned (`None`: it panicked).
+    ran_s: Option<f64>,
+    rt: RealtimeStatus,
+    log: LogSummary,
+}
+
+/// The loop's thread: real-time set-up, the log, the loop itself with a panic caught.
+fn loop_thread<R>(
+    armed: &mut Armed,
+    cfg: &RigConfig,
+    task: &mut MuscleTask<'_>,
+    recorders: &mut (Tracking<Rig>, R),
+    settings: &LoopSettings,
+) -> Result<Finished, RigError>
+where
+    R: Recorder<Rig, MuscleStep>,
+{
+    // Real-time set-up first, so that the log's header says what was obtained; the log is
+    // still opened before anything goes live.
+    let rt = if armed.realtime_pacing {
+        enter_realtime(cfg.realtime.fifo, cfg.realtime.priority)
+    } else {
+        no_rt()
+    };
+    let header = format!(
+        "{}\n{}",
+        armed.header,
+        realtime_line(&rt, armed.realtime_pacing)
+    );
+    let mut log = RigLog::create(
+        &crate::log::expand_time(&cfg.log_path),
+        LogSpec {
+            header: &header,
+            reference: Box::new(armed.reference),
+            vent_valve_v: armed.vent_v,
+            wait_when_full: !armed.realtime_pacing,
+            alarm: Arc::clone(&armed.alarm),
+        },
+    )?;
+    let (tracking, recorder) = recorders;
+    let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| {
+        pma_loop::run(
+            &mut armed.rig,
+            task,
+            &mut (&mut *tracking, &mut log, &mut *recorder),
+            settings,
+        )
+    }));
+    let (end, ran_s) = match outcome {
+        Ok(o) => {
+            let o = o?;
+            (Ended::Loop(o.end), Some(o.ran_s))
+        }
+        Err(_) => {
+            // The panic hook vented already, and the loop's guard through the backend;
+            // close the log with the fault.
+            log.vent_row(Some("controller-panic"));
+            (Ended::Panic, None)
+        }
+    };
+    Ok(Finished {
+        end,
+        ran_s,
+        rt,
+        log: log.finish(),
+    })
+}
+
+/// Runs `body` on its own thread (the loop's, made real-time when permitted).
+fn on_loop_thread<T: Send>(
+    body: impl FnOnce() -> Result<T, RigError> + Send,
+) -> Result<T, RigError> {
+    std::thread::scope(|s| {
         let worker = std::thread::Builder::new()
             .name("pma-rig-loop".into())
-            .spawn_scoped(
-                s,
-                || -> Result<(Ended, RealtimeStatus, LogSummary), RigError> {
-                    // Real-time set-up first, so that the log's header says what was obtained;
-                    // the log is still opened before anything goes live.
-                    let rt = if realtime_pacing {
-                        enter_realtime(cfg.realtime.fifo, cfg.realtime.priority)
-                    } else {
-                        no_rt()
-                    };
-                    let header = format!("{header}\n{}", realtime_line(&rt, realtime_pacing));
-                    let mut log = RigLog::create(
-                        &log_path,
-                        LogSpec {
-                            header: &header,
-                            reference: Box::new(reference),
-                            vent_valve_v: vent_v,
-                            wait_when_full: !realtime_pacing,
-                            alarm,
-                        },
-                    )?;
-                    let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| {
-                        pma_loop::run(
-                            &mut rig,
-                            &mut task,
-                            &mut (&mut metrics, &mut log, &mut recorder),
-                            &settings,
-                        )
-                    }));
-                    let end = match outcome {
-                        Ok(o) => Ended::Loop(o.end),
-                        Err(_) => {
-                            // The panic hook vented already; vent through the backend too and
-                            // close the log with the fault.
-                            pma_loop::Backend::stop(&mut rig);
-                            log.vent_row(Some("controller-panic"));
-                            Ended::Panic
-                        }
-                    };
-                    Ok((end, rt, log.finish()))
-                },
-            );
+            .spawn_scoped(s, body);
         match worker {
             Ok(h) => h.join().unwrap_or_else(|_| {
                 Err(RigError::Io {
@@ -429,30 +412,91 @@ where
                 message: format!("cannot start the loop thread: {e}"),
             }),
         }
-    })?;
+    })
+}
+
+/// Runs the rig of `config` (gain files relative to `config_dir`), `recorder` observing
+/// every period (Rerun, say). `stop` ends the run early (SIGINT, SIGTERM). The valve is
+/// vented on every exit path: the end of the run, a fault, `stop`, a panic.
+pub fn run<R>(
+    config: &RigConfig,
+    config_dir: &Path,
+    options: &RunOptions,
+    stop: &AtomicBool,
+    recorder: R,
+) -> Result<RigReport, RigError>
+where
+    R: Recorder<Rig, MuscleStep> + Send,
+{
+    let cfg = configured(config, options)?;
+    let gains = match options.controller {
+        Some(c) => c,
+        None => cfg
+            .control
+            .controller_config(cfg.control_kind()?, config_dir)?,
+    };
+    let settings = LoopSettings::new(cfg.duration_s)?.with_stop_flag(stop);
+    settings.periods(cfg.period_s)?;
+    let controller = cfg.build_controller(&gains)?;
+    let controller_name = controller.name().to_owned();
+    let mut armed = arm(&cfg, &gains, &options.injections)?;
+    let reference = armed.reference;
+    let mut task = MuscleTask::new(controller, &reference);
+    // A rig knows nothing but its reading.
+    let mut recorders = (
+        Tracking::<Rig>::new(|reading, _| reading.position_m),
+        recorder,
+    );
+    let finished =
+        on_loop_thread(|| loop_thread(&mut armed, &cfg, &mut task, &mut recorders, &settings))?;
+    Ok(report(
+        &cfg,
+        &armed,
+        controller_name,
+        &recorders.0,
+        finished,
+    ))
+}
+
+/// The report of a finished run.
+fn report(
+    cfg: &RigConfig,
+    armed: &Armed,
+    controller: String,
+    tracking: &Tracking<Rig>,
+    finished: Finished,
+) -> RigReport {
+    let Finished {
+        end,
+        ran_s,
+        rt,
+        log,
+    } = finished;
+    let rig = &armed.rig;
     let timing = rig.inner().timing();
-    let summary = metrics.0.summary(metrics.1 as f64 * cfg.period_s, None);
+    let periods = tracking.summary(1.0, None).stats.samples as u64;
+    let summary = tracking.summary(ran_s.unwrap_or(periods as f64 * cfg.period_s), None);
     let (mut fault, mut detail) = end.fault();
-    if let (None, Some(e)) = (&fault, &log_summary.error) {
+    if let (None, Some(e)) = (&fault, &log.error) {
         // The run completed but its log did not: not a success.
         fault = Some("log-error".into());
         detail = Some(format!("the log cannot be written ({e})"));
     }
-    let report = RigReport {
+    RigReport {
         config: cfg.name.clone(),
         driver: match cfg.device.driver {
             Driver::Virtual => "virtual".into(),
             Driver::Comedi => "comedi".into(),
         },
-        device,
-        clock: clock_name.into(),
-        controller: controller_name,
-        completed: matches!(end, Ended::Loop(End::Completed)) && log_summary.error.is_none(),
+        device: armed.device.clone(),
+        clock: armed.clock.into(),
+        controller,
+        completed: matches!(end, Ended::Loop(End::Completed)) && log.error.is_none(),
         fault,
         fault_detail: detail,
         vented: rig.inner().vented() || rig.watchdog_vented(),
         watchdog_vented: rig.watchdog_vented(),
-        periods: metrics.1,
+        periods,
         overruns: timing.map_or(0, |t| t.overruns),
         jitter_p50_us: timing.map_or(f64::NAN, |t| t.jitter_p50_us),
         jitter_p99_us: timing.map_or(f64::NAN, |t| t.jitter_p99_us),
@@ -466,12 +510,11 @@ where
         iae_m: summary.stats.iae_m,
         rte_percent: summary.stats.rte_percent,
         command_variation_bar_per_s: summary.command_variation_pa_per_s / 1e5,
-        log: log_summary.path.display().to_string(),
-        log_rows: log_summary.rows,
-        log_dropped: log_summary.dropped,
-        log_error: log_summary.error,
-    };
-    Ok(report)
+        log: log.path.display().to_string(),
+        log_rows: log.rows,
+        log_dropped: log.dropped,
+        log_error: log.error,
+    }
 }
 
 /// Every injected fault must fall inside the run (after the activation at 0 s, before the

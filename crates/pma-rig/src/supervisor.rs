@@ -294,7 +294,6 @@ pub fn limit_command(command_pa: f64, last_pa: f64, limits: &Limits, dt_s: f64) 
 pub struct Supervised<B> {
     inner: B,
     limits: Limits,
-    period_s: f64,
     last_command_pa: f64,
     last_reading_bits: u64,
     same_readings: u32,
@@ -309,13 +308,12 @@ impl<B> Supervised<B>
 where
     B: Backend<Reading = Measurement, Command = f64>,
 {
-    /// `inner` under `limits` at `period_s`; `watchdog` makes the vent action of the
-    /// watchdog thread when the run starts (`None`: no watchdog).
-    pub fn new(inner: B, limits: Limits, period_s: f64, watchdog: Option<WatchdogFactory>) -> Self {
+    /// `inner` under `limits`; `watchdog` makes the vent action of the watchdog thread
+    /// when the run starts (`None`: no watchdog).
+    pub fn new(inner: B, limits: Limits, watchdog: Option<WatchdogFactory>) -> Self {
         Self {
             inner,
             limits,
-            period_s,
             last_command_pa: 0.0,
             last_reading_bits: f64::NAN.to_bits(),
             same_readings: 0,
@@ -353,7 +351,7 @@ where
     }
 
     fn watchdog_timeout(&self) -> Duration {
-        Duration::from_secs_f64(self.period_s * f64::from(self.limits.watchdog_periods))
+        Duration::from_secs_f64(self.inner.period_s() * f64::from(self.limits.watchdog_periods))
     }
 
     fn check_watchdog(&mut self) -> Result<(), Fault<B::Error>> {
@@ -425,10 +423,14 @@ where
         Ok(Started { reading, ..started })
     }
 
-    fn wait(&mut self, period_s: f64) -> Result<u32, Self::Error> {
+    fn period_s(&self) -> f64 {
+        self.inner.period_s()
+    }
+
+    fn wait(&mut self) -> Result<u32, Self::Error> {
         self.check_watchdog()?;
         self.check_alarm()?;
-        let n = self.inner.wait(period_s).map_err(Fault::Backend)?;
+        let n = self.inner.wait().map_err(Fault::Backend)?;
         if let Some(w) = &self.watchdog {
             w.kick();
         }
@@ -446,7 +448,7 @@ where
 
     fn write(&mut self, command_pa: &f64) -> Result<f64, Self::Error> {
         self.check_watchdog()?;
-        let u = self.limit(*command_pa, self.period_s);
+        let u = self.limit(*command_pa, self.inner.period_s());
         let applied = self.inner.write(&u).map_err(Fault::Backend)?;
         self.last_command_pa = applied;
         if let Some(w) = &self.watchdog {
@@ -509,7 +511,10 @@ mod tests {
                 command: 0.0,
             })
         }
-        fn wait(&mut self, _: f64) -> Result<u32, Infallible> {
+        fn period_s(&self) -> f64 {
+            0.001
+        }
+        fn wait(&mut self) -> Result<u32, Infallible> {
             self.period += 1;
             Ok(self.elapsed)
         }
@@ -573,11 +578,11 @@ mod tests {
         let (l, factory, vents) = quiet_watchdog(10_000);
         let backend = Scripted::new(5, 1);
         let vented_at = Arc::clone(&backend.vented_at);
-        let mut rig = Supervised::new(backend, l, 0.001, Some(factory));
+        let mut rig = Supervised::new(backend, l, Some(factory));
         rig.start().expect("start");
         let mut fault = None;
         for _ in 0..10 {
-            rig.wait(0.001).expect("wait");
+            rig.wait().expect("wait");
             if let Err(f) = rig.read() {
                 fault = Some(f);
                 break;
@@ -615,18 +620,18 @@ mod tests {
     fn a_loop_that_cannot_keep_time_is_a_timing_fault() {
         // 12 deadlines missed in one wake-up (limit 10); the first wake-up, which pays for
         // the activation, only counts in the share.
-        let mut rig = Supervised::new(Scripted::new(u32::MAX, 13), limits(), 0.001, None);
+        let mut rig = Supervised::new(Scripted::new(u32::MAX, 13), limits(), None);
         rig.start().expect("start");
-        rig.wait(0.001).expect("the first wake-up");
-        let e = rig.wait(0.001).expect_err("timing fault");
+        rig.wait().expect("the first wake-up");
+        let e = rig.wait().expect_err("timing fault");
         assert_eq!(e.name(), "timing");
         assert!(e.to_string().contains("12 consecutive"), "{e}");
         // Two periods each wake-up: half the deadlines missed (limit 5 %).
-        let mut rig = Supervised::new(Scripted::new(u32::MAX, 2), limits(), 0.001, None);
+        let mut rig = Supervised::new(Scripted::new(u32::MAX, 2), limits(), None);
         rig.start().expect("start");
         let mut periods = 0;
         let e = loop {
-            match rig.wait(0.001) {
+            match rig.wait() {
                 Ok(n) => periods += n,
                 Err(e) => break e,
             }
@@ -635,22 +640,22 @@ mod tests {
         assert_eq!(e.name(), "timing");
         assert!(periods < 1000, "{periods}");
         // One missed deadline now and then is not a fault.
-        let mut rig = Supervised::new(Scripted::new(u32::MAX, 1), limits(), 0.001, None);
+        let mut rig = Supervised::new(Scripted::new(u32::MAX, 1), limits(), None);
         rig.start().expect("start");
         for _ in 0..5000 {
-            rig.wait(0.001).expect("keeps time");
+            rig.wait().expect("keeps time");
         }
     }
 
     #[test]
     fn a_raised_alarm_is_a_log_fault_at_the_next_period() {
         let alarm = Alarm::new();
-        let mut rig = Supervised::new(Scripted::new(u32::MAX, 1), limits(), 0.001, None)
+        let mut rig = Supervised::new(Scripted::new(u32::MAX, 1), limits(), None)
             .with_alarm(Arc::clone(&alarm));
         rig.start().expect("start");
-        rig.wait(0.001).expect("quiet");
+        rig.wait().expect("quiet");
         alarm.raise("No space left on device (os error 28)");
-        let e = rig.wait(0.001).expect_err("log fault");
+        let e = rig.wait().expect_err("log fault");
         assert_eq!(e.name(), "log-error");
         assert!(e.to_string().contains("No space left"), "{e}");
     }

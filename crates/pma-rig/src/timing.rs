@@ -313,17 +313,21 @@ mod tests {
         let period = Duration::from_millis(2);
         let mut p = Pacer::start(period);
         let t0 = std::time::Instant::now();
+        let mut elapsed = 0u64;
         for _ in 0..10 {
-            assert_eq!(p.wait(), 1);
+            elapsed += u64::from(p.wait());
         }
-        // Ten periods from the start, not ten sleeps: late wake-ups do not accumulate.
-        let elapsed = t0.elapsed();
-        assert!(elapsed >= Duration::from_millis(19), "{elapsed:?}");
+        // Absolute deadlines: the periods reported cover the wall time since the start
+        // (a late wake-up is reported as skipped periods, not accumulated as drift), on a
+        // loaded machine too.
+        let deadlines = (t0.elapsed().as_secs_f64() / period.as_secs_f64()) as u64;
+        assert!(elapsed >= 10, "{elapsed}");
+        assert!(elapsed.abs_diff(deadlines) <= 1, "{elapsed} vs {deadlines}");
         std::thread::sleep(Duration::from_millis(7));
         let n = p.wait();
         assert!(n >= 4, "elapsed periods after a 7 ms stall: {n}");
         let s = p.summary();
-        assert!(s.overruns >= 3, "{s:?}");
         assert_eq!(s.periods, 11);
+        assert_eq!(s.overruns, elapsed + u64::from(n) - 11);
     }
 }

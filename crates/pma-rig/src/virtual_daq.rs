@@ -5,8 +5,8 @@ use crate::board::BoardLayout;
 use crate::config::{Calibration, ClockMode, RigConfig, VirtualConfig};
 use crate::daq::{AnalogChannel, ChannelName, Daq, DaqError, DigitalLine, OutputHandle};
 use crate::error::RigError;
+use pma_bench::{MuscleBench, PlantConfig};
 use pma_model::{PositionSensor, SensorParams};
-use pma_sim::{MuscleBench, PlantConfig};
 use std::str::FromStr;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -31,7 +31,8 @@ pub enum InjectedFault {
     DaqError,
     /// One read blocks for 0.5 s (a hung driver call).
     Stall,
-    /// The controller panics (a test hook for the panic path; not a board fault).
+    /// The control loop panics (the virtual board panics in a read, standing for any bug
+    /// in the loop; it tests the panic path, not a board fault).
     ControllerPanic,
 }
 
@@ -468,6 +469,12 @@ impl Daq for VirtualDaq {
                 // watchdog must be able to vent meanwhile.
                 std::thread::sleep(Duration::from_millis(500));
             }
+        }
+        if self.active(InjectedFault::ControllerPanic) {
+            panic!(
+                "injected panic in the control loop at {:.3} s",
+                self.now_s()
+            );
         }
         if self.active(InjectedFault::DaqError) {
             return Err(DaqError::Io {

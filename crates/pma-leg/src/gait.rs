@@ -1,0 +1,334 @@
+//! Normative gait references for the exoskeleton leg: hip and knee flexion as Fourier
+//! series fitted to Schwartz, Rozumalski & Trost (2008) (`crates/pma-leg/models/gait/`, derived by
+//! `tools/fit_gait.py`), time-scaled to a stride period, started smoothly from standing,
+//! with analytic first and second derivatives. Flexion is positive for both joints.
+
+use crate::LegError;
+use pma_model::error::{non_negative, positive};
+use serde::Deserialize;
+use std::f64::consts::TAU;
+use std::fmt;
+use std::str::FromStr;
+
+const FOURIER_FILE: &str = "crates/pma-leg/models/gait/schwartz2008_fourier.toml";
+const FOURIER_TOML: &str = include_str!("../models/gait/schwartz2008_fourier.toml");
+
+/// Number of harmonics shipped.
+pub const HARMONICS: usize = 6;
+
+/// Walking speed class of the normative data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GaitSpeed {
+    /// Very slow.
+    VerySlow,
+    /// Slow (the default for training gait).
+    #[default]
+    Slow,
+    /// Self-selected.
+    Free,
+    /// Fast.
+    Fast,
+    /// Very fast.
+    VeryFast,
+}
+
+impl GaitSpeed {
+    /// All classes, slowest first.
+    pub const ALL: [GaitSpeed; 5] = [
+        GaitSpeed::VerySlow,
+        GaitSpeed::Slow,
+        GaitSpeed::Free,
+        GaitSpeed::Fast,
+        GaitSpeed::VeryFast,
+    ];
+
+    /// Name as in configuration files.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            GaitSpeed::VerySlow => "very-slow",
+            GaitSpeed::Slow => "slow",
+            GaitSpeed::Free => "free",
+            GaitSpeed::Fast => "fast",
+            GaitSpeed::VeryFast => "very-fast",
+        }
+    }
+}
+
+impl fmt::Display for GaitSpeed {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl FromStr for GaitSpeed {
+    type Err = LegError;
+    fn from_str(s: &str) -> Result<Self, LegError> {
+        GaitSpeed::ALL
+            .into_iter()
+            .find(|g| g.as_str() == s)
+            .ok_or_else(|| LegError::Parse {
+                file: "gait speed".into(),
+                message: format!(
+                    "unknown speed `{s}` (expected very-slow, slow, free, fast or very-fast)"
+                ),
+            })
+    }
+}
+
+/// A periodic angle (deg) as a Fourier series in the cycle phase.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FourierSeries {
+    /// `a0, a1..a6` (deg).
+    pub cos_deg: [f64; HARMONICS + 1],
+    /// `0, b1..b6` (deg).
+    pub sin_deg: [f64; HARMONICS + 1],
+}
+
+impl FourierSeries {
+    /// `sin` and `cos` of each harmonic's angle at `phase`, shared by the joints.
+    fn harmonics(phase: f64) -> [(f64, f64); HARMONICS] {
+        std::array::from_fn(|i| (TAU * (i + 1) as f64 * phase).sin_cos())
+    }
+
+    /// Angle, rate and acceleration in degrees per unit phase (and its derivatives), from
+    /// the harmonics of [`Self::harmonics`].
+    fn eval(&self, harmonics: &[(f64, f64); HARMONICS]) -> (f64, f64, f64) {
+        let (mut y, mut dy, mut ddy) = (self.cos_deg[0], 0.0, 0.0);
+        for (k, &(s, c)) in (1..=HARMONICS).zip(harmonics) {
+            let w = TAU * k as f64;
+            let (a, b) = (self.cos_deg[k], self.sin_deg[k]);
+            y += a * c + b * s;
+            dy += w * (-a * s + b * c);
+            ddy -= w * w * (a * c + b * s);
+        }
+        (y, dy, ddy)
+    }
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JointCurves {
+    hip: FourierSeries,
+    knee: FourierSeries,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FourierFile {
+    harmonics: usize,
+    veryslow: JointCurves,
+    slow: JointCurves,
+    free: JointCurves,
+    fast: JointCurves,
+    veryfast: JointCurves,
+}
+
+/// A joint angle with its analytic derivatives.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct JointSample {
+    /// Angle (rad), flexion positive.
+    pub angle_rad: f64,
+    /// Angular velocity (rad/s).
+    pub velocity_rad_s: f64,
+    /// Angular acceleration (rad/s^2).
+    pub acceleration_rad_s2: f64,
+}
+
+/// Hip and knee references at one instant.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct GaitSample {
+    /// Hip flexion.
+    pub hip: JointSample,
+    /// Knee flexion.
+    pub knee: JointSample,
+}
+
+/// Hip and knee flexion over time: the normative cycle of a speed class, stretched to
+/// `stride_period_s`, multiplied by a quintic ramp `s(t)` from standing (all angles 0) over
+/// `ramp_s`, so that angle, velocity and acceleration all start at zero.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GaitReference {
+    hip: FourierSeries,
+    knee: FourierSeries,
+    stride_period_s: f64,
+    ramp_s: f64,
+}
+
+/// Default stride period of a slow training gait (s).
+pub const DEFAULT_STRIDE_PERIOD_S: f64 = 1.6;
+
+impl GaitReference {
+    /// The normative curves of `speed`, with a stride period and a start-up ramp (both s).
+    pub fn normative(
+        speed: GaitSpeed,
+        stride_period_s: f64,
+        ramp_s: f64,
+    ) -> Result<Self, LegError> {
+        positive("stride_period_s", stride_period_s)?;
+        non_negative("ramp_s", ramp_s)?;
+        let file: FourierFile = toml::from_str(FOURIER_TOML).map_err(|e| LegError::Parse {
+            file: FOURIER_FILE.into(),
+            message: e.to_string(),
+        })?;
+        if file.harmonics != HARMONICS {
+            return Err(LegError::Parse {
+                file: FOURIER_FILE.into(),
+                message: format!("{} harmonics, expected {HARMONICS}", file.harmonics),
+            });
+        }
+        let curves = match speed {
+            GaitSpeed::VerySlow => file.veryslow,
+            GaitSpeed::Slow => file.slow,
+            GaitSpeed::Free => file.free,
+            GaitSpeed::Fast => file.fast,
+            GaitSpeed::VeryFast => file.veryfast,
+        };
+        Ok(Self {
+            hip: curves.hip,
+            knee: curves.knee,
+            stride_period_s,
+            ramp_s,
+        })
+    }
+
+    /// Stride period (s).
+    pub fn stride_period_s(&self) -> f64 {
+        self.stride_period_s
+    }
+
+    /// Quintic smoothstep and its first two time derivatives.
+    fn ramp(&self, t: f64) -> (f64, f64, f64) {
+        if self.ramp_s <= 0.0 || t >= self.ramp_s {
+            return (1.0, 0.0, 0.0);
+        }
+        if t <= 0.0 {
+            return (0.0, 0.0, 0.0);
+        }
+        pma_control::quintic_blend(t / self.ramp_s, self.ramp_s)
+    }
+
+    fn joint(
+        &self,
+        series: &FourierSeries,
+        harmonics: &[(f64, f64); HARMONICS],
+        ramp: (f64, f64, f64),
+    ) -> JointSample {
+        let period = self.stride_period_s;
+        let (y, dy, ddy) = series.eval(harmonics);
+        // Chain rule for the time scaling, then the product rule for the ramp.
+        let (g, dg, ddg) = (y, dy / period, ddy / (period * period));
+        let (s, ds, dds) = ramp;
+        let deg = std::f64::consts::PI / 180.0;
+        JointSample {
+            angle_rad: s * g * deg,
+            velocity_rad_s: (ds * g + s * dg) * deg,
+            acceleration_rad_s2: (dds * g + 2.0 * ds * dg + s * ddg) * deg,
+        }
+    }
+
+    /// References at time `t_s` (before 0: standing).
+    pub fn sample(&self, t_s: f64) -> GaitSample {
+        let ramp = self.ramp(t_s);
+        // Both joints at the same phase: one set of sines for the two.
+        let harmonics = FourierSeries::harmonics(t_s / self.stride_period_s);
+        GaitSample {
+            hip: self.joint(&self.hip, &harmonics, ramp),
+            knee: self.joint(&self.knee, &harmonics, ramp),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn deg(r: f64) -> f64 {
+        r.to_degrees()
+    }
+
+    #[test]
+    fn derivatives_match_central_differences_through_the_ramp_and_after() {
+        let g = GaitReference::normative(GaitSpeed::Slow, 1.6, 2.0).unwrap();
+        let h = 1e-5;
+        let mut t = 0.013;
+        while t < 8.0 {
+            let (a, b, c) = (g.sample(t - h), g.sample(t), g.sample(t + h));
+            for (ja, jb, jc) in [(a.hip, b.hip, c.hip), (a.knee, b.knee, c.knee)] {
+                let v = (jc.angle_rad - ja.angle_rad) / (2.0 * h);
+                let acc = (jc.velocity_rad_s - ja.velocity_rad_s) / (2.0 * h);
+                assert!(
+                    (v - jb.velocity_rad_s).abs() < 1e-6,
+                    "t={t}: {v} vs {}",
+                    jb.velocity_rad_s
+                );
+                assert!(
+                    (acc - jb.acceleration_rad_s2).abs() < 1e-4,
+                    "t={t}: {acc} vs {}",
+                    jb.acceleration_rad_s2
+                );
+            }
+            t += 0.097;
+        }
+    }
+
+    #[test]
+    fn starts_from_standing_at_rest_and_is_periodic_after_the_ramp() {
+        let g = GaitReference::normative(GaitSpeed::Slow, 1.6, 2.0).unwrap();
+        let s0 = g.sample(0.0);
+        for j in [s0.hip, s0.knee] {
+            assert_eq!(
+                (j.angle_rad, j.velocity_rad_s, j.acceleration_rad_s2),
+                (0.0, 0.0, 0.0)
+            );
+        }
+        for k in 0..50 {
+            let t = 2.0 + 0.05 * k as f64;
+            let (a, b) = (g.sample(t), g.sample(t + 1.6));
+            assert!((a.hip.angle_rad - b.hip.angle_rad).abs() < 1e-12);
+            assert!((a.knee.velocity_rad_s - b.knee.velocity_rad_s).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn curves_have_the_normative_shape_and_stay_in_the_leg_limits() {
+        for speed in GaitSpeed::ALL {
+            let g = GaitReference::normative(speed, 1.0, 0.0).unwrap();
+            let (mut hmin, mut hmax, mut kmin, mut kmax, mut kpeak_phase) =
+                (f64::MAX, f64::MIN, f64::MAX, f64::MIN, 0.0);
+            for i in 0..1000 {
+                let p = i as f64 / 1000.0;
+                let s = g.sample(p);
+                let (h, k) = (deg(s.hip.angle_rad), deg(s.knee.angle_rad));
+                hmin = hmin.min(h);
+                hmax = hmax.max(h);
+                kmin = kmin.min(k);
+                if k > kmax {
+                    kmax = k;
+                    kpeak_phase = p;
+                }
+            }
+            // Exoskeleton limits: hip -20..45 deg, knee 0..75 deg flexion.
+            assert!(hmin > -20.0 && hmax < 45.5, "{speed}: hip {hmin}..{hmax}");
+            assert!(kmin > 0.0 && kmax < 75.0, "{speed}: knee {kmin}..{kmax}");
+            // Peak knee flexion in swing, at 65-80 % of the cycle; at least 40 deg.
+            assert!(
+                (0.65..0.80).contains(&kpeak_phase) && kmax > 40.0,
+                "{speed}: knee peak {kmax} at {kpeak_phase}"
+            );
+        }
+    }
+
+    #[test]
+    fn bad_periods_are_rejected() {
+        assert!(GaitReference::normative(GaitSpeed::Slow, 0.0, 1.0).is_err());
+        assert!(GaitReference::normative(GaitSpeed::Slow, f64::NAN, 1.0).is_err());
+        assert!(GaitReference::normative(GaitSpeed::Slow, 1.6, -1.0).is_err());
+        assert!("jogging".parse::<GaitSpeed>().is_err());
+        assert_eq!(
+            "very-slow".parse::<GaitSpeed>().unwrap(),
+            GaitSpeed::VerySlow
+        );
+    }
+}

@@ -1,0 +1,117 @@
+//! Controllers side by side on leg scenarios: every pair run in parallel (rayon), each
+//! reduced to one row of tracking, spasm and safety figures.
+use pma_control::ControllerConfig;
+use pma_leg::LegError;
+use pma_leg::LegReport;
+use pma_leg::LegSim;
+use pma_leg::LoadedScenario;
+use rayon::prelude::*;
+
+/// One controller on one scenario.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct CompareRow {
+    /// Scenario name.
+    pub scenario: String,
+    /// Controller name.
+    pub controller: String,
+    /// Hip tracking error after the first stride, RMS (deg).
+    pub hip_rms_deg: f64,
+    /// Knee tracking error after the first stride, RMS (deg).
+    pub knee_rms_deg: f64,
+    /// Spasms in the run.
+    pub spasms: usize,
+    /// Mean over the spasms of their peak deviation from the reference (deg; 0 if none).
+    pub spasm_mean_deviation_deg: f64,
+    /// Largest peak deviation of a spasm (deg; 0 if none).
+    pub spasm_max_deviation_deg: f64,
+    /// Largest recovery time to within 1 deg of a spasm that recovered (s; 0 if none).
+    pub spasm_max_recovery_s: f64,
+    /// Spasms after which the joint was not back within 1 deg within 3 s or before the
+    /// joint's next spasm (overlapped ones not counted).
+    pub spasms_unrecovered: usize,
+    /// Spasms overlapped by the joint's next one before they ended (no recovery to time).
+    pub spasms_overlapped: usize,
+    /// Largest muscle |dp/dt| during a spasm or its follow-up (bar/s; 0 if none).
+    pub spasm_peak_pressure_rate_bar_s: f64,
+    /// Largest muscle |dp/dt| over the run (bar/s).
+    pub peak_pressure_rate_bar_s: f64,
+    /// Mean |du/dt| of the commands (bar/s).
+    pub command_variation_bar_per_s: f64,
+    /// Largest muscle force over its rating.
+    pub peak_force_over_rated: f64,
+    /// Valve saturation, summed over the muscles (s).
+    pub valve_saturated_s: f64,
+    /// Time beyond the URDF joint limits, summed over the joints (s).
+    pub time_outside_limits_s: f64,
+    /// Every figure finite.
+    pub finite: bool,
+}
+
+impl CompareRow {
+    /// The row of `report`, a run of `controller`.
+    pub fn of(report: &LegReport, controller: &str) -> Self {
+        let rms = |j: &str| report.joints.get(j).map_or(f64::NAN, |s| s.rms_deg);
+        let spasms = &report.spasms;
+        let fold = |f: fn(&pma_leg::SpasmReport) -> f64| spasms.iter().map(f).fold(0.0, f64::max);
+        let muscles = report.safety.muscles.values();
+        Self {
+            scenario: report.scenario.clone(),
+            controller: controller.to_owned(),
+            hip_rms_deg: rms("hip"),
+            knee_rms_deg: rms("knee"),
+            spasms: spasms.len(),
+            spasm_mean_deviation_deg: if spasms.is_empty() {
+                0.0
+            } else {
+                spasms.iter().map(|s| s.peak_deviation_deg).sum::<f64>() / spasms.len() as f64
+            },
+            spasm_max_deviation_deg: fold(|s| s.peak_deviation_deg),
+            spasm_max_recovery_s: fold(|s| s.recovery_s.unwrap_or(0.0)),
+            spasms_unrecovered: spasms
+                .iter()
+                .filter(|s| s.recovery_s.is_none() && !s.overlapped)
+                .count(),
+            spasms_overlapped: spasms.iter().filter(|s| s.overlapped).count(),
+            spasm_peak_pressure_rate_bar_s: fold(|s| s.peak_pressure_rate_bar_s),
+            peak_pressure_rate_bar_s: muscles
+                .clone()
+                .map(|m| m.peak_pressure_rate_bar_s)
+                .fold(0.0, f64::max),
+            command_variation_bar_per_s: report.command_variation_bar_per_s,
+            peak_force_over_rated: muscles
+                .clone()
+                .map(|m| m.peak_over_rated)
+                .fold(0.0, f64::max),
+            valve_saturated_s: muscles.map(|m| m.valve_saturated_s).sum(),
+            time_outside_limits_s: report
+                .safety
+                .joints
+                .values()
+                .map(|l| l.time_outside_s)
+                .sum(),
+            finite: report.finite,
+        }
+    }
+}
+
+/// Runs every controller of `controllers` on every scenario for `duration_s`, in parallel
+/// on rayon's pool (the caller's `install` sets its size); rows in scenario-major order,
+/// the same for any thread count.
+pub fn compare(
+    scenarios: &[LoadedScenario],
+    controllers: &[ControllerConfig],
+    duration_s: f64,
+) -> Result<Vec<CompareRow>, LegError> {
+    let pairs: Vec<(&LoadedScenario, &ControllerConfig)> = scenarios
+        .iter()
+        .flat_map(|s| controllers.iter().map(move |c| (s, c)))
+        .collect();
+    pairs
+        .par_iter()
+        .map(|(loaded, config)| {
+            let mut sim = LegSim::with_controller(loaded, config)?;
+            let report = sim.run(duration_s, &mut ())?;
+            Ok(CompareRow::of(&report, &config.kind().to_string()))
+        })
+        .collect()
+}
