@@ -3,7 +3,7 @@
 //! physics substeps, in one run.
 use criterion::{criterion_group, criterion_main, Criterion};
 use pma_leg::leg::Leg;
-use pma_leg::{LegOutput, LegPlant, LegSample, LegSim, Scenario};
+use pma_leg::{LegOutput, LegSample, LegSim, Scenario, SupervisedLeg};
 use pma_loop::{FnRecorder, Period};
 use std::hint::black_box;
 
@@ -45,9 +45,9 @@ fn leg(c: &mut Criterion) {
         let mut viz = pma_exo::viz::open(&sink, "bench", sc.period_s, rate)
             .expect("viz")
             .expect("on");
-        pma_exo::viz::leg_layout(&mut viz, &sim, "bench").expect("layout");
-        let (mut step, mut scalars) = (0i64, [0.0; pma_exo::viz::LEG_SCALARS]);
-        let mut log = FnRecorder(|p: &Period<'_, LegPlant, LegOutput>| {
+        let channels = pma_exo::viz::leg_layout(&mut viz, &sim, "bench").expect("layout");
+        let (mut step, mut scalars) = (0i64, vec![0.0; channels]);
+        let mut log = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
             step += 1;
             let s = LegSample::of(p);
             pma_exo::viz::push_leg(&mut viz, p.backend, &s, step, &mut scalars).expect("log");

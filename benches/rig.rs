@@ -24,7 +24,7 @@ fn rig(c: &mut Criterion) {
     let backend =
         RigBackend::configure(&cfg, Box::new(daq), Pacing::Lockstep(clock)).expect("configure");
     let reference = cfg.reference(backend.configure_reading_m());
-    let mut rig = Supervised::new(backend, cfg.limits, None);
+    let mut rig = Supervised::new(backend, cfg.supervisor_limits(), None);
     let controller = cfg
         .build_controller(&ControllerKind::AprcNdo.default_config())
         .expect("controller");
@@ -115,7 +115,7 @@ fn fault_to_vent(cfg: &RigConfig) -> Duration {
         let vent: VentAction = Box::new(move || watchdog_handle.write(vent_v).is_ok());
         Some(vent)
     });
-    let mut rig = Supervised::new(backend, cfg.limits, Some(factory));
+    let mut rig = Supervised::new(backend, cfg.supervisor_limits(), Some(factory));
     let controller = cfg
         .build_controller(&ControllerKind::AprcNdo.default_config())
         .expect("controller");

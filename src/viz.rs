@@ -5,62 +5,16 @@ use anyhow::Result;
 use pma_bench::{MuscleBench, Sample};
 use pma_control::MuscleStep;
 use pma_leg::patient::SpasmEvent;
-use pma_leg::{LegOutput, LegPlant, LegSample, LegSim, VisualShape};
-use pma_loop::{Period, Recorder, Start};
+use pma_leg::{LegOutput, LegPlant, LegSample, LegSim, SupervisedLeg, VisualShape};
+use pma_loop::{Period, Recorder, Signals, Start};
+use pma_studies::pendulum::PendulumSample;
 use pma_viz::{Frame, Marker, Shape, Sink, Viz, VizError};
-
-/// Per-muscle series, in this order, under `muscles/<name>/`.
-pub const MUSCLE_SERIES: [(&str, &str); 10] = [
-    ("pressure_cmd_pa", "pressure command (Pa)"),
-    ("pressure_pa", "pressure (Pa)"),
-    ("length_ref_m", "contraction reference (m)"),
-    ("length_m", "contraction (m)"),
-    ("proxy_m", "proxy position (m)"),
-    ("s_p", "S_p (m/s)"),
-    ("s_q", "S_q (m/s)"),
-    ("gain_hat", "adaptive gain"),
-    ("disturbance_hat", "disturbance estimate (m/s^2)"),
-    ("force_n", "force (N)"),
-];
-
-/// Per-joint series under `joints/<name>/`.
-pub const JOINT_SERIES: [(&str, &str); 5] = [
-    ("reference_deg", "reference (deg)"),
-    ("angle_deg", "angle (deg)"),
-    ("error_deg", "error (deg)"),
-    ("patient_torque_nm", "patient torque (N m, flexion +)"),
-    ("spasm_torque_nm", "spasm torque (N m, flexion +)"),
-];
 
 /// The text log of the leg's events (spasm onsets and ends).
 pub const EVENTS_PATH: &str = "events";
 
 /// The joints' names and the links they move, in the leg's joint order.
 const JOINT_LINKS: [(&str, &str); 2] = [("hip", "thigh"), ("knee", "shank")];
-
-const PALETTE: [[u8; 3]; 10] = [
-    [31, 119, 180],
-    [255, 127, 14],
-    [44, 160, 44],
-    [214, 39, 40],
-    [148, 103, 189],
-    [140, 86, 75],
-    [227, 119, 194],
-    [127, 127, 127],
-    [188, 189, 34],
-    [23, 190, 207],
-];
-
-fn muscle_series(viz: &mut Viz, name: &str) -> Result<()> {
-    for (k, (leaf, legend)) in MUSCLE_SERIES.iter().enumerate() {
-        viz.series(
-            &format!("muscles/{name}/{leaf}"),
-            &format!("{name} {legend}"),
-            PALETTE[k],
-        )?;
-    }
-    Ok(())
-}
 
 /// Opens the sink for a run with period `period_s` (`None` when off).
 pub fn open(
@@ -85,30 +39,12 @@ pub fn finish(viz: Option<Viz>) -> Result<()> {
     }
 }
 
-/// The bench's layout: one muscle, its series and the reference.
-pub fn bench_layout(viz: &mut Viz, meta: &str) -> Result<()> {
+/// The bench's layout: one muscle's series ([`Sample::schema`]); returns their number.
+pub fn bench_layout(viz: &mut Viz, meta: &str) -> Result<usize> {
     viz.document("metadata", meta)?;
-    muscle_series(viz, "muscle")?;
-    viz.series("reference/x_d_m", "reference x_d (m)", [0, 0, 0])?;
-    Ok(())
-}
-
-/// A bench sample as a frame's scalars (order of [`bench_layout`]).
-pub fn bench_scalars(s: &Sample, out: &mut [f64; 11]) {
-    let d = &s.diagnostics;
-    *out = [
-        s.pressure_cmd_pa,
-        s.pressure_pa,
-        s.reference_m,
-        s.position_m,
-        d.proxy_position_m,
-        d.s_p,
-        d.s_q,
-        d.gain_hat,
-        d.disturbance_hat,
-        s.force_n,
-        s.reference_m,
-    ];
+    let schema = Sample::schema();
+    viz.schema(&schema)?;
+    Ok(schema.len())
 }
 
 fn shape(v: &VisualShape) -> Shape {
@@ -130,8 +66,27 @@ fn shape(v: &VisualShape) -> Shape {
     }
 }
 
-/// The leg's layout: links with their URDF shapes, muscles, joint and muscle series.
-pub fn leg_layout(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<()> {
+/// The leg's layout: links with their URDF shapes, muscles, and the series of
+/// [`LegSample::schema`]; returns their number.
+pub fn leg_layout(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<usize> {
+    leg_scene(viz, sim, meta)?;
+    let schema = LegSample::schema(&muscle_names(sim));
+    viz.schema(&schema)?;
+    Ok(schema.len())
+}
+
+/// The pendulum test's layout: the leg's scene and the series of
+/// [`PendulumSample::schema`] (what the test has: no reference, no controller); returns
+/// their number.
+pub fn pendulum_layout(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<usize> {
+    leg_scene(viz, sim, meta)?;
+    let schema = PendulumSample::schema();
+    viz.schema(&schema)?;
+    Ok(schema.len())
+}
+
+/// The recording's description, the links with their URDF shapes and the muscles' lines.
+fn leg_scene(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<()> {
     viz.document("metadata", meta)?;
     let leg = sim.leg();
     let names: Vec<String> = leg.link_names().map(str::to_owned).collect();
@@ -151,66 +106,41 @@ pub fn leg_layout(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<()> {
     for m in sim.muscles() {
         viz.muscle(&m.geometry.name, p_max)?;
     }
-    for (j, _) in JOINT_LINKS {
-        for (k, (leaf, legend)) in JOINT_SERIES.iter().enumerate() {
-            viz.series(
-                &format!("joints/{j}/{leaf}"),
-                &format!("{j} {legend}"),
-                PALETTE[k],
-            )?;
-        }
-    }
-    for m in sim.muscles() {
-        muscle_series(viz, &m.geometry.name)?;
-    }
     Ok(())
 }
 
-/// Number of scalars of the leg layout.
-pub const LEG_SCALARS: usize = 2 * JOINT_SERIES.len() + 4 * MUSCLE_SERIES.len();
-
-/// A leg sample as the leg layout's scalars.
-pub fn leg_scalars(s: &LegSample, out: &mut [f64; LEG_SCALARS]) {
-    let mut k = 0;
-    for j in 0..2 {
-        let (r, a) = (s.reference_rad[j].to_degrees(), s.angle_rad[j].to_degrees());
-        for v in [r, a, r - a, s.patient_nm[j], s.spasm_nm[j]] {
-            out[k] = v;
-            k += 1;
-        }
-    }
-    for i in 0..4 {
-        let d = &s.diagnostics[i];
-        for v in [
-            s.pressure_cmd_pa[i],
-            s.pressure_pa[i],
-            s.length_ref_m[i],
-            s.length_m[i],
-            d.proxy_position_m,
-            d.s_p,
-            d.s_q,
-            d.gain_hat,
-            d.disturbance_hat,
-            s.force_n[i],
-        ] {
-            out[k] = v;
-            k += 1;
-        }
-    }
+/// The muscles' names, in the geometry file's order.
+pub fn muscle_names(sim: &LegSim) -> Vec<String> {
+    sim.muscles()
+        .iter()
+        .map(|m| m.geometry.name.clone())
+        .collect()
 }
 
-/// Logs one leg period (layout of [`leg_layout`]).
+/// Logs one leg period (layout of [`leg_layout`]); `scalars` has the schema's length.
 pub fn push_leg(
     viz: &mut Viz,
     plant: &LegPlant,
     s: &LegSample,
     step: i64,
-    scalars: &mut [f64; LEG_SCALARS],
+    scalars: &mut [f64],
 ) -> Result<()> {
     if step % viz.decimation() != 0 {
         return Ok(());
     }
-    leg_scalars(s, scalars);
+    s.values(scalars);
+    push_leg_frame(viz, plant, (s.t_s, step), s.pressure_pa, scalars)
+}
+
+/// Logs one leg frame: the links, the muscles' lines coloured by `pressure_pa`, and the
+/// series' `scalars`.
+fn push_leg_frame(
+    viz: &mut Viz,
+    plant: &LegPlant,
+    (t_s, step): (f64, i64),
+    pressure_pa: [f64; 4],
+    scalars: &[f64],
+) -> Result<()> {
     let poses = [
         plant.leg().link_pose(0),
         plant.leg().link_pose(1),
@@ -218,11 +148,11 @@ pub fn push_leg(
     ];
     let seg = plant.muscle_segments();
     let lines: [([f64; 3], [f64; 3], f64); 4] =
-        std::array::from_fn(|i| (seg[i].0, seg[i].1, s.pressure_pa[i]));
+        std::array::from_fn(|i| (seg[i].0, seg[i].1, pressure_pa[i]));
     viz.push(&Frame {
-        t_s: s.t_s,
+        t_s,
         step,
-        scalars: scalars.as_slice(),
+        scalars,
         link_poses: &poses,
         muscle_lines: &lines,
     })?;
@@ -233,19 +163,45 @@ pub fn push_leg(
 pub struct VizRecorder {
     viz: Viz,
     step: i64,
+    /// One frame's scalars, sized once for the layout.
+    scalars: Vec<f64>,
     error: Option<VizError>,
     /// Time of the previous leg period (s): spasm onsets and ends are logged when crossed.
     previous_t_s: f64,
+    /// Which series a leg run logs.
+    leg_series: LegSeries,
+}
+
+/// The series of a leg run.
+#[derive(Clone, Copy)]
+enum LegSeries {
+    /// [`LegSample`]'s: a controlled run.
+    Gait,
+    /// [`PendulumSample`]'s, with the knee's damping (N m s/rad).
+    Pendulum { knee_damping_nm_s_per_rad: f64 },
 }
 
 impl VizRecorder {
-    /// Records into `viz`, whose layout is already registered.
-    pub fn new(viz: Viz) -> Self {
+    /// Records into `viz`, whose layout of `channels` series is already registered.
+    pub fn new(viz: Viz, channels: usize) -> Self {
         Self {
             viz,
             step: 0,
+            scalars: vec![0.0; channels],
             error: None,
             previous_t_s: f64::NEG_INFINITY,
+            leg_series: LegSeries::Gait,
+        }
+    }
+
+    /// Records a pendulum test into `viz`, whose [`pendulum_layout`] of `channels` series is
+    /// registered; `knee_damping_nm_s_per_rad` is the knee's joint damping.
+    pub fn pendulum(viz: Viz, channels: usize, knee_damping_nm_s_per_rad: f64) -> Self {
+        Self {
+            leg_series: LegSeries::Pendulum {
+                knee_damping_nm_s_per_rad,
+            },
+            ..Self::new(viz, channels)
         }
     }
 
@@ -258,8 +214,26 @@ impl VizRecorder {
     }
 
     fn push_bench(&mut self, s: &Sample) {
-        let r = push_bench(&mut self.viz, s, self.step);
+        let r = push_bench(&mut self.viz, s, self.step, &mut self.scalars);
         self.keep(r);
+    }
+
+    fn push_pendulum(
+        &mut self,
+        p: &Period<'_, SupervisedLeg, LegOutput>,
+        knee_damping_nm_s_per_rad: f64,
+    ) -> Result<()> {
+        if self.step % self.viz.decimation() != 0 {
+            return Ok(());
+        }
+        PendulumSample::of(p, knee_damping_nm_s_per_rad).values(&mut self.scalars);
+        push_leg_frame(
+            &mut self.viz,
+            p.backend,
+            (p.t_s, self.step),
+            p.truth.pressure_pa,
+            &self.scalars,
+        )
     }
 
     /// Ends the recording: the first error of the run, or the viewer's.
@@ -272,16 +246,15 @@ impl VizRecorder {
 }
 
 /// Logs one bench period (layout of [`bench_layout`]), if `step` is not decimated away.
-pub fn push_bench(viz: &mut Viz, s: &Sample, step: i64) -> Result<()> {
+pub fn push_bench(viz: &mut Viz, s: &Sample, step: i64, scalars: &mut [f64]) -> Result<()> {
     if step % viz.decimation() != 0 {
         return Ok(());
     }
-    let mut scalars = [0.0; 11];
-    bench_scalars(s, &mut scalars);
+    s.values(scalars);
     viz.push(&Frame {
         t_s: s.t_s,
         step,
-        scalars: &scalars,
+        scalars,
         link_poses: &[],
         muscle_lines: &[],
     })?;
@@ -313,21 +286,25 @@ impl Recorder<pma_rig::Rig, MuscleStep> for VizRecorder {
     }
 }
 
-impl Recorder<LegPlant, LegOutput> for VizRecorder {
-    fn start(&mut self, s: &Start<'_, LegPlant>) {
+impl Recorder<SupervisedLeg, LegOutput> for VizRecorder {
+    fn start(&mut self, s: &Start<'_, SupervisedLeg>) {
         self.previous_t_s = s.t_s;
     }
 
-    fn record(&mut self, p: &Period<'_, LegPlant, LegOutput>) {
+    fn record(&mut self, p: &Period<'_, SupervisedLeg, LegOutput>) {
         self.step += 1;
-        let mut scalars = [0.0; LEG_SCALARS];
-        let r = push_leg(
-            &mut self.viz,
-            p.backend,
-            &LegSample::of(p),
-            self.step,
-            &mut scalars,
-        );
+        let r = match self.leg_series {
+            LegSeries::Gait => push_leg(
+                &mut self.viz,
+                p.backend,
+                &LegSample::of(p),
+                self.step,
+                &mut self.scalars,
+            ),
+            LegSeries::Pendulum {
+                knee_damping_nm_s_per_rad,
+            } => self.push_pendulum(p, knee_damping_nm_s_per_rad),
+        };
         self.keep(r);
         if let Some(patient) = p.backend.patient() {
             let r = mark_spasms(

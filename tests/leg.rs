@@ -1,7 +1,7 @@
 //! The exoskeleton leg through the public API: gait tracking, co-contraction over a long
 //! run, energy and static equilibrium against hand calculations, bad input.
 use pma_leg::config::EMBEDDED_URDF;
-use pma_leg::{LegOutput, LegPlant, LegReport, LegSample, LegSim, Scenario, Side};
+use pma_leg::{LegOutput, LegReport, LegSample, LegSim, Scenario, Side, SupervisedLeg};
 use pma_loop::{FnRecorder, Period};
 
 fn run(name: &str, duration_s: f64) -> LegReport {
@@ -132,7 +132,7 @@ fn static_pose_is_held_at_the_hand_computed_equilibrium_pressures() {
     // 20 s: the co-contraction loop and the slow pole of the sliding surface (c2/c1 ~ 1/s)
     // settle in ~10 s; the last second is averaged.
     let settle_s = 20.0;
-    let mut keep = FnRecorder(|p: &Period<'_, LegPlant, LegOutput>| {
+    let mut keep = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
         if p.t_s > settle_s {
             last.push(LegSample::of(p));
         }
@@ -290,4 +290,75 @@ fn a_leg_run_that_leaves_physical_bounds_fails() {
     // A sane start runs.
     let mut sim = LegSim::new(&loaded).unwrap();
     sim.run(0.5, &mut ()).expect("a normal run");
+}
+
+/// The leg's knee encoder reading NaN from `at_s` on (a broken wire).
+struct NanKnee {
+    plant: pma_leg::LegPlant,
+    at_s: f64,
+}
+
+impl pma_loop::Backend for NanKnee {
+    type Reading = [f64; 2];
+    type Command = [f64; 4];
+    type Truth = pma_leg::LegState;
+    type Error = pma_leg::LegError;
+    fn period_s(&self) -> f64 {
+        self.plant.period_s()
+    }
+    fn start(&mut self) -> Result<pma_loop::Started<[f64; 2], [f64; 4]>, Self::Error> {
+        self.plant.start()
+    }
+    fn wait(&mut self) -> Result<u32, Self::Error> {
+        self.plant.wait()
+    }
+    fn read(&mut self) -> Result<[f64; 2], Self::Error> {
+        let mut r = self.plant.read()?;
+        if self.plant.time() >= self.at_s {
+            r[1] = f64::NAN;
+        }
+        Ok(r)
+    }
+    fn write(&mut self, c: &[f64; 4]) -> Result<[f64; 4], Self::Error> {
+        self.plant.write(c)
+    }
+    fn truth(&self) -> pma_leg::LegState {
+        self.plant.truth()
+    }
+    fn stop(&mut self) {
+        self.plant.stop();
+    }
+}
+
+/// The leg runs under the rig's supervisor: a NaN encoder vents all four muscles and ends
+/// the run as a fault naming the joint.
+#[test]
+fn a_nan_encoder_vents_all_four_muscles_and_ends_the_run_as_a_fault() {
+    use pma_loop::Backend;
+    let sim = LegSim::new(&Scenario::load("gait_training").unwrap()).unwrap();
+    let (plant, mut controllers, limits) = sim.into_parts();
+    let mut leg = pma_control::Supervised::new(NanKnee { plant, at_s: 1.0 }, limits, None);
+    let settings = pma_loop::LoopSettings::new(3.0).unwrap();
+    let out = pma_loop::run(&mut leg, &mut controllers, &mut (), &settings).unwrap();
+    match out.end {
+        pma_loop::End::Fault {
+            period,
+            error: pma_control::Fault::SensorNan { channel },
+            ..
+        } => {
+            assert_eq!(channel, "knee angle");
+            assert!((999..=1001).contains(&period), "period {period}");
+        }
+        other => panic!("{other:?}"),
+    }
+    let set_points: Vec<f64> = leg
+        .inner()
+        .plant
+        .muscles()
+        .iter()
+        .map(|m| m.set_point())
+        .collect();
+    assert_eq!(set_points, [0.0; 4], "every muscle vented");
+    assert!(leg.inner().plant.time() < 1.01);
+    let _ = leg.period_s();
 }

@@ -6,7 +6,7 @@ use pma_leg::gait::GaitReference;
 use pma_leg::patient::{
     JointPatientSettings, PatientSettings, PatientTorques, SpasticityPreset, SpasticitySettings,
 };
-use pma_leg::{LegOutput, LegPlant, LegReport, LegSim, Patient, Scenario, Vented};
+use pma_leg::{LegOutput, LegReport, LegSim, Patient, Scenario, SupervisedLeg, Vented};
 use pma_loop::{FnRecorder, LoopSettings, Period};
 use pma_studies::pendulum::{self, PendulumSetup};
 
@@ -30,7 +30,7 @@ fn run(
     let config = pma_leg::gains::leg_gains(kind).expect("gains");
     let mut sim = LegSim::with_controller(&loaded, &config).expect("sim");
     let mut peak = [0.0f64; 2];
-    let mut rec = FnRecorder(|p: &Period<'_, LegPlant, LegOutput>| {
+    let mut rec = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
         let tau = part(&p.truth.patient);
         for j in 0..2 {
             peak[j] = peak[j].max(tau[j].abs());
@@ -216,7 +216,7 @@ fn assisting_at_100_percent_with_vented_muscles_follows_the_reference() {
     let duration = loaded.scenario.gait.ramp_s + stride;
     let mut task = Vented::gait(sim.gait_reference().unwrap());
     let (mut sq, mut n, mut worst) = (0.0, 0usize, 0.0f64);
-    let mut rec = FnRecorder(|p: &Period<'_, LegPlant, LegOutput>| {
+    let mut rec = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
         for j in 0..2 {
             let e = (p.output.reference_rad[j] - p.truth.angle_rad[j]).to_degrees();
             sq += e * e;

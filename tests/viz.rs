@@ -1,6 +1,6 @@
 //! The Rerun layer: what a recording holds, decoded back in Rust from an in-memory sink.
-use pma_exo::viz::{self, LEG_SCALARS, MUSCLE_SERIES};
-use pma_leg::{LegOutput, LegPlant, LegSample, LegSim, Scenario};
+use pma_exo::viz;
+use pma_leg::{LegOutput, LegSample, LegSim, Scenario, SupervisedLeg};
 use pma_loop::{FnRecorder, Period};
 use pma_viz::Viz;
 use rerun::log::{Chunk, LogMsg};
@@ -84,11 +84,11 @@ fn logged_leg_run(duration_s: f64, rate_hz: Option<f64>) -> LoggedRun {
     let loaded = Scenario::load("gait_training").unwrap();
     let mut sim = LegSim::new(&loaded).unwrap();
     let (mut v, storage) = Viz::memory("test", loaded.scenario.period_s, rate_hz).unwrap();
-    viz::leg_layout(&mut v, &sim, "# test").unwrap();
+    let channels = viz::leg_layout(&mut v, &sim, "# test").unwrap();
     let every = v.decimation();
     let (mut samples, mut shank_translations) = (Vec::new(), Vec::new());
-    let (mut step, mut scalars) = (0i64, [0.0; LEG_SCALARS]);
-    let mut observe = FnRecorder(|p: &Period<'_, LegPlant, LegOutput>| {
+    let (mut step, mut scalars) = (0i64, vec![0.0; channels]);
+    let mut observe = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
         step += 1;
         let s = LegSample::of(p);
         samples.push(s);
@@ -128,14 +128,12 @@ fn leg_recording_has_every_path_and_the_simulation_values() {
             assert!((t[0] - 0.001).abs() < 1e-9 && (t[399] - 0.4).abs() < 1e-9);
         }
     }
-    for m in ["hip_flexor", "hip_extensor", "knee_flexor", "knee_extensor"] {
-        for (leaf, _) in MUSCLE_SERIES {
-            assert_eq!(
-                series[&format!("/muscles/{m}/{leaf}")].1.len(),
-                400,
-                "{m}/{leaf}"
-            );
-        }
+    let muscles = ["hip_flexor", "hip_extensor", "knee_flexor", "knee_extensor"].map(String::from);
+    let schema = LegSample::schema(&muscles);
+    for c in &schema.channels {
+        assert_eq!(series[&format!("/{}", c.path)].1.len(), 400, "{}", c.path);
+    }
+    for m in &muscles {
         assert_eq!(rows[&format!("/world/muscles/{m}")], 400, "{m} line");
     }
     for link in ["pelvis", "thigh", "shank"] {
@@ -218,12 +216,12 @@ fn spasms_are_logged_as_events_markers_and_torque_series() {
     let loaded = Scenario::load("gait_spasms").unwrap();
     let mut sim = LegSim::new(&loaded).unwrap();
     let (mut v, storage) = Viz::memory("test", loaded.scenario.period_s, None).unwrap();
-    viz::leg_layout(&mut v, &sim, "# test").unwrap();
+    let channels = viz::leg_layout(&mut v, &sim, "# test").unwrap();
     let mut samples = Vec::new();
-    let mut keep = FnRecorder(|p: &Period<'_, LegPlant, LegOutput>| {
+    let mut keep = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
         samples.push(LegSample::of(p));
     });
-    let mut rec = viz::VizRecorder::new(v);
+    let mut rec = viz::VizRecorder::new(v, channels);
     let duration = 20.0;
     let report = sim.run(duration, &mut (&mut keep, &mut rec)).unwrap();
     rec.finish().unwrap();
@@ -275,4 +273,47 @@ fn spasms_are_logged_as_events_markers_and_torque_series() {
         let marks = row_times(&msgs, &format!("/world/{link}/spasm"));
         assert_eq!(marks.len(), expected, "{joint}");
     }
+}
+
+/// Regression: the pendulum recording logged the gait's series (a reference of 0, an error
+/// of -90 deg, 40 series for vented muscles) and not the reflex torque.
+#[test]
+fn a_pendulum_recording_logs_what_the_test_has() {
+    use pma_studies::pendulum::{self, PendulumSample, PendulumSetup};
+    let mut loaded = Scenario::load("gait_training").unwrap();
+    let preset = pma_leg::patient::SpasticitySettings {
+        preset: Some(pma_leg::patient::SpasticityPreset::Severe),
+        ..Default::default()
+    };
+    loaded.scenario.patient.knee.spasticity = Some(preset);
+    let damping = loaded.scenario.joints.knee.damping_nm_s_per_rad;
+    let setup = PendulumSetup::default();
+    let sim = pendulum::seated(&loaded, setup).unwrap();
+    let (mut v, storage) = Viz::memory("test", loaded.scenario.period_s, None).unwrap();
+    let channels = viz::pendulum_layout(&mut v, &sim, "# test").unwrap();
+    assert_eq!(channels, PendulumSample::schema().len());
+    let mut samples = Vec::new();
+    let mut keep = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
+        samples.push(PendulumSample::of(p, damping));
+    });
+    let mut rec = viz::VizRecorder::pendulum(v, channels, damping);
+    let settings = pma_loop::LoopSettings::new(3.0).unwrap();
+    pendulum::run(sim, setup, &settings, &mut (&mut keep, &mut rec)).unwrap();
+    rec.finish().unwrap();
+    let (series, _) = decode(&storage.take());
+    for gone in ["/joints/knee/reference_deg", "/joints/knee/error_deg"] {
+        assert!(!series.contains_key(gone), "{gone} is logged");
+    }
+    assert!(!series.keys().any(|k| k.starts_with("/muscles/")));
+    let (knee, reflex) = (
+        &series["/joints/knee/angle_deg"].1,
+        &series["/joints/knee/reflex_torque_nm"].1,
+    );
+    assert_eq!(knee.len(), samples.len());
+    for (k, s) in samples.iter().enumerate() {
+        assert_eq!(knee[k], s.angle_rad[1].to_degrees());
+        assert_eq!(reflex[k], s.patient.reflex_nm[1]);
+    }
+    // A severe reflex acts during the swing.
+    assert!(reflex.iter().any(|x| x.abs() > 0.1), "{:?}", &reflex[..10]);
 }

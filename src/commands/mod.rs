@@ -129,6 +129,46 @@ pub fn scenario_inputs<'a>(
     inputs
 }
 
+/// Streams each period's sample to a CSV file: `t_s`, then the sample's schema (one row
+/// buffer, reused).
+pub struct SampleCsv<F> {
+    out: crate::output::CsvOut,
+    row: Vec<f64>,
+    sample: F,
+}
+
+impl<F> SampleCsv<F> {
+    /// Creates `path` with the header of `schema`; `sample` makes each period's sample.
+    pub fn create(path: &Path, schema: &pma_loop::Schema, sample: F) -> Result<Self> {
+        let mut header = vec!["t_s".to_owned()];
+        header.extend(schema.columns());
+        Ok(Self {
+            out: crate::output::CsvOut::create(path, &header)?,
+            row: vec![0.0; header.len()],
+            sample,
+        })
+    }
+
+    /// Completes the file.
+    pub fn finish(self) -> Result<u64> {
+        self.out.finish()
+    }
+}
+
+impl<B, O, S, F> pma_loop::Recorder<B, O> for SampleCsv<F>
+where
+    B: pma_loop::Backend,
+    S: pma_loop::Signals,
+    F: FnMut(&pma_loop::Period<'_, B, O>) -> S,
+{
+    fn record(&mut self, p: &pma_loop::Period<'_, B, O>) {
+        let sample = (self.sample)(p);
+        self.row[0] = p.t_s;
+        sample.values(&mut self.row[1..]);
+        self.out.row(&self.row);
+    }
+}
+
 /// Runs `f` on a rayon pool of `threads` threads (`None`: one per core).
 pub fn with_threads<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> Result<T> {
     let cores = std::thread::available_parallelism().map_or(1, usize::from);
@@ -159,8 +199,8 @@ pub fn check_duration(duration: f64) -> Result<()> {
 /// closed, a non-finite run refused (`non_finite` says what went), the report printed as
 /// JSON or by `summary`, and only then the viewer's error, so a failed viewer never hides
 /// the figures.
-pub fn conclude<R: serde::Serialize>(
-    (csv, viz): (Option<crate::output::CsvOut>, Option<viz::Recorder>),
+pub fn conclude<R: serde::Serialize, F>(
+    (csv, viz): (Option<SampleCsv<F>>, Option<viz::Recorder>),
     report: &R,
     non_finite: Option<String>,
     json: bool,
@@ -206,8 +246,8 @@ pub mod viz {
         let Some(mut v) = open(args, app, period_s)? else {
             return Ok(None);
         };
-        pma_exo::viz::bench_layout(&mut v, meta)?;
-        Ok(Some(Recorder::new(v)))
+        let channels = pma_exo::viz::bench_layout(&mut v, meta)?;
+        Ok(Some(Recorder::new(v, channels)))
     }
 
     /// The leg's layout.
@@ -215,8 +255,26 @@ pub mod viz {
         let Some(mut v) = open(args, "pma-exo simulate", sim.scenario().period_s)? else {
             return Ok(None);
         };
-        pma_exo::viz::leg_layout(&mut v, sim, meta)?;
-        Ok(Some(Recorder::new(v)))
+        let channels = pma_exo::viz::leg_layout(&mut v, sim, meta)?;
+        Ok(Some(Recorder::new(v, channels)))
+    }
+
+    /// The pendulum test's layout; `knee_damping_nm_s_per_rad` is the knee's damping.
+    pub fn pendulum(
+        args: &RerunArgs,
+        sim: &pma_leg::LegSim,
+        meta: &str,
+        knee_damping_nm_s_per_rad: f64,
+    ) -> Result<Option<Recorder>> {
+        let Some(mut v) = open(args, "pma-exo pendulum", sim.scenario().period_s)? else {
+            return Ok(None);
+        };
+        let channels = pma_exo::viz::pendulum_layout(&mut v, sim, meta)?;
+        Ok(Some(Recorder::pendulum(
+            v,
+            channels,
+            knee_damping_nm_s_per_rad,
+        )))
     }
 
     /// Ends the recording, if there was one.
@@ -249,6 +307,17 @@ pub mod viz {
 
     /// Checks `--rerun` (an error unless `off`).
     pub fn leg(args: &RerunArgs, _: &pma_leg::LegSim, _: &str) -> Result<Option<Recorder>> {
+        args.enabled()?;
+        Ok(None)
+    }
+
+    /// Checks `--rerun` (an error unless `off`).
+    pub fn pendulum(
+        args: &RerunArgs,
+        _: &pma_leg::LegSim,
+        _: &str,
+        _: f64,
+    ) -> Result<Option<Recorder>> {
         args.enabled()?;
         Ok(None)
     }

@@ -1,12 +1,12 @@
 //! `pma-exo pendulum`: the Wartenberg pendulum test on the leg's patient model.
-use super::{viz, RerunArgs};
-use crate::output::{self, CsvOut};
+use super::{viz, RerunArgs, SampleCsv};
+use crate::output;
 use crate::say;
 use anyhow::Result;
 use pma_leg::patient::{SpasticityPreset, SpasticitySettings};
-use pma_leg::{LegOutput, LegPlant, Scenario};
-use pma_loop::{LoopSettings, Period, Recorder};
-use pma_studies::pendulum::{self, PendulumReport, PendulumSetup};
+use pma_leg::Scenario;
+use pma_loop::{LoopSettings, Period};
+use pma_studies::pendulum::{self, PendulumReport, PendulumSample, PendulumSetup};
 use std::path::PathBuf;
 
 /// A spasticity preset on the command line.
@@ -61,46 +61,6 @@ pub struct Args {
     rerun: RerunArgs,
 }
 
-/// CSV columns of the test.
-pub const COLUMNS: [&str; 11] = [
-    "t_s",
-    "hip_deg",
-    "knee_deg",
-    "hip_velocity_deg_s",
-    "knee_velocity_deg_s",
-    "hip_patient_nm",
-    "knee_patient_nm",
-    "knee_reflex_nm",
-    "knee_spasm_nm",
-    "knee_stiffness_nm",
-    "knee_damping_nm",
-];
-
-struct CsvRecorder {
-    out: CsvOut,
-    damping_nm_s_per_rad: f64,
-}
-
-impl Recorder<LegPlant, LegOutput> for CsvRecorder {
-    fn record(&mut self, p: &Period<'_, LegPlant, LegOutput>) {
-        let s = p.truth;
-        let tau = s.patient.total();
-        self.out.row(&[
-            p.t_s,
-            s.angle_rad[0].to_degrees(),
-            s.angle_rad[1].to_degrees(),
-            s.velocity_rad_s[0].to_degrees(),
-            s.velocity_rad_s[1].to_degrees(),
-            tau[0],
-            tau[1],
-            s.patient.reflex_nm[1],
-            s.patient.spasm_nm[1],
-            s.patient.stiffness_nm[1],
-            -self.damping_nm_s_per_rad * s.velocity_rad_s[1],
-        ]);
-    }
-}
-
 /// Runs `pendulum`.
 pub fn run(a: Args) -> Result<i32> {
     super::check_duration(a.duration)?;
@@ -131,18 +91,21 @@ pub fn run(a: Args) -> Result<i32> {
     let sim = pendulum::seated(&loaded, setup)?;
     let settings = LoopSettings::new(a.duration)?;
     settings.periods(loaded.scenario.period_s)?;
-    let csv = match &a.csv {
-        Some(p) => Some(CsvRecorder {
-            out: CsvOut::create(p, &COLUMNS.map(str::to_owned))?,
-            damping_nm_s_per_rad: loaded.scenario.joints.knee.damping_nm_s_per_rad,
-        }),
-        None => None,
-    };
+    let damping = loaded.scenario.joints.knee.damping_nm_s_per_rad;
+    let csv = a
+        .csv
+        .as_deref()
+        .map(|p| {
+            SampleCsv::create(p, &PendulumSample::schema(), move |p: &Period<'_, _, _>| {
+                PendulumSample::of(p, damping)
+            })
+        })
+        .transpose()?;
     let meta = format!(
         "# Pendulum test: {}\n\n{}\n\nthigh horizontal, hip held at {} deg, knee released from {} deg; muscles vented and unhooked.\n",
         loaded.scenario.name, loaded.scenario.description, a.hip_deg, a.knee_deg
     );
-    let viz = viz::leg(&a.rerun, &sim, &meta)?;
+    let viz = viz::pendulum(&a.rerun, &sim, &meta, damping)?;
     let stop = output::stop_flag()?;
     let settings = settings.with_stop_flag(&stop);
     let mut recorders = (csv, viz);
@@ -150,13 +113,7 @@ pub fn run(a: Args) -> Result<i32> {
     let (csv, viz) = recorders;
     let non_finite =
         (!report.finite).then(|| format!("the pendulum test (scenario {})", report.scenario));
-    super::conclude(
-        (csv.map(|c| c.out), viz),
-        &report,
-        non_finite,
-        a.json,
-        print_summary,
-    )?;
+    super::conclude((csv, viz), &report, non_finite, a.json, print_summary)?;
     if !report.settled {
         eprintln!(
             "warning: the knee still moved {:.1} deg in the last second: no resting angle, so no R2; run longer (--duration)",

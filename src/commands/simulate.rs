@@ -1,10 +1,10 @@
 //! `pma-exo simulate`: the gait-training simulation of the exoskeleton leg.
-use super::{viz, RerunArgs};
-use crate::output::{self, CsvOut, INTERRUPTED};
+use super::{viz, RerunArgs, SampleCsv};
+use crate::output::{self, INTERRUPTED};
 use crate::say;
 use anyhow::Result;
 use pma_control::{ControllerConfig, ControllerKind};
-use pma_leg::{LegOutput, LegPlant, LegReport, LegSample, LegSim, Scenario};
+use pma_leg::{LegReport, LegSample, LegSim, Scenario};
 use pma_loop::{Period, Recorder};
 use std::path::PathBuf;
 
@@ -56,66 +56,6 @@ impl Default for Args {
     }
 }
 
-/// Per-muscle CSV columns (after `<muscle>_`), the series Rerun logs.
-pub const MUSCLE_COLUMNS: [&str; 10] = [
-    "pressure_cmd_pa",
-    "pressure_pa",
-    "length_ref_m",
-    "length_m",
-    "force_n",
-    "proxy_m",
-    "s_p",
-    "s_q",
-    "gain_hat",
-    "disturbance_hat",
-];
-
-/// The CSV header for the leg's muscles.
-pub fn csv_header(muscles: &[String]) -> Vec<String> {
-    let mut h: Vec<String> = ["t_s", "hip_ref_deg", "hip_deg", "knee_ref_deg", "knee_deg"]
-        .iter()
-        .map(|c| (*c).to_owned())
-        .collect();
-    for m in muscles {
-        h.extend(MUSCLE_COLUMNS.iter().map(|c| format!("{m}_{c}")));
-    }
-    h
-}
-
-/// Streams each period to the CSV file (one reused row buffer, no allocation).
-struct CsvRecorder {
-    out: CsvOut,
-    row: Vec<f64>,
-}
-
-impl Recorder<LegPlant, LegOutput> for CsvRecorder {
-    fn record(&mut self, p: &Period<'_, LegPlant, LegOutput>) {
-        let s = LegSample::of(p);
-        self.row.clear();
-        self.row.push(s.t_s);
-        for j in 0..2 {
-            self.row.push(s.reference_rad[j].to_degrees());
-            self.row.push(s.angle_rad[j].to_degrees());
-        }
-        for i in 0..4 {
-            let d = &s.diagnostics[i];
-            self.row.extend_from_slice(&[
-                s.pressure_cmd_pa[i],
-                s.pressure_pa[i],
-                s.length_ref_m[i],
-                s.length_m[i],
-                s.force_n[i],
-                d.proxy_position_m,
-                d.s_p,
-                d.s_q,
-                d.gain_hat,
-                d.disturbance_hat,
-            ]);
-        }
-        self.out.row(&self.row);
-    }
-}
-
 /// Advances the progress bar every 1 % of the run.
 struct Progress {
     bar: indicatif::ProgressBar,
@@ -153,13 +93,11 @@ pub fn run(a: Args) -> Result<i32> {
             &[("--csv", csv)],
         )?;
     }
-    let csv = match &a.csv {
-        Some(p) => Some(CsvRecorder {
-            out: CsvOut::create(p, &csv_header(&names))?,
-            row: Vec::with_capacity(5 + 4 * MUSCLE_COLUMNS.len()),
-        }),
-        None => None,
-    };
+    let csv = a
+        .csv
+        .as_deref()
+        .map(|p| SampleCsv::create(p, &LegSample::schema(&names), LegSample::of))
+        .transpose()?;
     let meta = format!(
         "# {}\n\n{}\n\ngait `{}` at a {} s stride; co-contraction {} bar; {} gains:\n\n```\n{:#?}\n```\n",
         sc.name,
@@ -185,13 +123,7 @@ pub fn run(a: Args) -> Result<i32> {
     let (csv, viz, _) = recorders;
     let non_finite =
         (!report.finite).then(|| format!("the simulation (scenario {})", report.scenario));
-    super::conclude(
-        (csv.map(|c| c.out), viz),
-        &report,
-        non_finite,
-        a.json,
-        print_summary,
-    )?;
+    super::conclude((csv, viz), &report, non_finite, a.json, print_summary)?;
     if report.interrupted {
         eprintln!(
             "interrupted after {} s: the figures and the CSV cover the run so far",

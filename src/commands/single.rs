@@ -1,12 +1,10 @@
 //! `pma-exo single`: one controller on the single-muscle bench.
-use super::{check_duration, load_gains, viz, RefName, RerunArgs};
-use crate::output::{self, CsvOut, INTERRUPTED};
+use super::{check_duration, load_gains, viz, RefName, RerunArgs, SampleCsv};
+use crate::output::{self, INTERRUPTED};
 use crate::say;
 use anyhow::{bail, Result};
-use pma_bench::{run_single_until, MuscleBench, PlantConfig, RunSpec, Sample};
+use pma_bench::{run_single_until, PlantConfig, RunSpec, Sample};
 use pma_control::ControllerKind;
-use pma_control::MuscleStep;
-use pma_loop::{Period, Recorder};
 use std::path::PathBuf;
 
 /// Estimated wall time of one bench period (release build, with margin).
@@ -43,48 +41,6 @@ pub struct Args {
     rerun: RerunArgs,
 }
 
-/// CSV columns of `single --csv`.
-pub const CSV_COLUMNS: [&str; 13] = [
-    "t_s",
-    "reference_m",
-    "position_m",
-    "pressure_cmd_pa",
-    "pressure_pa",
-    "proxy_m",
-    "s_p",
-    "s_q",
-    "gain_hat",
-    "disturbance_hat",
-    "measured_m",
-    "force_n",
-    "velocity_estimate_m_s",
-];
-
-/// Streams each period to the CSV file.
-struct CsvRecorder(CsvOut);
-
-impl Recorder<MuscleBench, MuscleStep> for CsvRecorder {
-    fn record(&mut self, p: &Period<'_, MuscleBench, MuscleStep>) {
-        let s = Sample::of(p);
-        let d = &s.diagnostics;
-        self.0.row(&[
-            s.t_s,
-            s.reference_m,
-            s.position_m,
-            s.pressure_cmd_pa,
-            s.pressure_pa,
-            d.proxy_position_m,
-            d.s_p,
-            d.s_q,
-            d.gain_hat,
-            d.disturbance_hat,
-            s.measured_m,
-            s.force_n,
-            d.velocity_m_s,
-        ]);
-    }
-}
-
 /// Runs `single`.
 pub fn run(a: Args) -> Result<i32> {
     check_duration(a.duration)?;
@@ -107,11 +63,10 @@ pub fn run(a: Args) -> Result<i32> {
         }
         output::refuse_input_as_output(&inputs, &[("--csv", csv)])?;
     }
-    let header: Vec<String> = CSV_COLUMNS.iter().map(|c| (*c).to_owned()).collect();
     let csv = a
         .csv
         .as_deref()
-        .map(|p| CsvOut::create(p, &header))
+        .map(|p| SampleCsv::create(p, &Sample::schema(), Sample::of))
         .transpose()?;
     let meta = format!(
         "# single muscle\n\ncontroller `{}`, reference `{ref_name}`, plant `{}`\n\n```toml\n{}```\n",
@@ -121,7 +76,7 @@ pub fn run(a: Args) -> Result<i32> {
     );
     let viz = viz::bench(&a.rerun, "pma-exo single", spec.period_s, &meta)?;
     let stop = output::stop_flag()?;
-    let mut recorders = (csv.map(CsvRecorder), viz);
+    let mut recorders = (csv, viz);
     let res = run_single_until(
         &config,
         &plant,
@@ -132,7 +87,7 @@ pub fn run(a: Args) -> Result<i32> {
     )?;
     let (csv, viz) = recorders;
     if let Some(c) = csv {
-        c.0.finish()?;
+        c.finish()?;
     }
     // The results are printed even if the viewer failed; its error comes after them.
     let viz_result = viz::finish(viz);

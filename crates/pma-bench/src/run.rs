@@ -3,7 +3,7 @@ use pma_control::{
     build_controller, CommandLimits, ControllerConfig, Diagnostics, MuscleStep, MuscleTask,
     Reference, Tracking, TrackingStats,
 };
-use pma_loop::{LoopSettings, Period, Recorder};
+use pma_loop::{LoopSettings, Period, Recorder, Schema, Signals};
 use pma_model::Invalid;
 use std::sync::atomic::AtomicBool;
 
@@ -109,6 +109,55 @@ impl Sample {
             force_n: s.force_n,
             diagnostics: p.output.control.diagnostics,
         }
+    }
+}
+
+impl Sample {
+    /// The bench's channels (after the time), as the CSV and Rerun show them.
+    pub fn schema() -> Schema {
+        let mut s = Schema::new();
+        let g = "muscles/muscle";
+        s.push(g, "reference_m", "reference x_d (m)")
+            .push(g, "position_m", "true contraction (m)")
+            .push(g, "pressure_cmd_pa", "pressure command (Pa)")
+            .push(g, "pressure_pa", "pressure in the muscle (Pa)")
+            .push(g, "proxy_m", "proxy position (m)")
+            .push(g, "s_p", "S_p, eq. (4) (m/s)")
+            .push(g, "s_q", "S_q, eq. (3) (m/s)")
+            .push(g, "gain_hat", "adaptive gain Gamma_hat, eq. (10)")
+            .push(
+                g,
+                "disturbance_hat",
+                "disturbance estimate, eq. (37) (m/s^2)",
+            )
+            .push(g, "measured_m", "the sensor's reading (m)")
+            .push(g, "force_n", "muscle force (N)")
+            .push(
+                g,
+                "velocity_estimate_m_s",
+                "the controller's velocity estimate (m/s)",
+            );
+        s
+    }
+}
+
+impl Signals for Sample {
+    fn values(&self, out: &mut [f64]) {
+        let d = &self.diagnostics;
+        out.copy_from_slice(&[
+            self.reference_m,
+            self.position_m,
+            self.pressure_cmd_pa,
+            self.pressure_pa,
+            d.proxy_position_m,
+            d.s_p,
+            d.s_q,
+            d.gain_hat,
+            d.disturbance_hat,
+            self.measured_m,
+            self.force_n,
+            d.velocity_m_s,
+        ]);
     }
 }
 

@@ -34,6 +34,7 @@ mod reference;
 #[cfg(feature = "serde")]
 pub mod shipped;
 mod sta;
+pub mod supervisor;
 mod task;
 #[cfg(feature = "serde")]
 pub mod text;
@@ -54,6 +55,9 @@ pub use reference::{
     quintic_blend, ChirpReference, JumpReference, Reference, SineReference, SmoothStart, Trajectory,
 };
 pub use sta::{StaGains, SuperTwisting};
+pub use supervisor::{
+    Alarm, Channels, Fault, ReadingWindow, Supervised, SupervisorLimits, Watchdog,
+};
 pub use task::{MuscleStep, MuscleTask, PositionOf, Tracking, TrackingMetrics, TrackingSummary};
 
 /// Desired trajectory at one instant, with analytic derivatives.

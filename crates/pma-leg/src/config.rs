@@ -270,6 +270,17 @@ pub struct ControlSettings {
     /// 0 (the default, the paper) takes each pressure to equal its command.
     #[serde(default)]
     pub nominal_valve_time_constant_s: f64,
+    /// The supervisor's rate limit on every muscle's pressure command (Pa/s). The default,
+    /// 6 bar per 1 ms period, binds on nothing the valve's range allows: the shipped
+    /// scenarios' controllers step a knee muscle by up to 4.6 bar in one period (`docs/
+    /// patient.md`), and the rig's 2 bar per period would change their figures. Set a
+    /// lower one to see what a slower valve path does.
+    #[serde(default = "default_rate_max")]
+    pub pressure_rate_max_pa_per_s: f64,
+}
+
+fn default_rate_max() -> f64 {
+    6.0e8
 }
 
 /// A gait-training scenario (`crates/pma-leg/models/scenarios/*.toml`).
@@ -454,6 +465,10 @@ impl Scenario {
         non_negative(
             "control.nominal_valve_time_constant_s",
             self.control.nominal_valve_time_constant_s,
+        )?;
+        positive(
+            "control.pressure_rate_max_pa_per_s",
+            self.control.pressure_rate_max_pa_per_s,
         )?;
         pma_control::ControllerConfig::AprcNdo(self.control.gains).validate()?;
         self.patient.validate()?;

@@ -84,6 +84,9 @@ pub enum LegError {
     /// A controller gain set is invalid.
     #[error(transparent)]
     Controller(#[from] pma_control::ConfigError),
+    /// The supervisor stopped the run (a NaN encoder, a joint out of its window).
+    #[error("{0}")]
+    Supervisor(String),
     /// A value is invalid (non-finite, out of its range or of its plausible range).
     #[error(transparent)]
     Invalid(#[from] pma_model::Invalid),
@@ -95,6 +98,14 @@ pub enum LegError {
 pub(crate) use pma_control::text::one_line;
 
 impl LegError {
+    /// The error a supervised run ended with: the plant's own, or the supervisor's fault.
+    pub fn from_fault(fault: pma_control::Fault<LegError>) -> Self {
+        match fault {
+            pma_control::Fault::Backend(e) => e,
+            other => LegError::Supervisor(other.to_string()),
+        }
+    }
+
     /// This error, naming the file it comes from.
     pub fn in_file(self, file: &str) -> Self {
         LegError::InFile {

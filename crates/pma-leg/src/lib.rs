@@ -22,6 +22,6 @@ pub use error::LegError;
 pub use leg::{Leg, LegInertia, Mount, VisualShape};
 pub use metrics::{JointStats, LegMetrics, LegReport, MuscleStats};
 pub use patient::{Patient, PatientSettings, PatientTorques, SpasmEvent};
-pub use plant::{LegPlant, LegState, MuscleActuator};
+pub use plant::{LegPlant, LegState, MuscleActuator, SupervisedLeg};
 pub use safety::{PatientMetrics, PatientReport, SafetyReport, SpasmReport};
 pub use sim::{balanced_pressures, LegSample, LegSim};

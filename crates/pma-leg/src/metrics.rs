@@ -2,7 +2,7 @@
 //! mode's drift and valve activity, accumulated by a [`Recorder`] without allocation.
 use crate::control::LegOutput;
 use crate::leg::JOINT_NAMES;
-use crate::plant::LegPlant;
+use crate::plant::SupervisedLeg;
 use crate::safety::{PatientReport, SafetyReport, SpasmReport};
 use pma_loop::{Period, Recorder, Start};
 use std::collections::BTreeMap;
@@ -207,15 +207,15 @@ impl LegMetrics {
     }
 }
 
-impl Recorder<LegPlant, LegOutput> for LegMetrics {
-    fn start(&mut self, s: &Start<'_, LegPlant>) {
+impl Recorder<SupervisedLeg, LegOutput> for LegMetrics {
+    fn start(&mut self, s: &Start<'_, SupervisedLeg>) {
         self.previous = *s.resting;
         self.t_s = s.t_s;
     }
 
     /// The figures pair the state at the reading with the commands held over the period
     /// that led to it.
-    fn record(&mut self, p: &Period<'_, LegPlant, LegOutput>) {
+    fn record(&mut self, p: &Period<'_, SupervisedLeg, LegOutput>) {
         let held = *p.held;
         self.variation += held
             .iter()

@@ -54,7 +54,17 @@ impl MuscleActuator {
     pub fn pressure(&self) -> f64 {
         self.valve.pressure()
     }
+
+    /// The valve's last set point (Pa).
+    pub fn set_point(&self) -> f64 {
+        self.valve.set_point()
+    }
 }
+
+/// The leg as the loop drives it: the plant behind the safety supervisor of the rig
+/// (pressure clamp and rate limit on all four muscles, NaN and joint windows on the
+/// encoders); a fault vents all four.
+pub type SupervisedLeg = pma_control::Supervised<LegPlant>;
 
 /// The leg's true state at a reading.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -4,7 +4,7 @@
 use crate::control::LegOutput;
 use crate::leg::JOINT_NAMES;
 use crate::patient::{SpasmDirection, SpasmEvent};
-use crate::plant::LegPlant;
+use crate::plant::{LegPlant, SupervisedLeg};
 use pma_loop::{Period, Recorder, Start};
 use std::collections::BTreeMap;
 
@@ -293,12 +293,12 @@ impl PatientMetrics {
     }
 }
 
-impl Recorder<LegPlant, LegOutput> for PatientMetrics {
-    fn start(&mut self, s: &Start<'_, LegPlant>) {
+impl Recorder<SupervisedLeg, LegOutput> for PatientMetrics {
+    fn start(&mut self, s: &Start<'_, SupervisedLeg>) {
         self.previous_p = s.truth.pressure_pa;
     }
 
-    fn record(&mut self, p: &Period<'_, LegPlant, LegOutput>) {
+    fn record(&mut self, p: &Period<'_, SupervisedLeg, LegOutput>) {
         let s = p.truth;
         let dt = p.dt_s;
         let tau = s.patient.total();

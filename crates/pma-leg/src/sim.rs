@@ -7,10 +7,11 @@ use crate::gait::GaitReference;
 use crate::leg::{Leg, Mount, JOINT_NAMES};
 use crate::metrics::{LegMetrics, LegReport};
 use crate::patient::{Patient, SpasmEvent};
-use crate::plant::{LegPlant, LegState, MuscleActuator};
+use crate::plant::{LegPlant, LegState, MuscleActuator, SupervisedLeg, LIMIT_OVERSHOOT_MAX_RAD};
 use crate::safety::PatientMetrics;
+use pma_control::supervisor::{ReadingWindow, Supervised, SupervisorLimits};
 use pma_control::{ControllerConfig, Diagnostics};
-use pma_loop::{LoopSettings, Period, Recorder};
+use pma_loop::{LoopSettings, Period, Recorder, Schema, Signals};
 use pma_model::{MuscleParams, Valve};
 
 /// One period of the leg as logs show it: the state at the reading and what the
@@ -43,7 +44,7 @@ pub struct LegSample {
 
 impl LegSample {
     /// The leg's view of one loop period.
-    pub fn of(p: &Period<'_, LegPlant, LegOutput>) -> Self {
+    pub fn of(p: &Period<'_, SupervisedLeg, LegOutput>) -> Self {
         let (s, o) = (p.truth, p.output);
         Self {
             t_s: p.t_s,
@@ -61,10 +62,92 @@ impl LegSample {
     }
 }
 
+/// The joints' names, in reading order.
+const JOINTS: [&str; 2] = ["hip", "knee"];
+
+impl LegSample {
+    /// The leg's channels (after the time) for muscles named `muscles`, as the CSV and
+    /// Rerun show them.
+    pub fn schema(muscles: &[String]) -> Schema {
+        let mut s = Schema::new();
+        for j in JOINTS {
+            s.push_part("joints", j, "reference_deg", "reference (deg)")
+                .push_part("joints", j, "angle_deg", "angle (deg)")
+                .push_part("joints", j, "error_deg", "error (deg)")
+                .push_part(
+                    "joints",
+                    j,
+                    "patient_torque_nm",
+                    "patient torque (N m, flexion +)",
+                )
+                .push_part(
+                    "joints",
+                    j,
+                    "spasm_torque_nm",
+                    "spasm torque (N m, flexion +)",
+                );
+        }
+        for m in muscles {
+            s.push_part("muscles", m, "pressure_cmd_pa", "pressure command (Pa)")
+                .push_part("muscles", m, "pressure_pa", "pressure (Pa)")
+                .push_part("muscles", m, "length_ref_m", "contraction reference (m)")
+                .push_part("muscles", m, "length_m", "contraction (m)")
+                .push_part("muscles", m, "force_n", "force (N)")
+                .push_part("muscles", m, "proxy_m", "proxy position (m)")
+                .push_part("muscles", m, "s_p", "S_p (m/s)")
+                .push_part("muscles", m, "s_q", "S_q (m/s)")
+                .push_part("muscles", m, "gain_hat", "adaptive gain")
+                .push_part(
+                    "muscles",
+                    m,
+                    "disturbance_hat",
+                    "disturbance estimate (m/s^2)",
+                );
+        }
+        s
+    }
+}
+
+impl Signals for LegSample {
+    fn values(&self, out: &mut [f64]) {
+        let mut k = 0;
+        let mut put = |v: f64| {
+            out[k] = v;
+            k += 1;
+        };
+        for j in 0..2 {
+            let (r, a) = (
+                self.reference_rad[j].to_degrees(),
+                self.angle_rad[j].to_degrees(),
+            );
+            for v in [r, a, r - a, self.patient_nm[j], self.spasm_nm[j]] {
+                put(v);
+            }
+        }
+        for i in 0..4 {
+            let d = &self.diagnostics[i];
+            for v in [
+                self.pressure_cmd_pa[i],
+                self.pressure_pa[i],
+                self.length_ref_m[i],
+                self.length_m[i],
+                self.force_n[i],
+                d.proxy_position_m,
+                d.s_p,
+                d.s_q,
+                d.gain_hat,
+                d.disturbance_hat,
+            ] {
+                put(v);
+            }
+        }
+    }
+}
+
 /// The leg with its muscles, controllers, references and metrics.
 pub struct LegSim {
     scenario: Scenario,
-    plant: LegPlant,
+    plant: SupervisedLeg,
     controllers: LegControllers,
 }
 
@@ -168,13 +251,14 @@ impl LegSim {
             build_muscles(&sc, &loaded.muscles).map_err(|e| e.in_file(&loaded.muscles_source))?;
         let controllers = LegControllers::new(&sc, &muscles, leg.inertia(), config)?;
         let resting = resting_pressures(&muscles, sc.control.cocontraction_pa);
+        let limits = supervisor_limits(&sc, leg.limits_rad());
         let mut plant = LegPlant::new(leg, muscles, &sc)?;
         plant.set_patient(patient);
         plant.set_state([0.0, 0.0], [0.0, 0.0]);
         plant.set_pressures(resting)?;
         Ok(Self {
             scenario: sc,
-            plant,
+            plant: Supervised::new(plant, limits, None),
             controllers,
         })
     }
@@ -186,24 +270,26 @@ impl LegSim {
 
     /// Puts the leg at `angles` with `velocities` (the muscles' valves keep their pressure).
     pub fn set_state(&mut self, angles: [f64; 2], velocities: [f64; 2]) {
-        self.plant.set_state(angles, velocities);
+        self.plant.inner_mut().set_state(angles, velocities);
     }
 
-    /// One period with the valves commanded directly (no controllers): open-loop checks.
+    /// One period with the valves commanded directly (no controllers, no supervisor):
+    /// open-loop checks.
     pub fn step_with_commands(&mut self, commands: [f64; 4]) -> LegState {
-        self.plant.apply(commands)
+        self.plant.inner_mut().apply(commands)
     }
 
     /// Vents every muscle at once and unhooks its cable: the limb moves on its own.
     pub fn release_muscles(&mut self) -> Result<(), LegError> {
-        self.plant.set_pressures([0.0; 4])?;
-        self.plant.attach_muscles(false);
+        let plant = self.plant.inner_mut();
+        plant.set_pressures([0.0; 4])?;
+        plant.attach_muscles(false);
         Ok(())
     }
 
     /// The plant, to mount or hold the leg (studies such as the pendulum test).
     pub fn plant_mut(&mut self) -> &mut LegPlant {
-        &mut self.plant
+        self.plant.inner_mut()
     }
 
     /// Runs `task` instead of the leg's controllers (the plant, its patient and
@@ -216,13 +302,14 @@ impl LegSim {
     ) -> Result<pma_loop::Outcome<std::convert::Infallible>, LegError>
     where
         T: pma_loop::Task<Reading = [f64; 2], Command = [f64; 4], Output = LegOutput>,
-        R: Recorder<LegPlant, LegOutput>,
+        R: Recorder<SupervisedLeg, LegOutput>,
     {
         let t_end = self.plant.time() + settings.duration_s();
-        if let Some(p) = self.plant.patient_mut() {
+        if let Some(p) = self.plant.inner_mut().patient_mut() {
             p.plan(t_end + self.scenario.period_s);
         }
-        pma_loop::run(&mut self.plant, task, recorder, settings)?.into_result()
+        let outcome = pma_loop::run(&mut self.plant, task, recorder, settings)?;
+        outcome.into_result().map_err(LegError::from_fault)
     }
 
     /// The scenario's gait reference.
@@ -238,7 +325,14 @@ impl LegSim {
 
     /// The plant (leg, muscles, encoders).
     pub fn plant(&self) -> &LegPlant {
-        &self.plant
+        self.plant.inner()
+    }
+
+    /// The plant, the controllers and what the supervisor enforces, apart: to run the leg
+    /// behind another backend (a test's faulty encoder, say).
+    pub fn into_parts(self) -> (LegPlant, LegControllers, SupervisorLimits) {
+        let limits = supervisor_limits(&self.scenario, self.plant.leg().limits_rad());
+        (self.plant.into_inner(), self.controllers, limits)
     }
 
     /// The leg (poses, angles).
@@ -264,7 +358,7 @@ impl LegSim {
     }
 
     /// Runs for `duration_s` with `recorder` observing every period (`&mut ()` for none).
-    pub fn run<R: Recorder<LegPlant, LegOutput>>(
+    pub fn run<R: Recorder<SupervisedLeg, LegOutput>>(
         &mut self,
         duration_s: f64,
         recorder: &mut R,
@@ -274,7 +368,7 @@ impl LegSim {
     }
 
     /// Runs with explicit loop settings (a stop flag, say).
-    pub fn run_with<R: Recorder<LegPlant, LegOutput>>(
+    pub fn run_with<R: Recorder<SupervisedLeg, LegOutput>>(
         &mut self,
         settings: &LoopSettings,
         recorder: &mut R,
@@ -283,7 +377,7 @@ impl LegSim {
         let t0 = self.plant.time();
         let t_end = t0 + settings.duration_s();
         // Every spasm of the run is drawn now, so that the loop allocates nothing.
-        let events: Vec<SpasmEvent> = match self.plant.patient_mut() {
+        let events: Vec<SpasmEvent> = match self.plant.inner_mut().patient_mut() {
             Some(p) => {
                 p.plan(t_end + sc.period_s);
                 p.events()
@@ -308,7 +402,8 @@ impl LegSim {
             &mut (&mut metrics, &mut patient, recorder),
             settings,
         )?
-        .into_result()?;
+        .into_result()
+        .map_err(LegError::from_fault)?;
         let interrupted = matches!(outcome.end, pma_loop::End::Stopped);
         let ran_s = outcome.ran_s;
         let names: Vec<String> = self
@@ -323,6 +418,30 @@ impl LegSim {
         report.spasms = patient.spasms(t0 + ran_s);
         report.safety = patient.safety(&names);
         Ok(report)
+    }
+}
+
+/// What the leg's supervisor enforces: every muscle's pressure within its valve's range
+/// and the scenario's rate limit, each encoder finite and inside its joint's limits (with
+/// [`LIMIT_OVERSHOOT_MAX_RAD`] to spare: rapier holds a limit to milliradians).
+fn supervisor_limits(sc: &Scenario, joint_limits_rad: [[f64; 2]; 2]) -> SupervisorLimits {
+    let window = |k: usize| {
+        let [lo, hi] = joint_limits_rad[k];
+        ReadingWindow {
+            name: ["hip angle", "knee angle"][k],
+            unit: "rad",
+            min: lo - LIMIT_OVERSHOOT_MAX_RAD,
+            max: hi + LIMIT_OVERSHOOT_MAX_RAD,
+        }
+    };
+    SupervisorLimits {
+        pressure_max_pa: sc.plant.valve.pressure_max_pa,
+        pressure_rate_max_pa_per_s: sc.control.pressure_rate_max_pa_per_s,
+        windows: vec![window(0), window(1)],
+        sensor_stuck_periods: 0,
+        watchdog_periods: 0,
+        overrun_max_consecutive_periods: u32::MAX,
+        overrun_max_share: 1.0,
     }
 }
 

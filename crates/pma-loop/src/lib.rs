@@ -66,8 +66,10 @@
 #![warn(missing_docs)]
 
 mod recorder;
+pub mod signals;
 
 pub use recorder::{FnRecorder, Recorder};
+pub use signals::{Channel, Schema, Signals};
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;

@@ -110,6 +110,7 @@ pub struct Valve {
     params: ValveParams,
     pressure_pa: f64,
     target_pa: f64,
+    set_point_pa: f64,
     mode: DampingMode,
     clock_s: f64,
     pending: Vec<(f64, f64)>,
@@ -127,6 +128,7 @@ impl Valve {
             params,
             pressure_pa: p,
             target_pa: p,
+            set_point_pa: p,
             mode: DampingMode::Inflation,
             clock_s: 0.0,
             pending: vec![(0.0, p); capacity],
@@ -145,6 +147,11 @@ impl Valve {
         self.pressure_pa
     }
 
+    /// The last set point issued (clamped), whether or not it has taken effect yet.
+    pub fn set_point(&self) -> f64 {
+        self.set_point_pa
+    }
+
     /// Damping mode implied by the last pressure change.
     pub fn mode(&self) -> DampingMode {
         self.mode
@@ -154,6 +161,7 @@ impl Valve {
     /// now; otherwise the command takes effect after the dead time and the lag.
     pub fn command(&mut self, command_pa: f64) {
         let c = self.params.clamp(command_pa);
+        self.set_point_pa = c;
         if self.params.dead_time_s > 0.0 {
             self.push_pending(self.clock_s + self.params.dead_time_s, c);
         } else {

@@ -3,6 +3,7 @@
 use crate::daq::{AnalogChannel, DigitalLine};
 use crate::error::RigError;
 use pma_bench::PlantConfig;
+use pma_control::supervisor::{ReadingWindow, SupervisorLimits};
 use pma_control::{
     ChirpReference, ControllerConfig, ControllerKind, NominalModel, NominalSpec, SineReference,
     SmoothStart, Trajectory,
@@ -571,6 +572,25 @@ impl RigConfig {
             "must be > 0 and at most 0.5",
         )?;
         Ok(())
+    }
+
+    /// What the supervisor enforces on this rig.
+    pub fn supervisor_limits(&self) -> SupervisorLimits {
+        let l = &self.limits;
+        SupervisorLimits {
+            pressure_max_pa: l.pressure_max_pa,
+            pressure_rate_max_pa_per_s: l.pressure_rate_max_pa_per_s,
+            windows: vec![ReadingWindow {
+                name: "position",
+                unit: "m",
+                min: l.position_min_m,
+                max: l.position_max_m,
+            }],
+            sensor_stuck_periods: l.sensor_stuck_periods,
+            watchdog_periods: l.watchdog_periods,
+            overrun_max_consecutive_periods: l.overrun_max_consecutive_periods,
+            overrun_max_share: l.overrun_max_share,
+        }
     }
 
     /// The controller kind.

@@ -12,7 +12,6 @@ mod error;
 pub mod log;
 pub mod replay;
 pub mod run;
-pub mod supervisor;
 pub mod timing;
 pub mod virtual_daq;
 
@@ -22,7 +21,9 @@ pub use daq::{
     AnalogChannel, Aref, ChannelName, Daq, DaqError, DigitalLine, Direction, OutputHandle,
 };
 pub use error::RigError;
+/// The safety supervisor (pma-control's, shared with the leg).
+pub use pma_control::supervisor;
+pub use pma_control::supervisor::{Alarm, Fault, Supervised, Watchdog};
 pub use replay::{replay, ReplayReport};
 pub use run::{Rig, RigReport, RunOptions};
-pub use supervisor::{Alarm, Fault, Supervised, Watchdog};
 pub use virtual_daq::{InjectedFault, Injection, VirtualDaq};

@@ -10,7 +10,7 @@
 //! [`Alarm`]: the supervisor vents and stops with `log-error` at the next period.
 use crate::backend::RigBackend;
 use crate::error::RigError;
-use crate::supervisor::{Alarm, Supervised};
+use pma_control::supervisor::{Alarm, Supervised};
 use pma_control::MuscleStep;
 use pma_control::{RefSample, Reference};
 use pma_loop::{Backend, End, Period, Recorder, Start};
@@ -510,7 +510,7 @@ impl Recorder<Rig, MuscleStep> for RigLog {
         self.push(r);
     }
 
-    fn end(&mut self, end: &End<crate::supervisor::Fault<crate::daq::DaqError>>, _t_s: f64) {
+    fn end(&mut self, end: &End<pma_control::supervisor::Fault<crate::daq::DaqError>>, _t_s: f64) {
         let fault = match end {
             End::Completed => None,
             End::Stopped => Some("interrupted"),

@@ -11,9 +11,11 @@
 use crate::config::RigConfig;
 use crate::error::RigError;
 use crate::log::{hex, DIGEST_PREFIX, LOG_FORMAT};
-use crate::supervisor::limit_command;
-use pma_control::SmoothStart;
-use pma_control::{Controller, ControllerConfig, Measurement, RefSample, Reference};
+use pma_control::{
+    ControllerConfig, Fault, Measurement, MuscleStep, MuscleTask, RefSample, SmoothStart,
+    Supervised,
+};
+use pma_loop::{Backend, End, LoopSettings, Period, Recorder, Started};
 use sha2::{Digest, Sha256};
 use std::path::Path;
 
@@ -198,46 +200,317 @@ impl Columns {
     }
 }
 
-/// One row, parsed.
-struct Row<'r> {
-    record: &'r csv::StringRecord,
+/// One row of a log, parsed: what the loop saw, did and the controller reported.
+#[derive(Debug, Clone, Copy)]
+struct LogRow {
     number: usize,
-    path: &'r Path,
+    period: f64,
+    t_s: f64,
+    dt_s: f64,
+    reference: RefSample,
+    position_m: f64,
+    position_v: f64,
+    /// `command_pa`, then the controller's states (velocity, proxy, S_p, S_q, gain,
+    /// disturbance), as logged.
+    control: [f64; 7],
+    valve_cmd_pa: f64,
+    valve_v: f64,
 }
 
-impl Row<'_> {
-    fn text(&self, c: usize) -> &str {
-        self.record.get(c).unwrap_or("")
-    }
+/// A log's rows: the activation, the periods, the vent and its fault.
+struct Rows {
+    activation: LogRow,
+    periods: Vec<LogRow>,
+    vent: LogRow,
+    fault: Option<String>,
+}
 
-    fn num(&self, c: usize) -> Result<f64, RigError> {
-        let s = self.text(c);
-        s.parse::<f64>().map_err(|_| {
-            log_error(
-                self.path,
-                format!("row {}: `{s}` is not a number", self.number),
-            )
-        })
+fn parse_rows(path: &Path, body: &str, digest_rows: u64) -> Result<Rows, RigError> {
+    let mut reader = csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .from_reader(body.as_bytes());
+    let names = reader
+        .headers()
+        .map_err(|e| log_error(path, e.to_string()))?
+        .clone();
+    let c = Columns::of(path, &names)?;
+    let mut activation = None;
+    let mut periods = Vec::new();
+    let mut vent = None;
+    let mut fault = None;
+    let mut count = 0u64;
+    for (i, record) in reader.records().enumerate() {
+        let record = record.map_err(|e| log_error(path, e.to_string()))?;
+        let number = i + 1;
+        count += 1;
+        let text = |k: usize| record.get(k).unwrap_or("");
+        let num = |k: usize| -> Result<f64, RigError> {
+            let s = text(k);
+            s.parse::<f64>()
+                .map_err(|_| log_error(path, format!("row {number}: `{s}` is not a number")))
+        };
+        let row = LogRow {
+            number,
+            period: num(c.period)?,
+            t_s: num(c.t)?,
+            dt_s: num(c.dt)?,
+            reference: RefSample {
+                position_m: num(c.reference[0])?,
+                velocity_m_s: num(c.reference[1])?,
+                acceleration_m_s2: num(c.reference[2])?,
+            },
+            position_m: num(c.position)?,
+            position_v: num(c.position_v)?,
+            control: [
+                num(c.command)?,
+                num(c.velocity)?,
+                num(c.states[0])?,
+                num(c.states[1])?,
+                num(c.states[2])?,
+                num(c.states[3])?,
+                num(c.states[4])?,
+            ],
+            valve_cmd_pa: num(c.valve_cmd)?,
+            valve_v: num(c.valve_v)?,
+        };
+        let (event, row_fault) = (text(c.event), text(c.fault));
+        if vent.is_some() {
+            return Err(log_error(
+                path,
+                format!("row {number}: a row after the vent row"),
+            ));
+        }
+        if event != "vent" && !row_fault.is_empty() {
+            return Err(log_error(
+                path,
+                format!("row {number}: a fault (`{row_fault}`) outside the vent row"),
+            ));
+        }
+        match (event, activation.is_some()) {
+            ("activate", false) => activation = Some(row),
+            ("", true) => periods.push(row),
+            ("vent", true) => {
+                vent = Some(row);
+                fault = (!row_fault.is_empty()).then(|| row_fault.to_owned());
+            }
+            ("activate", true) => {
+                return Err(log_error(
+                    path,
+                    format!("row {number}: a second activation"),
+                ))
+            }
+            ("", false) | ("vent", false) => {
+                return Err(log_error(
+                    path,
+                    format!("row {number}: a row before the activation row"),
+                ))
+            }
+            (other, _) => {
+                return Err(log_error(
+                    path,
+                    format!("row {number}: unknown event `{other}`"),
+                ))
+            }
+        }
     }
+    if count != digest_rows {
+        return Err(log_error(
+            path,
+            format!("{count} rows, but the digest line says {digest_rows}"),
+        ));
+    }
+    let activation =
+        activation.ok_or_else(|| log_error(path, "no activation row: nothing to replay"))?;
+    let vent =
+        vent.ok_or_else(|| log_error(path, "no vent row at the end: the log is incomplete"))?;
+    Ok(Rows {
+        activation,
+        periods,
+        vent,
+        fault,
+    })
+}
 
-    /// Fails unless the logged value equals the recomputed one bit for bit.
-    fn exact(&self, c: usize, name: &str, expected: f64) -> Result<(), RigError> {
-        let logged = self.num(c)?;
-        if logged.to_bits() == expected.to_bits() {
-            Ok(())
-        } else {
-            Err(self.differs(name, logged, expected))
+fn differs(path: &Path, row: &LogRow, name: &str, logged: f64, expected: f64) -> RigError {
+    log_error(
+        path,
+        format!(
+            "row {}: {name} is {logged:?}, but the log's own header and earlier rows give {expected:?}: the log was edited or is not from this configuration",
+            row.number
+        ),
+    )
+}
+
+/// Fails unless `logged` equals `expected` bit for bit.
+fn exact(
+    path: &Path,
+    row: &LogRow,
+    name: &str,
+    logged: f64,
+    expected: f64,
+) -> Result<(), RigError> {
+    if logged.to_bits() == expected.to_bits() {
+        Ok(())
+    } else {
+        Err(differs(path, row, name, logged, expected))
+    }
+}
+
+/// The log as a backend of the loop: its readings, periods and (checked) valve commands
+/// played back, so that the controller and the supervisor run as they ran on the rig.
+struct LogPlayer<'a> {
+    path: &'a Path,
+    header: &'a Header,
+    rows: &'a Rows,
+    /// Index of the current period row (none read yet: `None`).
+    at: Option<usize>,
+    elapsed: u64,
+}
+
+impl LogPlayer<'_> {
+    fn row(&self) -> &LogRow {
+        match self.at {
+            Some(k) => &self.rows.periods[k],
+            None => &self.rows.activation,
         }
     }
 
-    fn differs(&self, name: &str, logged: f64, expected: f64) -> RigError {
-        log_error(
-            self.path,
-            format!(
-                "row {}: {name} is {logged:?}, but the log's own header and earlier rows give {expected:?}: the log was edited or is not from this configuration",
-                self.number
-            ),
-        )
+    /// The position the sensor's volts give, checked against the logged one.
+    fn measurement(&self) -> Result<Measurement, RigError> {
+        let row = self.row();
+        let position_m = self.header.config.calibration.position_m(row.position_v);
+        exact(self.path, row, "position_m", row.position_m, position_m)?;
+        Ok(Measurement { position_m })
+    }
+
+    fn check_valve_v(&self, valve_cmd_pa: f64) -> Result<(), RigError> {
+        let row = self.row();
+        let expected = self.header.config.calibration.valve_v(valve_cmd_pa);
+        if (row.valve_v - expected).abs() > VOLTS_TOLERANCE {
+            return Err(differs(self.path, row, "valve_v", row.valve_v, expected));
+        }
+        Ok(())
+    }
+}
+
+impl Backend for LogPlayer<'_> {
+    type Reading = Measurement;
+    type Command = f64;
+    type Truth = LogRow;
+    type Error = RigError;
+
+    fn period_s(&self) -> f64 {
+        self.header.config.period_s
+    }
+
+    fn start(&mut self) -> Result<Started<Measurement, f64>, RigError> {
+        let row = self.rows.activation;
+        exact(self.path, &row, "period", row.period, 0.0)?;
+        let reading = self.measurement()?;
+        self.check_valve_v(row.valve_cmd_pa)?;
+        Ok(Started {
+            t_s: row.t_s,
+            reading,
+            command: row.valve_cmd_pa,
+        })
+    }
+
+    /// The next period row: its number and time follow from the ones before.
+    fn wait(&mut self) -> Result<u32, RigError> {
+        let k = self.at.map_or(0, |k| k + 1);
+        let period_s = self.period_s();
+        let row = self.rows.periods.get(k).ok_or_else(|| {
+            log_error(
+                self.path,
+                "the log ends before its run: a period row is missing",
+            )
+        })?;
+        exact(self.path, row, "period", row.period, (k + 1) as f64)?;
+        let n = (row.dt_s / period_s).round();
+        if !(n >= 1.0 && f64::from(n as u32) * period_s == row.dt_s) {
+            return Err(differs(self.path, row, "dt_s", row.dt_s, period_s));
+        }
+        self.elapsed += n as u64;
+        let t = self.rows.activation.t_s + self.elapsed as f64 * period_s;
+        exact(self.path, row, "t_s", row.t_s, t)?;
+        self.at = Some(k);
+        Ok(n as u32)
+    }
+
+    fn read(&mut self) -> Result<Measurement, RigError> {
+        self.measurement()
+    }
+
+    /// The command as the supervisor applied it must be the logged one.
+    fn write(&mut self, command: &f64) -> Result<f64, RigError> {
+        let row = *self.row();
+        exact(self.path, &row, "valve_cmd_pa", row.valve_cmd_pa, *command)?;
+        self.check_valve_v(*command)?;
+        Ok(*command)
+    }
+
+    fn truth(&self) -> LogRow {
+        *self.row()
+    }
+
+    fn stop(&mut self) {}
+}
+
+/// Compares each period's replayed reference (an integrity check) and controller output
+/// (counted) with the log's.
+struct Compare<'a> {
+    path: &'a Path,
+    report: ReplayReport,
+    broken: Option<RigError>,
+}
+
+impl<'a> Recorder<Supervised<LogPlayer<'a>>, MuscleStep> for Compare<'a> {
+    fn record(&mut self, p: &Period<'_, Supervised<LogPlayer<'a>>, MuscleStep>) {
+        let row = p.truth;
+        let r = &p.output.reference;
+        if self.broken.is_none() {
+            for (name, logged, replayed) in [
+                ("reference_m", row.reference.position_m, r.position_m),
+                (
+                    "reference_velocity_m_s",
+                    row.reference.velocity_m_s,
+                    r.velocity_m_s,
+                ),
+                (
+                    "reference_acceleration_m_s2",
+                    row.reference.acceleration_m_s2,
+                    r.acceleration_m_s2,
+                ),
+            ] {
+                if let Err(e) = exact(self.path, row, name, logged, replayed) {
+                    self.broken = Some(e);
+                    break;
+                }
+            }
+        }
+        let c = &p.output.control;
+        let d = &c.diagnostics;
+        let replayed = [
+            c.pressure_cmd_pa,
+            d.velocity_m_s,
+            d.proxy_position_m,
+            d.s_p,
+            d.s_q,
+            d.gain_hat,
+            d.disturbance_hat,
+        ];
+        if replayed
+            .iter()
+            .zip(&row.control)
+            .any(|(a, b)| a.to_bits() != b.to_bits())
+        {
+            self.report.mismatches += 1;
+            let diff = (c.pressure_cmd_pa - row.control[0]).abs();
+            if diff.is_finite() {
+                self.report.max_abs_difference_pa = self.report.max_abs_difference_pa.max(diff);
+            }
+        }
+        self.report.periods += 1;
     }
 }
 
@@ -249,237 +522,63 @@ pub fn replay(path: &Path) -> Result<ReplayReport, RigError> {
     })?;
     let header = parse_header(path, &header_lines(&text))?;
     let (body, digest_rows) = check_digest(path, &text)?;
-    let mut controller = header.config.build_controller(&header.gains)?;
-    let mut reader = csv::ReaderBuilder::new()
-        .comment(Some(b'#'))
-        .from_reader(body.as_bytes());
-    let names = reader
-        .headers()
-        .map_err(|e| log_error(path, e.to_string()))?
-        .clone();
-    let columns = Columns::of(path, &names)?;
-    let mut replay = Replayer {
+    let rows = parse_rows(path, body, digest_rows)?;
+    let player = LogPlayer {
         path,
         header: &header,
-        columns: &columns,
-        controller: controller.as_mut(),
+        rows: &rows,
+        at: None,
+        elapsed: 0,
+    };
+    // The rig's supervisor, without its watchdog: it clamps and rate-limits the replayed
+    // commands as it did on the rig.
+    let mut limits = header.config.supervisor_limits();
+    limits.watchdog_periods = 0;
+    let mut rig = Supervised::new(player, limits, None);
+    let controller = header.config.build_controller(&header.gains)?;
+    let mut task = MuscleTask::new(controller, &header.reference);
+    let mut compare = Compare {
+        path,
         report: ReplayReport {
             log: path.display().to_string(),
             controller: header.gains.kind().as_str().to_owned(),
             periods: 0,
             max_abs_difference_pa: 0.0,
             mismatches: 0,
-            fault: None,
+            fault: rows.fault.clone(),
         },
-        state: None,
+        broken: None,
     };
-    let mut rows = 0u64;
-    for (i, record) in reader.records().enumerate() {
-        let record = record.map_err(|e| log_error(path, e.to_string()))?;
-        replay.row(&Row {
-            record: &record,
-            number: i + 1,
-            path,
-        })?;
-        rows += 1;
-    }
-    if rows != digest_rows {
-        return Err(log_error(
-            path,
-            format!("{rows} rows, but the digest line says {digest_rows}"),
-        ));
-    }
-    match replay.state {
-        Some(State { vented: true, .. }) => Ok(replay.report),
-        Some(_) => Err(log_error(
-            path,
-            "no vent row at the end: the log is incomplete",
-        )),
-        None => Err(log_error(path, "no activation row: nothing to replay")),
-    }
-}
-
-/// Where the replay stands.
-struct State {
-    period: u64,
-    elapsed: u64,
-    t0: f64,
-    t: f64,
-    valve_cmd_pa: f64,
-    vented: bool,
-}
-
-struct Replayer<'a> {
-    path: &'a Path,
-    header: &'a Header,
-    columns: &'a Columns,
-    controller: &'a mut dyn Controller,
-    report: ReplayReport,
-    state: Option<State>,
-}
-
-impl Replayer<'_> {
-    fn row(&mut self, row: &Row<'_>) -> Result<(), RigError> {
-        let c = self.columns;
-        if self.state.as_ref().is_some_and(|s| s.vented) {
-            return Err(log_error(
-                self.path,
-                format!("row {}: a row after the vent row", row.number),
-            ));
-        }
-        let event = row.text(c.event).to_owned();
-        let fault = row.text(c.fault);
-        if event != "vent" && !fault.is_empty() {
-            return Err(log_error(
-                self.path,
-                format!(
-                    "row {}: a fault (`{fault}`) outside the vent row",
-                    row.number
+    let elapsed: f64 = rows
+        .periods
+        .iter()
+        .map(|r| (r.dt_s / header.config.period_s).round())
+        .sum();
+    if !rows.periods.is_empty() {
+        let settings = LoopSettings::new(elapsed * header.config.period_s)?;
+        let outcome = pma_loop::run(&mut rig, &mut task, &mut compare, &settings)?;
+        if let End::Fault { error, .. } = outcome.end {
+            return Err(match error {
+                Fault::Backend(e) => e,
+                other => log_error(
+                    path,
+                    format!("the rig's supervisor would have stopped here: {other}"),
                 ),
-            ));
-        }
-        match (event.as_str(), self.state.is_some()) {
-            ("activate", false) => self.activate(row),
-            ("", true) => self.period(row),
-            ("vent", true) => self.vent(row),
-            ("activate", true) => Err(log_error(
-                self.path,
-                format!("row {}: a second activation", row.number),
-            )),
-            ("", false) | ("vent", false) => Err(log_error(
-                self.path,
-                format!("row {}: a row before the activation row", row.number),
-            )),
-            (other, _) => Err(log_error(
-                self.path,
-                format!("row {}: unknown event `{other}`", row.number),
-            )),
+            });
         }
     }
+    if let Some(e) = compare.broken {
+        return Err(e);
+    }
+    check_vent(path, &rows)?;
+    Ok(compare.report)
+}
 
-    /// The position the sensor's volts give, checked against the logged one.
-    fn measurement(&self, row: &Row<'_>) -> Result<Measurement, RigError> {
-        let c = self.columns;
-        let position_m = self
-            .header
-            .config
-            .calibration
-            .position_m(row.num(c.position_v)?);
-        row.exact(c.position, "position_m", position_m)?;
-        Ok(Measurement { position_m })
-    }
-
-    fn reference(&self, row: &Row<'_>, t: f64) -> Result<RefSample, RigError> {
-        let r = self.header.reference.sample(t);
-        let [p, v, a] = self.columns.reference;
-        row.exact(p, "reference_m", r.position_m)?;
-        row.exact(v, "reference_velocity_m_s", r.velocity_m_s)?;
-        row.exact(a, "reference_acceleration_m_s2", r.acceleration_m_s2)?;
-        Ok(r)
-    }
-
-    fn check_valve_v(&self, row: &Row<'_>, valve_cmd_pa: f64) -> Result<(), RigError> {
-        let expected = self.header.config.calibration.valve_v(valve_cmd_pa);
-        let logged = row.num(self.columns.valve_v)?;
-        if (logged - expected).abs() > VOLTS_TOLERANCE {
-            return Err(row.differs("valve_v", logged, expected));
-        }
-        Ok(())
-    }
-
-    fn activate(&mut self, row: &Row<'_>) -> Result<(), RigError> {
-        let c = self.columns;
-        row.exact(c.period, "period", 0.0)?;
-        let t0 = row.num(c.t)?;
-        let measurement = self.measurement(row)?;
-        let reference = self.reference(row, t0)?;
-        let valve_cmd_pa = row.num(c.valve_cmd)?;
-        self.check_valve_v(row, valve_cmd_pa)?;
-        self.controller.reset(measurement, reference);
-        self.state = Some(State {
-            period: 0,
-            elapsed: 0,
-            t0,
-            t: t0,
-            valve_cmd_pa,
-            vented: false,
-        });
-        Ok(())
-    }
-
-    fn period(&mut self, row: &Row<'_>) -> Result<(), RigError> {
-        let c = self.columns;
-        let period_s = self.header.config.period_s;
-        let Some(s) = self.state.as_mut() else {
-            return Ok(());
-        };
-        let period = s.period + 1;
-        row.exact(c.period, "period", period as f64)?;
-        let dt = row.num(c.dt)?;
-        let n = (dt / period_s).round();
-        if !(n >= 1.0 && f64::from(n as u32) * period_s == dt) {
-            return Err(row.differs("dt_s", dt, period_s));
-        }
-        let elapsed = s.elapsed + n as u64;
-        let t = s.t0 + elapsed as f64 * period_s;
-        row.exact(c.t, "t_s", t)?;
-        let last_valve_cmd = s.valve_cmd_pa;
-        let measurement = self.measurement(row)?;
-        let reference = self.reference(row, t)?;
-        let out = self.controller.update(&reference, &measurement, dt);
-        let logged = row.num(c.command)?;
-        let limits = &self.header.config.limits;
-        let valve_cmd_pa = limit_command(logged, last_valve_cmd, limits, period_s);
-        row.exact(c.valve_cmd, "valve_cmd_pa", valve_cmd_pa)?;
-        self.check_valve_v(row, valve_cmd_pa)?;
-        self.controller.applied(valve_cmd_pa);
-        let d = &out.diagnostics;
-        let replayed = [
-            out.pressure_cmd_pa,
-            d.velocity_m_s,
-            d.proxy_position_m,
-            d.s_p,
-            d.s_q,
-            d.gain_hat,
-            d.disturbance_hat,
-        ];
-        let mut logged_states = [logged, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
-        logged_states[1] = row.num(c.velocity)?;
-        for (slot, &col) in logged_states[2..].iter_mut().zip(&c.states) {
-            *slot = row.num(col)?;
-        }
-        if replayed
-            .iter()
-            .zip(&logged_states)
-            .any(|(a, b)| a.to_bits() != b.to_bits())
-        {
-            self.report.mismatches += 1;
-            let diff = (out.pressure_cmd_pa - logged).abs();
-            if diff.is_finite() {
-                self.report.max_abs_difference_pa = self.report.max_abs_difference_pa.max(diff);
-            }
-        }
-        self.report.periods += 1;
-        if let Some(s) = self.state.as_mut() {
-            s.period = period;
-            s.elapsed = elapsed;
-            s.t = t;
-            s.valve_cmd_pa = valve_cmd_pa;
-        }
-        Ok(())
-    }
-
-    fn vent(&mut self, row: &Row<'_>) -> Result<(), RigError> {
-        let c = self.columns;
-        let Some(s) = self.state.as_mut() else {
-            return Ok(());
-        };
-        row.exact(c.period, "period", (s.period + 1) as f64)?;
-        row.exact(c.t, "t_s", s.t)?;
-        row.exact(c.valve_cmd, "valve_cmd_pa", 0.0)?;
-        s.vented = true;
-        let fault = row.text(c.fault);
-        self.report.fault = (!fault.is_empty()).then(|| fault.to_owned());
-        self.check_valve_v(row, 0.0)
-    }
+/// The vent row closes the last period: same time, the next number, zero pressure.
+fn check_vent(path: &Path, rows: &Rows) -> Result<(), RigError> {
+    let last = rows.periods.last().unwrap_or(&rows.activation);
+    let v = &rows.vent;
+    exact(path, v, "period", v.period, last.period + 1.0)?;
+    exact(path, v, "t_s", v.t_s, last.t_s)?;
+    exact(path, v, "valve_cmd_pa", v.valve_cmd_pa, 0.0)
 }

@@ -8,9 +8,9 @@ use crate::log::{LogSpec, LogSummary, RigLog};
 use crate::replay::{
     format_line, CONFIG_BEGIN, CONFIG_END, GAINS_BEGIN, GAINS_END, REFERENCE_START,
 };
-use crate::supervisor::{Alarm, Fault, Supervised, VentAction, WatchdogFactory};
 use crate::timing::{enter_realtime, RealtimeStatus, TimingSummary};
 use crate::virtual_daq::{Injection, VirtualDaq};
+use pma_control::supervisor::{Alarm, Fault, Supervised, VentAction, WatchdogFactory};
 use pma_control::{ControllerConfig, MuscleStep, MuscleTask, Tracking};
 use pma_loop::{End, LoopSettings, Recorder};
 use std::panic::AssertUnwindSafe;
@@ -307,7 +307,8 @@ fn arm(
         Some(vent)
     });
     let alarm = Alarm::new();
-    let rig = Supervised::new(backend, cfg.limits, Some(factory)).with_alarm(Arc::clone(&alarm));
+    let rig = Supervised::new(backend, cfg.supervisor_limits(), Some(factory))
+        .with_alarm(Arc::clone(&alarm));
     Ok(Armed {
         rig,
         reference: cfg.reference(start_m),

@@ -14,12 +14,12 @@
 //! 0.090, Kim et al. 1996) and `R2n = R2 / 1.6` (about 1 or more when healthy).
 use pma_control::ControllerKind;
 use pma_leg::LegError;
-use pma_leg::LegPlant;
 use pma_leg::LegSim;
 use pma_leg::LoadedScenario;
 use pma_leg::Mount;
+use pma_leg::SupervisedLeg;
 use pma_leg::{LegOutput, Vented};
-use pma_loop::{LoopSettings, Period, Recorder};
+use pma_loop::{LoopSettings, Period, Recorder, Schema, Signals};
 
 /// The knee's upper limit during the test (deg): the shank may swing past vertical as far
 /// as soft tissue allows.
@@ -97,6 +97,84 @@ pub struct PendulumReport {
     pub finite: bool,
 }
 
+/// One period of the pendulum test as logs show it: the leg swinging on its own.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PendulumSample {
+    /// Time (s).
+    pub t_s: f64,
+    /// Joint angles (rad): the hip held, the knee swinging.
+    pub angle_rad: [f64; 2],
+    /// Joint velocities (rad/s).
+    pub velocity_rad_s: [f64; 2],
+    /// The patient's torques by part (N m, flexion positive).
+    pub patient: pma_leg::PatientTorques,
+    /// The knee's joint damping torque (N m).
+    pub knee_damping_nm: f64,
+}
+
+impl PendulumSample {
+    /// The test's view of one period; `knee_damping_nm_s_per_rad` is the joint's damping.
+    pub fn of(p: &Period<'_, SupervisedLeg, LegOutput>, knee_damping_nm_s_per_rad: f64) -> Self {
+        let s = p.truth;
+        Self {
+            t_s: p.t_s,
+            angle_rad: s.angle_rad,
+            velocity_rad_s: s.velocity_rad_s,
+            patient: s.patient,
+            knee_damping_nm: -knee_damping_nm_s_per_rad * s.velocity_rad_s[1],
+        }
+    }
+
+    /// The test's channels (after the time), as the CSV and Rerun show them.
+    pub fn schema() -> Schema {
+        let mut s = Schema::new();
+        for j in ["hip", "knee"] {
+            s.push_part("joints", j, "angle_deg", "angle (deg)")
+                .push_part("joints", j, "velocity_deg_s", "velocity (deg/s)")
+                .push_part(
+                    "joints",
+                    j,
+                    "patient_torque_nm",
+                    "patient torque, all parts (N m)",
+                )
+                .push_part(
+                    "joints",
+                    j,
+                    "reflex_torque_nm",
+                    "stretch reflex torque (N m)",
+                )
+                .push_part("joints", j, "spasm_torque_nm", "spasm torque (N m)")
+                .push_part("joints", j, "stiffness_torque_nm", "passive moment (N m)");
+        }
+        s.push_part(
+            "joints",
+            "knee",
+            "damping_torque_nm",
+            "joint damping torque (N m)",
+        );
+        s
+    }
+}
+
+impl Signals for PendulumSample {
+    fn values(&self, out: &mut [f64]) {
+        let total = self.patient.total();
+        let per_joint = |j: usize| {
+            [
+                self.angle_rad[j].to_degrees(),
+                self.velocity_rad_s[j].to_degrees(),
+                total[j],
+                self.patient.reflex_nm[j],
+                self.patient.spasm_nm[j],
+                self.patient.stiffness_nm[j],
+            ]
+        };
+        out[..6].copy_from_slice(&per_joint(0));
+        out[6..12].copy_from_slice(&per_joint(1));
+        out[12] = self.knee_damping_nm;
+    }
+}
+
 /// The knee's trajectory, pre-sized for the run.
 struct Trace {
     t_s: Vec<f64>,
@@ -107,8 +185,8 @@ struct Trace {
     finite: bool,
 }
 
-impl Recorder<LegPlant, LegOutput> for Trace {
-    fn record(&mut self, p: &Period<'_, LegPlant, LegOutput>) {
+impl Recorder<SupervisedLeg, LegOutput> for Trace {
+    fn record(&mut self, p: &Period<'_, SupervisedLeg, LegOutput>) {
         let s = p.truth;
         self.t_s.push(p.t_s);
         self.knee.push(s.angle_rad[1]);
@@ -180,7 +258,7 @@ pub fn seated(loaded: &LoadedScenario, setup: PendulumSetup) -> Result<LegSim, L
 
 /// Runs the test on a leg from [`seated`] with the same `setup`, `recorder` observing
 /// every period.
-pub fn run<R: Recorder<LegPlant, LegOutput>>(
+pub fn run<R: Recorder<SupervisedLeg, LegOutput>>(
     mut sim: LegSim,
     setup: PendulumSetup,
     settings: &LoopSettings,

@@ -20,6 +20,20 @@ pub use rerun::sink::MemorySinkStorage;
 /// Version of the `rerun` crate (and of the viewer to install).
 pub const RERUN_VERSION: &str = "0.36.3";
 
+/// Tableau's ten colours, for the series of one group.
+pub const PALETTE: [[u8; 3]; 10] = [
+    [31, 119, 180],
+    [255, 127, 14],
+    [44, 160, 44],
+    [214, 39, 40],
+    [148, 103, 189],
+    [140, 86, 75],
+    [227, 119, 194],
+    [127, 127, 127],
+    [188, 189, 34],
+    [23, 190, 207],
+];
+
 /// Samples per scalar chunk sent to Rerun.
 pub const CHUNK_LEN: usize = 256;
 
@@ -412,6 +426,23 @@ impl Viz {
             )
             .map_err(rr)?;
         self.series.push(Columns::new(path.to_owned()));
+        Ok(())
+    }
+
+    /// Registers every channel of `schema` as a series, in order (the order of a frame's
+    /// scalars), coloured by its place among its siblings.
+    pub fn schema(&mut self, schema: &pma_loop::Schema) -> Result<(), VizError> {
+        let mut parent = "";
+        let mut k = 0;
+        for c in &schema.channels {
+            let here = c.path.rsplit_once('/').map_or("", |(p, _)| p);
+            if here != parent {
+                parent = here;
+                k = 0;
+            }
+            self.series(&c.path, &c.doc, PALETTE[k % PALETTE.len()])?;
+            k += 1;
+        }
         Ok(())
     }
 

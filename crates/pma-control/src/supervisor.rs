@@ -1,10 +1,10 @@
-//! The safety supervisor: a decorator around any single-muscle backend, between the
-//! controller and the valve. It clamps and rate-limits commands; a NaN reading, a position
-//! outside its window, a sensor stuck for N periods, a backend error or a loop stall (seen
-//! by an independent watchdog thread, which vents on its own) vents and stops with the
-//! fault named. A fault latches: the run is over.
-use crate::config::Limits;
-use pma_control::Measurement;
+//! The safety supervisor: a decorator around any backend, between the task and the
+//! actuators (one muscle's valve on the rig, the leg's four). It clamps every command to
+//! `[0, max]` and limits its rate; a NaN reading, a reading outside its window, a sensor
+//! stuck for N periods, a backend error, a loop that misses its deadlines, a raised alarm
+//! (the log) or a loop stall (seen by an independent watchdog thread, which vents on its
+//! own) vents and stops with the fault named. A fault latches: the run is over.
+use crate::Measurement;
 use pma_loop::{Backend, Started};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
@@ -14,33 +14,40 @@ use thiserror::Error;
 /// Why the supervisor stopped a run.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum Fault<E: std::error::Error + 'static> {
-    /// The reading is NaN (a broken wire, a saturated converter).
-    #[error("sensor-nan: the position reading is NaN (no signal, or the converter saturated)")]
-    SensorNan,
-    /// The reading is outside the position window.
+    /// A reading is NaN (a broken wire, a saturated converter).
+    #[error("sensor-nan: the {channel} reading is NaN (no signal, or the converter saturated)")]
+    SensorNan {
+        /// Which reading.
+        channel: &'static str,
+    },
+    /// A reading is outside its window.
     #[error(
-        "position-out: the muscle reads {position_m} m, outside the window {min_m}..{max_m} m"
+        "position-out: the {channel} reads {value} {unit}, outside the window {min}..{max} {unit}"
     )]
     PositionOut {
-        /// Reading (m).
-        position_m: f64,
-        /// Window (m).
-        min_m: f64,
-        /// Window (m).
-        max_m: f64,
+        /// Which reading.
+        channel: &'static str,
+        /// Its value.
+        value: f64,
+        /// Window.
+        min: f64,
+        /// Window.
+        max: f64,
+        /// Unit.
+        unit: &'static str,
     },
-    /// The reading has not changed for too long.
-    #[error(
-        "sensor-stuck: the position reading has not changed for {periods} periods ({position_m} m)"
-    )]
+    /// A reading has not changed for too long.
+    #[error("sensor-stuck: the {channel} reading has not changed for {periods} periods ({value})")]
     SensorStuck {
+        /// Which reading.
+        channel: &'static str,
         /// Periods.
         periods: u32,
-        /// The frozen reading (m).
-        position_m: f64,
+        /// The frozen reading.
+        value: f64,
     },
-    /// The backend (board) failed.
-    #[error("daq-error: {0}")]
+    /// The backend (board, plant) failed.
+    #[error("{0}")]
     Backend(#[source] E),
     /// The loop went silent; the watchdog vented.
     #[error("stall: the control loop was silent for {silent_ms:.1} ms (watchdog {timeout_ms:.1} ms); the watchdog vented")]
@@ -68,7 +75,7 @@ impl<E: std::error::Error + 'static> Fault<E> {
     /// Short name (the `--inject` names, `fault` in the JSON and the log).
     pub fn name(&self) -> &'static str {
         match self {
-            Fault::SensorNan => "sensor-nan",
+            Fault::SensorNan { .. } => "sensor-nan",
             Fault::PositionOut { .. } => "position-out",
             Fault::SensorStuck { .. } => "sensor-stuck",
             Fault::Backend(_) => "daq-error",
@@ -239,7 +246,7 @@ impl OverrunCounter {
     fn record<E: std::error::Error>(
         &mut self,
         elapsed: u32,
-        limits: &Limits,
+        limits: &SupervisorLimits,
     ) -> Result<(), Fault<E>> {
         let missed = elapsed.saturating_sub(1);
         // The first wake-up also pays for the activation (threads, the log's first row):
@@ -278,25 +285,118 @@ impl OverrunCounter {
 /// Builds the watchdog's vent action when the run starts.
 pub type WatchdogFactory = Box<dyn FnOnce() -> Option<VentAction> + Send>;
 
-/// The command the supervisor applies: clamped to `[0, max]` (NaN vents), its change
-/// from `last_pa` limited to the rate limit over `dt_s` (replay recomputes it from a log).
-pub fn limit_command(command_pa: f64, last_pa: f64, limits: &Limits, dt_s: f64) -> f64 {
+/// The command the supervisor applies: clamped to `[0, max_pa]` (NaN vents), its change
+/// from `last_pa` limited to `rate_max_pa_per_s` over `dt_s` (replay recomputes it from a
+/// log).
+pub fn limit_command(
+    command_pa: f64,
+    last_pa: f64,
+    max_pa: f64,
+    rate_max_pa_per_s: f64,
+    dt_s: f64,
+) -> f64 {
     let u = if command_pa.is_nan() {
         0.0
     } else {
-        command_pa.clamp(0.0, limits.pressure_max_pa)
+        command_pa.clamp(0.0, max_pa)
     };
-    let step = limits.pressure_rate_max_pa_per_s * dt_s;
+    let step = rate_max_pa_per_s * dt_s;
     u.clamp(last_pa - step, last_pa + step)
 }
 
+/// A reading or a command as channels of numbers: one muscle's position, a leg's joint
+/// angles, one or four pressures.
+pub trait Channels: Copy {
+    /// Number of channels.
+    const COUNT: usize;
+    /// Channel `i`.
+    fn channel(&self, i: usize) -> f64;
+    /// Sets channel `i`.
+    fn set_channel(&mut self, i: usize, value: f64);
+    /// Every channel at zero.
+    fn zeroed() -> Self;
+}
+
+impl Channels for f64 {
+    const COUNT: usize = 1;
+    fn zeroed() -> Self {
+        0.0
+    }
+    fn channel(&self, _: usize) -> f64 {
+        *self
+    }
+    fn set_channel(&mut self, _: usize, value: f64) {
+        *self = value;
+    }
+}
+
+impl Channels for Measurement {
+    const COUNT: usize = 1;
+    fn zeroed() -> Self {
+        Measurement::default()
+    }
+    fn channel(&self, _: usize) -> f64 {
+        self.position_m
+    }
+    fn set_channel(&mut self, _: usize, value: f64) {
+        self.position_m = value;
+    }
+}
+
+impl<const N: usize> Channels for [f64; N] {
+    const COUNT: usize = N;
+    fn zeroed() -> Self {
+        [0.0; N]
+    }
+    fn channel(&self, i: usize) -> f64 {
+        self[i]
+    }
+    fn set_channel(&mut self, i: usize, value: f64) {
+        self[i] = value;
+    }
+}
+
+/// The window a reading must stay in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReadingWindow {
+    /// The reading's name (`position`, `hip angle`).
+    pub name: &'static str,
+    /// Its unit.
+    pub unit: &'static str,
+    /// Lowest admissible value.
+    pub min: f64,
+    /// Highest admissible value.
+    pub max: f64,
+}
+
+/// What a supervisor enforces. Command limits apply to every command channel; each
+/// reading channel has its window.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SupervisorLimits {
+    /// Highest pressure command (Pa); commands are clamped to `[0, max]`.
+    pub pressure_max_pa: f64,
+    /// Fastest command change (Pa/s); faster commands are rate-limited.
+    pub pressure_rate_max_pa_per_s: f64,
+    /// One window per reading channel.
+    pub windows: Vec<ReadingWindow>,
+    /// A reading identical for this many periods is a stuck sensor (0: not checked).
+    pub sensor_stuck_periods: u32,
+    /// The loop silent for this many periods trips the watchdog (0: no watchdog).
+    pub watchdog_periods: u32,
+    /// A wake-up that misses more than this many deadlines in a row is a timing fault.
+    pub overrun_max_consecutive_periods: u32,
+    /// A share of missed deadlines above this over [`OVERRUN_WINDOW_PERIODS`] is a timing
+    /// fault.
+    pub overrun_max_share: f64,
+}
+
 /// The supervisor around `B`.
-pub struct Supervised<B> {
+pub struct Supervised<B: Backend> {
     inner: B,
-    limits: Limits,
-    last_command_pa: f64,
-    last_reading_bits: u64,
-    same_readings: u32,
+    limits: SupervisorLimits,
+    last_commands: B::Command,
+    last_reading_bits: Vec<u64>,
+    same_readings: Vec<u32>,
     watchdog_factory: Option<WatchdogFactory>,
     watchdog: Option<Watchdog>,
     watchdog_vented: bool,
@@ -306,17 +406,21 @@ pub struct Supervised<B> {
 
 impl<B> Supervised<B>
 where
-    B: Backend<Reading = Measurement, Command = f64>,
+    B: Backend,
+    B::Reading: Channels,
+    B::Command: Channels,
 {
-    /// `inner` under `limits`; `watchdog` makes the vent action of the watchdog thread
-    /// when the run starts (`None`: no watchdog).
-    pub fn new(inner: B, limits: Limits, watchdog: Option<WatchdogFactory>) -> Self {
+    /// `inner` under `limits` (one window per reading channel); `watchdog` makes the vent
+    /// action of the watchdog thread when the run starts (`None`: no watchdog). Everything
+    /// the supervisor needs per period is allocated here.
+    pub fn new(inner: B, limits: SupervisorLimits, watchdog: Option<WatchdogFactory>) -> Self {
+        let n = B::Reading::COUNT;
         Self {
             inner,
             limits,
-            last_command_pa: 0.0,
-            last_reading_bits: f64::NAN.to_bits(),
-            same_readings: 0,
+            last_commands: B::Command::zeroed(),
+            last_reading_bits: vec![f64::NAN.to_bits(); n],
+            same_readings: vec![0; n],
             watchdog_factory: watchdog,
             watchdog: None,
             watchdog_vented: false,
@@ -345,6 +449,16 @@ where
         &self.inner
     }
 
+    /// The supervised backend, given back.
+    pub fn into_inner(self) -> B {
+        self.inner
+    }
+
+    /// The supervised backend, to change it between runs.
+    pub fn inner_mut(&mut self) -> &mut B {
+        &mut self.inner
+    }
+
     /// Whether the watchdog tripped and vented.
     pub fn watchdog_vented(&self) -> bool {
         self.watchdog_vented
@@ -370,55 +484,93 @@ where
         }
     }
 
-    /// Checks a reading: finite, inside the window, not frozen.
-    fn check_reading(&mut self, m: Measurement) -> Result<Measurement, Fault<B::Error>> {
-        let x = m.position_m;
-        if x.is_nan() {
-            return Err(Fault::SensorNan);
+    /// Checks every reading channel: finite, inside its window, not frozen.
+    fn check_reading(&mut self, r: B::Reading) -> Result<B::Reading, Fault<B::Error>> {
+        for (i, w) in self
+            .limits
+            .windows
+            .iter()
+            .enumerate()
+            .take(B::Reading::COUNT)
+        {
+            let x = r.channel(i);
+            if x.is_nan() {
+                return Err(Fault::SensorNan { channel: w.name });
+            }
+            if !(x >= w.min && x <= w.max) {
+                return Err(Fault::PositionOut {
+                    channel: w.name,
+                    value: x,
+                    min: w.min,
+                    max: w.max,
+                    unit: w.unit,
+                });
+            }
+            if x.to_bits() == self.last_reading_bits[i] {
+                self.same_readings[i] += 1;
+            } else {
+                self.same_readings[i] = 0;
+                self.last_reading_bits[i] = x.to_bits();
+            }
+            let stuck = self.limits.sensor_stuck_periods;
+            if stuck > 0 && self.same_readings[i] >= stuck {
+                return Err(Fault::SensorStuck {
+                    channel: w.name,
+                    periods: self.same_readings[i],
+                    value: x,
+                });
+            }
         }
-        let l = &self.limits;
-        if !(x >= l.position_min_m && x <= l.position_max_m) {
-            return Err(Fault::PositionOut {
-                position_m: x,
-                min_m: l.position_min_m,
-                max_m: l.position_max_m,
-            });
-        }
-        if x.to_bits() == self.last_reading_bits {
-            self.same_readings += 1;
-        } else {
-            self.same_readings = 0;
-            self.last_reading_bits = x.to_bits();
-        }
-        if l.sensor_stuck_periods > 0 && self.same_readings >= l.sensor_stuck_periods {
-            return Err(Fault::SensorStuck {
-                periods: self.same_readings,
-                position_m: x,
-            });
-        }
-        Ok(m)
+        Ok(r)
     }
 
-    fn limit(&self, command_pa: f64, dt_s: f64) -> f64 {
-        limit_command(command_pa, self.last_command_pa, &self.limits, dt_s)
+    /// Every command channel clamped and rate-limited from the last applied one.
+    fn limit(&self, command: &B::Command, dt_s: f64) -> B::Command {
+        let mut out = *command;
+        for i in 0..B::Command::COUNT {
+            out.set_channel(
+                i,
+                limit_command(
+                    command.channel(i),
+                    self.last_commands.channel(i),
+                    self.limits.pressure_max_pa,
+                    self.limits.pressure_rate_max_pa_per_s,
+                    dt_s,
+                ),
+            );
+        }
+        out
+    }
+}
+
+/// Read access to the supervised backend's own methods (a leg's poses, a rig's telemetry):
+/// only the loop's calls go through the supervisor.
+impl<B: Backend> std::ops::Deref for Supervised<B> {
+    type Target = B;
+    fn deref(&self) -> &B {
+        &self.inner
     }
 }
 
 impl<B> Backend for Supervised<B>
 where
-    B: Backend<Reading = Measurement, Command = f64>,
+    B: Backend,
+    B::Reading: Channels,
+    B::Command: Channels,
 {
-    type Reading = Measurement;
-    type Command = f64;
+    type Reading = B::Reading;
+    type Command = B::Command;
     type Truth = B::Truth;
     type Error = Fault<B::Error>;
 
-    fn start(&mut self) -> Result<Started<Measurement, f64>, Self::Error> {
+    fn start(&mut self) -> Result<Started<B::Reading, B::Command>, Self::Error> {
         let started = self.inner.start().map_err(Fault::Backend)?;
-        self.last_command_pa = started.command;
+        self.last_commands = started.command;
         let reading = self.check_reading(started.reading)?;
-        if let Some(vent) = self.watchdog_factory.take().and_then(|f| f()) {
-            self.watchdog = Watchdog::spawn(self.watchdog_timeout(), vent).ok();
+        if self.limits.watchdog_periods > 0 {
+            if let Some(vent) = self.watchdog_factory.take().and_then(|f| f()) {
+                self.watchdog = Watchdog::spawn(self.watchdog_timeout(), vent).ok();
+            }
         }
         Ok(Started { reading, ..started })
     }
@@ -438,7 +590,7 @@ where
         Ok(n)
     }
 
-    fn read(&mut self) -> Result<Measurement, Self::Error> {
+    fn read(&mut self) -> Result<B::Reading, Self::Error> {
         let r = self.inner.read();
         // A read that hung (the stall the watchdog exists for) reports the stall.
         self.check_watchdog()?;
@@ -446,11 +598,11 @@ where
         self.check_reading(m)
     }
 
-    fn write(&mut self, command_pa: &f64) -> Result<f64, Self::Error> {
+    fn write(&mut self, command: &B::Command) -> Result<B::Command, Self::Error> {
         self.check_watchdog()?;
-        let u = self.limit(*command_pa, self.inner.period_s());
+        let u = self.limit(command, self.inner.period_s());
         let applied = self.inner.write(&u).map_err(Fault::Backend)?;
-        self.last_command_pa = applied;
+        self.last_commands = applied;
         if let Some(w) = &self.watchdog {
             w.kick();
         }
@@ -538,12 +690,16 @@ mod tests {
         }
     }
 
-    fn limits() -> Limits {
-        Limits {
+    fn limits() -> SupervisorLimits {
+        SupervisorLimits {
             pressure_max_pa: 6e5,
             pressure_rate_max_pa_per_s: 2e8,
-            position_min_m: -0.018,
-            position_max_m: 0.045,
+            windows: vec![ReadingWindow {
+                name: "position",
+                unit: "m",
+                min: -0.018,
+                max: 0.045,
+            }],
             sensor_stuck_periods: 0,
             watchdog_periods: 50,
             overrun_max_consecutive_periods: 10,
@@ -552,7 +708,7 @@ mod tests {
     }
 
     /// A watchdog that never trips within the test, with its vent counted.
-    fn quiet_watchdog(timeout_periods: u32) -> (Limits, WatchdogFactory, Arc<AtomicU32>) {
+    fn quiet_watchdog(timeout_periods: u32) -> (SupervisorLimits, WatchdogFactory, Arc<AtomicU32>) {
         let vents = Arc::new(AtomicU32::new(0));
         let counted = Arc::clone(&vents);
         let factory: WatchdogFactory = Box::new(move || {
@@ -562,7 +718,7 @@ mod tests {
             });
             Some(vent)
         });
-        let l = Limits {
+        let l = SupervisorLimits {
             watchdog_periods: timeout_periods,
             ..limits()
         };
@@ -588,7 +744,12 @@ mod tests {
                 break;
             }
         }
-        assert_eq!(fault, Some(Fault::SensorNan));
+        assert_eq!(
+            fault,
+            Some(Fault::SensorNan {
+                channel: "position"
+            })
+        );
         rig.stop();
         let faulted = rig.inner().faulted_at.expect("fault seen");
         let vented = vented_at.lock().unwrap().expect("vented");
