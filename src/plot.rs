@@ -54,8 +54,10 @@ const REFERENCE_PX: u32 = 7;
 const REFERENCE_GREY: RGBColor = RGBColor(200, 200, 200);
 
 /// Run colours: Tableau 10 (classic) without its olive, which reads as yellow on white,
-/// and with its grey last, since the reference band is grey (only a ninth run gets it).
-const PALETTE: [RGBColor; 9] = [
+/// and with its grey after them, since the reference band is grey (only a ninth run gets
+/// it); then dark hues for the groups of a sweep (a leg sweep's controllers times patient
+/// groups reach ten).
+const PALETTE: [RGBColor; 14] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
     RGBColor(44, 160, 44),
@@ -65,6 +67,11 @@ const PALETTE: [RGBColor; 9] = [
     RGBColor(227, 119, 194),
     RGBColor(23, 190, 207),
     RGBColor(127, 127, 127),
+    RGBColor(0, 0, 0),
+    RGBColor(0, 0, 128),
+    RGBColor(128, 0, 0),
+    RGBColor(0, 110, 110),
+    RGBColor(110, 110, 0),
 ];
 
 /// Colour of run `i`.
@@ -412,24 +419,97 @@ fn legend_sample(area: &Area, (x, y): (i32, i32), e: &LegendEntry) -> DrawResult
     Ok(())
 }
 
+/// One empirical distribution of an [`ecdf_panels`] figure: its panel, its legend label
+/// and its values.
+struct Distribution {
+    panel: String,
+    label: String,
+    values: Vec<f64>,
+}
+
+/// Adds `value` to the distribution of `(panel, label)`, created in order of appearance.
+fn push_value(groups: &mut Vec<Distribution>, panel: &str, label: String, value: f64) {
+    match groups
+        .iter_mut()
+        .find(|g| g.panel == panel && g.label == label)
+    {
+        Some(g) => g.values.push(value),
+        None => groups.push(Distribution {
+            panel: panel.to_owned(),
+            label,
+            values: vec![value],
+        }),
+    }
+}
+
 /// A sweep's RTE distributions: one panel per reference, the empirical CDF of RTE (log
 /// scale) of each controller and gain set, so that median, tail and worst read at once.
-pub fn rte_distributions(
+pub fn rte_distributions(path: &Path, name: &str, runs: &pma_studies::sweep::Runs) -> DrawResult {
+    let mut groups = Vec::new();
+    for r in runs.values().filter_map(pma_studies::sweep::Record::bench) {
+        let label = format!("{} ({})", r.controller, r.gains);
+        push_value(&mut groups, &r.reference, label, r.rte_percent);
+    }
+    ecdf_panels(
+        path,
+        (
+            &format!("Sweep `{name}`: RTE of every run"),
+            "empirical cumulative distribution per controller (gains); RTE = mean |x_d - x| / 30 mm",
+        ),
+        "RTE (%)",
+        &groups,
+    )
+}
+
+/// A sweep's leg runs: one panel per joint (and scenario), the empirical CDF of the RMS
+/// tracking error (log scale) of each controller and gain set (and patient group).
+pub fn leg_rms_distributions(
     path: &Path,
     name: &str,
-    runs: &std::collections::BTreeMap<usize, pma_studies::sweep::RunRecord>,
+    runs: &pma_studies::sweep::Runs,
 ) -> DrawResult {
-    let mut groups: Vec<(String, String, Vec<f64>)> = Vec::new();
-    for r in runs.values() {
-        let label = format!("{} ({})", r.controller, r.gains);
-        match groups
-            .iter_mut()
-            .find(|g| g.0 == r.reference && g.1 == label)
-        {
-            Some(g) => g.2.push(r.rte_percent),
-            None => groups.push((r.reference.clone(), label, vec![r.rte_percent])),
+    let leg: Vec<_> = runs
+        .values()
+        .filter_map(pma_studies::sweep::Record::leg)
+        .collect();
+    let several = |f: fn(&pma_studies::sweep::LegRunRecord) -> &str| {
+        leg.iter()
+            .any(|r| f(r) != leg.first().map_or("", |r0| f(r0)))
+    };
+    let (scenarios, patient_groups) = (several(|r| &r.scenario), several(|r| &r.patient_group));
+    let mut groups = Vec::new();
+    for r in &leg {
+        let mut label = format!("{} ({})", r.controller, r.gains);
+        if patient_groups {
+            label.push_str(&format!(", {}", r.patient_group));
+        }
+        for (joint, rms) in [("hip", r.hip_rms_deg), ("knee", r.knee_rms_deg)] {
+            let panel = if scenarios {
+                format!("{}: {joint}", r.scenario)
+            } else {
+                joint.to_owned()
+            };
+            push_value(&mut groups, &panel, label.clone(), rms);
         }
     }
+    ecdf_panels(
+        path,
+        (
+            &format!("Sweep `{name}`: the leg's tracking error, every run"),
+            "empirical cumulative distribution per controller (gains); RMS error after the first stride",
+        ),
+        "RMS error (deg)",
+        &groups,
+    )
+}
+
+/// Empirical CDFs on a log axis, one panel per distinct `panel`, a colour per `label`.
+fn ecdf_panels(
+    path: &Path,
+    (title, setting): (&str, &str),
+    x_desc: &str,
+    groups: &[Distribution],
+) -> DrawResult {
     let unique = |v: Vec<String>| {
         v.into_iter().fold(Vec::new(), |mut out: Vec<String>, x| {
             if !out.contains(&x) {
@@ -438,21 +518,17 @@ pub fn rte_distributions(
             out
         })
     };
-    let references = unique(groups.iter().map(|g| g.0.clone()).collect());
-    let labels = unique(groups.iter().map(|g| g.1.clone()).collect());
+    let references = unique(groups.iter().map(|g| g.panel.clone()).collect());
+    let labels = unique(groups.iter().map(|g| g.label.clone()).collect());
     let root = BitMapBackend::new(path, SIZE).into_drawing_area();
     root.fill(&WHITE)?;
     let (head, body) = root.split_vertically(TITLE_HEIGHT);
-    title_block(
-        &head,
-        &format!("Sweep `{name}`: RTE of every run"),
-        "empirical cumulative distribution per controller (gains); RTE = mean |x_d - x| / 30 mm",
-    )?;
+    title_block(&head, title, setting)?;
     let (panels, legend) = body.split_horizontally(SIZE.0 - LEGEND_WIDTH);
     let cells = panels.split_evenly((references.len().max(1), 1));
     let finite = groups
         .iter()
-        .flat_map(|g| g.2.iter())
+        .flat_map(|g| g.values.iter())
         .filter(|v| v.is_finite() && **v > 0.0);
     let (lo, hi) = finite.fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(*v), b.max(*v)));
     let (lo, hi) = if lo <= hi {
@@ -472,18 +548,16 @@ pub fn rte_distributions(
             .build_cartesian_2d((lo..hi).log_scale(), 0.0..1.0)?;
         chart
             .configure_mesh()
-            .x_desc("RTE (%)")
+            .x_desc(x_desc)
             .y_desc("share of runs")
             .axis_desc_style((FONT, AXIS_DESC_PX))
             .label_style((FONT, TICK_PX))
             .x_label_formatter(&|v| format!("{v}"))
             .draw()?;
-        for (reference_name, label, values) in &groups {
-            if reference_name != reference {
-                continue;
-            }
-            let i = labels.iter().position(|l| l == label).unwrap_or(0);
-            let mut v: Vec<f64> = values
+        for g in groups.iter().filter(|g| &g.panel == reference) {
+            let i = labels.iter().position(|l| *l == g.label).unwrap_or(0);
+            let mut v: Vec<f64> = g
+                .values
                 .iter()
                 .map(|x| if x.is_finite() { x.clamp(lo, hi) } else { hi })
                 .collect();

@@ -22,15 +22,7 @@ pub struct Studies {
 }
 
 /// Runs one shipped sweep into `out/sweeps/<name>` (resuming what is there).
-fn run_sweep(
-    name: &str,
-    out: &Path,
-    stop: &AtomicBool,
-) -> Result<(
-    Sweep,
-    Summary,
-    std::collections::BTreeMap<usize, sweep::RunRecord>,
-)> {
+fn run_sweep(name: &str, out: &Path, stop: &AtomicBool) -> Result<(Sweep, Summary, sweep::Runs)> {
     let s = sweep::load(name)?;
     let dir = out.join("sweeps").join(name);
     sweep::execute(&s, &dir, Shard::default(), &|_, _| {}, stop)?;
@@ -101,7 +93,7 @@ fn shock_plots(s: &Sweep, out: &Path) -> Result<usize> {
     for plant in ["mismatch", "realistic"] {
         for (reference, event, title, window, marks) in &experiments {
             let mut traces = Vec::new();
-            for p in &s.points {
+            for p in s.bench_points() {
                 let (_, name, _) = p.resolve_plant()?;
                 if name == plant && p.reference.name() == *reference && p.event.name() == *event {
                     traces.push(p.trace(s.file.duration_s, s.file.period_s, *window, 2)?);

@@ -219,10 +219,11 @@ const GAINS: [&str; 4] = [
     include_str!("../crates/pma-control/models/gains/sta.toml"),
 ];
 
-const SWEEPS: [&str; 3] = [
+const SWEEPS: [&str; 4] = [
     include_str!("../crates/pma-studies/models/sweeps/shocks.toml"),
     include_str!("../crates/pma-studies/models/sweeps/fig9.toml"),
     include_str!("../crates/pma-studies/models/sweeps/monte_carlo.toml"),
+    include_str!("../crates/pma-studies/models/sweeps/leg_patients.toml"),
 ];
 
 proptest! {
@@ -260,9 +261,14 @@ proptest! {
         let text = apply(SWEEPS[which], &m);
         match Sweep::from_toml_str(&text, "fuzz.toml", Path::new("models/sweeps")) {
             Ok(s) => {
-                prop_assert!(!s.points.is_empty() && s.points.len() <= pma_studies::sweep::MAX_RUNS);
-                for p in s.points.iter().take(3) {
+                prop_assert!(!s.jobs.is_empty() && s.jobs.len() <= pma_studies::sweep::MAX_RUNS);
+                for p in s.bench_points().take(3) {
                     p.resolve_plant().map(drop).unwrap_or_else(|e| assert_one_line(&e));
+                }
+                for j in s.jobs.iter().take(3) {
+                    if let pma_studies::sweep::Job::Leg(p) = j {
+                        prop_assert!(p.scenario().validate().is_ok());
+                    }
                 }
             }
             Err(e) => assert_one_line(&e),

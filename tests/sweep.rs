@@ -27,6 +27,33 @@ valve_lag_s = [0.0, 0.03]
 noise_rms_m = [0.0, 2e-5]
 "#;
 
+/// A leg grid: two controllers over the passive limb, a preset and a sampled population,
+/// at two seeds, beside a bench grid in the same file.
+const LEG_SMALL: &str = r#"
+name = "leg_small"
+duration_s = 3.2
+[[grid]]
+controllers = ["pid"]
+gains = ["default"]
+references = ["sine"]
+[grid.plants]
+presets = ["ideal"]
+[[leg]]
+scenarios = ["gait_spasms"]
+controllers = ["aprc-ndo", "pid"]
+gains = ["leg"]
+seeds = [3, 4]
+[leg.patients]
+presets = ["passive", "severe"]
+[leg.patients.population]
+size = 2
+seed = 2
+spasticity = ["none", "severe"]
+spasm_rate_per_min = [6.0, 12.0]
+spasm_amplitude_nm = [5.0, 30.0]
+effort_fraction = [-0.3, 0.3]
+"#;
+
 fn temp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("pma-exo-sweep-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
@@ -105,6 +132,68 @@ fn threads_and_shards_give_the_same_lines() {
             );
         }
     }
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// A leg grid shards and merges like a bench grid; its runs carry the patient they ran
+/// with, the seed moves the spasms and the passive limb has none.
+#[test]
+fn a_leg_sweep_shards_merges_and_records_its_patients() {
+    let dir = temp("leg");
+    let file = write_sweep(&dir, LEG_SMALL);
+    let s = |p: &Path| p.display().to_string();
+    let whole = dir.join("whole");
+    ok(&["sweep", &file, "--out", &s(&whole), "--threads", "2"]);
+    let lines = sorted_lines(&whole.join("runs.jsonl"));
+    assert_eq!(lines.len(), 1 + 2 * (2 + 2) * 2);
+    let (a, b, merged) = (dir.join("a"), dir.join("b"), dir.join("merged"));
+    ok(&["sweep", &file, "--out", &s(&a), "--shard", "1/2"]);
+    ok(&["sweep", &file, "--out", &s(&b), "--shard", "2/2"]);
+    ok(&["sweep", "merge", &s(&a), &s(&b), "--out", &s(&merged)]);
+    let m = std::fs::read_to_string(merged.join("runs.jsonl")).expect("merged");
+    assert_eq!(m.lines().map(str::to_owned).collect::<Vec<_>>(), lines);
+    for f in ["summary.json", "summary.md", "rte.png", "leg_rms.png"] {
+        assert!(merged.join(f).exists(), "{f}");
+    }
+    let legs: Vec<serde_json::Value> = lines
+        .iter()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).expect("json"))
+        .filter(|v| v.get("patient").is_some())
+        .collect();
+    assert_eq!(legs.len(), 16);
+    let spasms = |v: &serde_json::Value| v["spasms"].as_u64().expect("spasms");
+    for v in &legs {
+        assert_eq!(v["finite"], true, "{v}");
+        assert_eq!(v["fault"], serde_json::Value::Null, "{v}");
+        assert!(v["hip_rms_deg"].as_f64().expect("hip") < 5.0, "{v}");
+        if v["patient"] == "passive" {
+            assert_eq!(spasms(v), 0, "{v}");
+            assert_eq!(v["spasticity"], serde_json::json!(["none", "none"]), "{v}");
+        }
+        if v["patient"] == "severe" {
+            assert_eq!(
+                v["spasticity"],
+                serde_json::json!(["severe", "severe"]),
+                "{v}"
+            );
+        }
+    }
+    // The same sampled patient at two seeds: its own spasticity, different spasms.
+    let pick = |seed: u64| {
+        legs.iter()
+            .find(|v| {
+                v["patient"] == "population-0" && v["controller"] == "pid" && v["seed"] == seed
+            })
+            .expect("population-0")
+    };
+    let (three, four) = (pick(3), pick(4));
+    assert_eq!(three["spasticity"], four["spasticity"]);
+    assert_ne!(three["knee_rms_deg"], four["knee_rms_deg"]);
+    let md = std::fs::read_to_string(merged.join("summary.md")).expect("summary.md");
+    assert!(
+        md.contains("## Leg: scenario `gait_spasms`, patients population"),
+        "{md}"
+    );
     std::fs::remove_dir_all(dir).ok();
 }
 
@@ -193,6 +282,21 @@ fn bad_sweeps_are_one_line_errors() {
             "empty",
         ),
         (SMALL.replace("size = 3", "size = 0"), "population.size"),
+        (
+            LEG_SMALL.replace("\"passive\", \"severe\"", "\"passive\", \"agonised\""),
+            "agonised",
+        ),
+        (
+            LEG_SMALL.replace(
+                "effort_fraction = [-0.3, 0.3]",
+                "effort_fraction = [-0.3, 3.0]",
+            ),
+            "effort_fraction",
+        ),
+        (
+            LEG_SMALL.replace("\"gait_spasms\"", "\"gait_nowhere\""),
+            "gait_nowhere",
+        ),
     ];
     for (i, (text, needle)) in cases.iter().enumerate() {
         let f = dir.join(format!("bad{i}.toml"));

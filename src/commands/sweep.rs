@@ -1,4 +1,5 @@
-//! `pma-exo sweep`: a grid of bench runs in parallel, sharded, resumable; `sweep merge`.
+//! `pma-exo sweep`: grids of bench or leg runs in parallel, sharded, resumable; `sweep
+//! merge`.
 use crate::output;
 use crate::say;
 use anyhow::{bail, Context, Result};
@@ -11,7 +12,7 @@ use std::path::{Path, PathBuf};
 pub struct Args {
     #[command(subcommand)]
     merge: Option<MergeCommand>,
-    /// A sweep file, or a shipped one: shocks, fig9, monte_carlo.
+    /// A sweep file, or a shipped one: shocks, fig9, monte_carlo, leg_patients.
     #[arg(required = true)]
     file: Option<String>,
     /// Output directory (runs.jsonl, sweep.json; summary.json and summary.md when the
@@ -51,16 +52,24 @@ pub fn run(a: Args) -> Result<i32> {
         bail!("a sweep file and --out are required (or `sweep merge DIR...`)");
     };
     let sweep = sweep::load(&file)?;
-    let selected = sweep
-        .points
+    let selected: Vec<&sweep::Job> = sweep
+        .jobs
         .iter()
-        .filter(|p| a.shard.contains(p.index))
-        .count();
-    let periods = sweep.file.duration_s / sweep.file.period_s * selected as f64;
+        .filter(|j| a.shard.contains(j.index()))
+        .collect();
+    // The estimate in bench periods (1 us each), whatever the runs are.
+    let bench_periods: f64 = selected
+        .iter()
+        .map(|j| {
+            let (periods, cost_s) = j.periods(&sweep.file);
+            periods * cost_s / 1e-6
+        })
+        .sum();
+    let selected = selected.len();
     // More threads than cores do not make a sweep faster.
     let cores = rayon::current_num_threads().max(1);
     let threads = a.threads.unwrap_or(cores).clamp(1, cores);
-    output::check_wall_time("this sweep", periods, 1e-6 / threads as f64, a.yes)?;
+    output::check_wall_time("this sweep", bench_periods, 1e-6 / threads as f64, a.yes)?;
     let stop = output::stop_flag()?;
     let bar = output::progress_bar(selected as u64, "runs");
     let progress = |done: usize, _total: usize| bar.set_position(done as u64);
@@ -119,7 +128,8 @@ fn merge(dirs: &[PathBuf], out: &Path) -> Result<i32> {
     Ok(0)
 }
 
-/// Writes `summary.json`, `summary.md` and `rte.png` of the runs in `dirs` into `out`.
+/// Writes `summary.json`, `summary.md`, and `rte.png` (bench runs) and `leg_rms.png`
+/// (leg runs) of the runs in `dirs` into `out`.
 fn summarise_dirs(dirs: &[PathBuf], out: &Path) -> Result<()> {
     let (manifest, runs, missing) = sweep::merge(dirs)?;
     let summary = sweep::summarise(&manifest.name, &runs, missing.len());
@@ -127,24 +137,39 @@ fn summarise_dirs(dirs: &[PathBuf], out: &Path) -> Result<()> {
     output::write_file(&json, &serde_json::to_string_pretty(&summary)?)?;
     let md = out.join("summary.md");
     output::write_file(&md, &sweep::markdown(&summary))?;
-    let png = out.join("rte.png");
+    let mut written = vec![json.display().to_string(), md.display().to_string()];
     crate::plot::register_font()?;
-    output::write_via_temp(&png, |tmp| {
-        crate::plot::rte_distributions(tmp, &summary.name, &runs)
-    })?;
+    type Plot = fn(&Path, &str, &sweep::Runs) -> crate::plot::DrawResult;
+    let plots: [(&str, bool, Plot); 2] = [
+        (
+            "rte.png",
+            !summary.groups.is_empty(),
+            crate::plot::rte_distributions,
+        ),
+        (
+            "leg_rms.png",
+            !summary.leg_groups.is_empty(),
+            crate::plot::leg_rms_distributions,
+        ),
+    ];
+    for (file, wanted, plot) in plots {
+        if wanted {
+            let png = out.join(file);
+            output::write_via_temp(&png, |tmp| plot(tmp, &summary.name, &runs))?;
+            written.push(png.display().to_string());
+        }
+    }
     say!(
-        "sweep `{}`: {} runs in {} groups{}; wrote {}, {} and {}",
+        "sweep `{}`: {} runs in {} groups{}; wrote {}",
         summary.name,
         summary.runs,
-        summary.groups.len(),
+        summary.groups.len() + summary.leg_groups.len(),
         if missing.is_empty() {
             String::new()
         } else {
             format!(" ({} missing)", missing.len())
         },
-        json.display(),
-        md.display(),
-        png.display()
+        written.join(", ")
     );
     Ok(())
 }

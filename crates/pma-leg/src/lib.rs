@@ -24,4 +24,4 @@ pub use metrics::{JointStats, LegMetrics, LegReport, MuscleStats};
 pub use patient::{Patient, PatientSettings, PatientTorques, SpasmEvent};
 pub use plant::{LegPlant, LegState, MuscleActuator, SupervisedLeg};
 pub use safety::{PatientMetrics, PatientReport, SafetyReport, SpasmReport};
-pub use sim::{balanced_pressures, LegSample, LegSim};
+pub use sim::{balanced_pressures, LegFault, LegSample, LegSim};

@@ -367,12 +367,27 @@ impl LegSim {
         self.run_with(&settings, recorder)
     }
 
-    /// Runs with explicit loop settings (a stop flag, say).
+    /// Runs with explicit loop settings (a stop flag, say); a supervisor's fault is an
+    /// error ([`LegError::Supervisor`]).
     pub fn run_with<R: Recorder<SupervisedLeg, LegOutput>>(
         &mut self,
         settings: &LoopSettings,
         recorder: &mut R,
     ) -> Result<LegReport, LegError> {
+        match self.run_until_fault(settings, recorder)? {
+            (report, None) => Ok(report),
+            (_, Some(fault)) => Err(LegError::Supervisor(fault.message)),
+        }
+    }
+
+    /// As [`LegSim::run_with`], but a run the supervisor stopped (the muscles vented) is a
+    /// result: its report covers the run up to the fault, which comes with it. A failure
+    /// of the simulation itself is still an error.
+    pub fn run_until_fault<R: Recorder<SupervisedLeg, LegOutput>>(
+        &mut self,
+        settings: &LoopSettings,
+        recorder: &mut R,
+    ) -> Result<(LegReport, Option<LegFault>), LegError> {
         let sc = &self.scenario;
         let t0 = self.plant.time();
         let t_end = t0 + settings.duration_s();
@@ -401,10 +416,23 @@ impl LegSim {
             &mut self.controllers,
             &mut (&mut metrics, &mut patient, recorder),
             settings,
-        )?
-        .into_result()
-        .map_err(LegError::from_fault)?;
-        let interrupted = matches!(outcome.end, pma_loop::End::Stopped);
+        )?;
+        let (interrupted, fault) = match outcome.end {
+            pma_loop::End::Completed => (false, None),
+            pma_loop::End::Stopped => (true, None),
+            pma_loop::End::Fault {
+                error: pma_control::Fault::Backend(e),
+                ..
+            } => return Err(e),
+            pma_loop::End::Fault { error, t_s, .. } => (
+                false,
+                Some(LegFault {
+                    name: error.name(),
+                    t_s,
+                    message: error.to_string(),
+                }),
+            ),
+        };
         let ran_s = outcome.ran_s;
         let names: Vec<String> = self
             .plant
@@ -417,8 +445,19 @@ impl LegSim {
         report.patient = patient.patient();
         report.spasms = patient.spasms(t0 + ran_s);
         report.safety = patient.safety(&names);
-        Ok(report)
+        Ok((report, fault))
     }
+}
+
+/// Why the supervisor stopped a leg run (it vented every muscle).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LegFault {
+    /// Short name (`sensor-nan`, `position-out`).
+    pub name: &'static str,
+    /// Time of the last period that completed (s).
+    pub t_s: f64,
+    /// What happened, on one line.
+    pub message: String,
 }
 
 /// What the leg's supervisor enforces: every muscle's pressure within its valve's range

@@ -1,6 +1,7 @@
-//! A sweep's summary: its runs grouped by controller, gains, plant group, reference and
-//! event, with the distribution of their figures.
-use super::RunRecord;
+//! A sweep's summary: its bench runs grouped by controller, gains, plant group, reference
+//! and event, its leg runs by scenario, patient group, controller and gains, with the
+//! distribution of their figures.
+use super::{LegRunRecord, Record, RunRecord, Runs};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -14,8 +15,52 @@ pub struct Summary {
     pub runs: usize,
     /// Runs of the sweep not (yet) in the directories.
     pub missing: usize,
-    /// One per group.
+    /// One per group of bench runs.
     pub groups: Vec<GroupSummary>,
+    /// One per group of leg runs.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub leg_groups: Vec<LegGroupSummary>,
+}
+
+/// One group of leg runs (they differ only in the patient within a group, or the seed).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LegGroupSummary {
+    /// Scenario.
+    pub scenario: String,
+    /// Patient group (`population` for sampled patients).
+    pub patient_group: String,
+    /// Controller.
+    pub controller: String,
+    /// Gain set.
+    pub gains: String,
+    /// Runs.
+    pub runs: usize,
+    /// Hip RMS tracking error (deg): median.
+    pub hip_rms_median_deg: f64,
+    /// Knee RMS tracking error (deg): median.
+    pub knee_rms_median_deg: f64,
+    /// The worse joint's RMS error (deg): 95th percentile.
+    pub rms_p95_deg: f64,
+    /// Worst.
+    pub rms_worst_deg: f64,
+    /// Largest tracking error of any joint (deg): worst.
+    pub max_error_worst_deg: f64,
+    /// Spasms over the runs.
+    pub spasms: usize,
+    /// Largest peak deviation during a spasm (deg; `null` without spasms).
+    pub spasm_deviation_worst_deg: Option<f64>,
+    /// Spasms not recovered from within 3 s.
+    pub spasms_unrecovered: usize,
+    /// Largest muscle force over its rating: worst.
+    pub force_over_rated_worst: f64,
+    /// Time beyond the URDF joint limits (s): worst.
+    pub time_outside_limits_worst_s: f64,
+    /// Median command variation (bar/s).
+    pub variation_median_bar_per_s: f64,
+    /// Runs the supervisor stopped.
+    pub faults: usize,
+    /// Whether every run stayed finite.
+    pub all_finite: bool,
 }
 
 /// One group of runs (they differ only in the plant within a group, or the seed).
@@ -146,53 +191,111 @@ fn events(runs: &[&RunRecord]) -> Vec<EventSummary> {
 }
 
 /// Groups and summarises `runs`.
-pub fn summarise(name: &str, runs: &BTreeMap<usize, RunRecord>, missing: usize) -> Summary {
-    let mut groups: BTreeMap<Key, Vec<&RunRecord>> = BTreeMap::new();
-    for r in runs.values() {
-        groups.entry(key(r)).or_default().push(r);
-    }
-    // Groups in the order of their first run, so tables follow the sweep file.
-    let mut ordered: Vec<(usize, GroupSummary)> = groups
-        .into_iter()
-        .map(|((reference, event, plant_group, controller, gains), rs)| {
-            let rte: Vec<f64> = rs.iter().map(|r| r.rte_percent).collect();
-            let first = rs.iter().map(|r| r.run).min().unwrap_or(0);
-            (
-                first,
-                GroupSummary {
-                    controller,
-                    gains,
-                    plant_group,
-                    reference,
-                    event,
-                    runs: rs.len(),
-                    rte_median: quantile(&rte, 0.5),
-                    rte_p95: quantile(&rte, 0.95),
-                    rte_worst: max(rte.iter().copied()),
-                    // A NaN RTE (a run that blew up) counts as above.
-                    share_rte_above_5: share(&rs, |r| {
-                        r.rte_percent > 5.0 || r.rte_percent.is_nan()
-                    }),
-                    share_at_limit_above_10: share(&rs, |r| r.limit_fraction > 0.1),
-                    variation_median_bar_per_s: quantile(
-                        &rs.iter()
-                            .map(|r| r.command_variation_bar_per_s)
-                            .collect::<Vec<_>>(),
-                        0.5,
-                    ),
-                    all_finite: rs.iter().all(|r| r.finite),
-                    events: events(&rs),
-                },
-            )
-        })
-        .collect();
-    ordered.sort_by_key(|(first, _)| *first);
+pub fn summarise(name: &str, runs: &Runs, missing: usize) -> Summary {
     Summary {
         name: name.to_owned(),
         runs: runs.len(),
         missing,
-        groups: ordered.into_iter().map(|(_, g)| g).collect(),
+        groups: bench_groups(runs.values().filter_map(Record::bench)),
+        leg_groups: leg_groups(runs.values().filter_map(Record::leg)),
     }
+}
+
+/// Groups in the order of their first run, so tables follow the sweep file.
+fn in_file_order<K: Ord, R, G>(
+    runs: impl Iterator<Item = R>,
+    key: impl Fn(&R) -> K,
+    first: impl Fn(&R) -> usize,
+    summarise: impl Fn(K, Vec<R>) -> G,
+) -> Vec<G> {
+    let mut groups: BTreeMap<K, Vec<R>> = BTreeMap::new();
+    for r in runs {
+        groups.entry(key(&r)).or_default().push(r);
+    }
+    let mut ordered: Vec<(usize, G)> = groups
+        .into_iter()
+        .map(|(k, rs)| (rs.iter().map(&first).min().unwrap_or(0), summarise(k, rs)))
+        .collect();
+    ordered.sort_by_key(|(first, _)| *first);
+    ordered.into_iter().map(|(_, g)| g).collect()
+}
+
+fn leg_groups<'a>(runs: impl Iterator<Item = &'a LegRunRecord>) -> Vec<LegGroupSummary> {
+    let key = |r: &&LegRunRecord| {
+        (
+            r.scenario.clone(),
+            r.patient_group.clone(),
+            r.controller.clone(),
+            r.gains.clone(),
+        )
+    };
+    in_file_order(
+        runs,
+        key,
+        |r| r.run,
+        |(scenario, patient_group, controller, gains), rs| {
+            let of = |f: fn(&LegRunRecord) -> f64| rs.iter().map(|r| f(r)).collect::<Vec<_>>();
+            let worse = of(|r| r.hip_rms_deg.max(r.knee_rms_deg));
+            let deviations: Vec<f64> = rs
+                .iter()
+                .filter_map(|r| r.spasm_max_deviation_deg)
+                .collect();
+            LegGroupSummary {
+                scenario,
+                patient_group,
+                controller,
+                gains,
+                runs: rs.len(),
+                hip_rms_median_deg: quantile(&of(|r| r.hip_rms_deg), 0.5),
+                knee_rms_median_deg: quantile(&of(|r| r.knee_rms_deg), 0.5),
+                rms_p95_deg: quantile(&worse, 0.95),
+                rms_worst_deg: max(worse.iter().copied()),
+                max_error_worst_deg: max(rs.iter().map(|r| r.hip_max_deg.max(r.knee_max_deg))),
+                spasms: rs.iter().map(|r| r.spasms).sum(),
+                spasm_deviation_worst_deg: (!deviations.is_empty())
+                    .then(|| max(deviations.iter().copied())),
+                spasms_unrecovered: rs.iter().map(|r| r.spasms_unrecovered).sum(),
+                force_over_rated_worst: max(rs.iter().map(|r| r.peak_force_over_rated)),
+                time_outside_limits_worst_s: max(rs.iter().map(|r| r.time_outside_limits_s)),
+                variation_median_bar_per_s: quantile(&of(|r| r.command_variation_bar_per_s), 0.5),
+                faults: rs.iter().filter(|r| r.fault.is_some()).count(),
+                all_finite: rs.iter().all(|r| r.finite),
+            }
+        },
+    )
+}
+
+fn bench_groups<'a>(runs: impl Iterator<Item = &'a RunRecord>) -> Vec<GroupSummary> {
+    in_file_order(
+        runs,
+        |r| key(r),
+        |r| r.run,
+        |(reference, event, plant_group, controller, gains), rs| {
+            let rte: Vec<f64> = rs.iter().map(|r| r.rte_percent).collect();
+            GroupSummary {
+                controller,
+                gains,
+                plant_group,
+                reference,
+                event,
+                runs: rs.len(),
+                rte_median: quantile(&rte, 0.5),
+                rte_p95: quantile(&rte, 0.95),
+                rte_worst: max(rte.iter().copied()),
+                // A NaN RTE (a run that blew up) counts as above.
+                share_rte_above_5: share(&rs, |r| r.rte_percent > 5.0 || r.rte_percent.is_nan()),
+                share_at_limit_above_10: share(&rs, |r| r.limit_fraction > 0.1),
+                variation_median_bar_per_s: quantile(
+                    &rs.iter()
+                        .map(|r| r.command_variation_bar_per_s)
+                        .collect::<Vec<_>>(),
+                    0.5,
+                ),
+                all_finite: rs.iter().all(|r| r.finite),
+                events: events(&rs),
+            }
+        },
+    )
 }
 
 fn opt(v: Option<f64>, scale: f64) -> String {
@@ -246,7 +349,43 @@ pub fn markdown(s: &Summary) -> String {
         );
     }
     event_tables(&mut md, s);
+    leg_tables(&mut md, s);
     md
+}
+
+fn leg_tables(md: &mut String, s: &Summary) {
+    let mut last: Option<(&str, &str)> = None;
+    for g in &s.leg_groups {
+        let here = (g.scenario.as_str(), g.patient_group.as_str());
+        if last != Some(here) {
+            let _ = writeln!(
+                md,
+                "\n## Leg: scenario `{}`, patients {}\n\nTracking error after the first stride (RMS, deg; the worse joint's p95 and worst); spasms' largest deviation from the reference; the largest muscle force over its rating; time beyond the URDF limits; runs the supervisor stopped.\n\n| controller | gains | runs | hip RMS median | knee RMS median | worse p95 | worst | max error | spasms | spasm deviation | not recovered | force / rated | outside limits (s) | bar/s | faults |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+                g.scenario, g.patient_group
+            );
+            last = Some(here);
+        }
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {} | {} | {} | {:.2} | {:.3} | {:.1} | {}{} |",
+            g.controller,
+            g.gains,
+            g.runs,
+            g.hip_rms_median_deg,
+            g.knee_rms_median_deg,
+            g.rms_p95_deg,
+            g.rms_worst_deg,
+            g.max_error_worst_deg,
+            g.spasms,
+            g.spasm_deviation_worst_deg.map_or("-".into(), |d| format!("{d:.2}")),
+            g.spasms_unrecovered,
+            g.force_over_rated_worst,
+            g.time_outside_limits_worst_s,
+            g.variation_median_bar_per_s,
+            g.faults,
+            if g.all_finite { "" } else { " (non-finite)" }
+        );
+    }
 }
 
 fn event_tables(md: &mut String, s: &Summary) {
