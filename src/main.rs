@@ -12,9 +12,6 @@ mod studies;
 
 use commands::{compare_leg, pendulum, rig, simulate, single, sweep, tune};
 
-/// Every controller's command-line name, as shown in usage lines and errors.
-pub(crate) const CONTROLLERS: &str = "aprc-ndo|aprc|psmc|ndo-smc|sta|pid";
-
 #[derive(Parser)]
 #[command(
     name = "pma-exo",

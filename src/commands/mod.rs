@@ -1,7 +1,7 @@
 //! One module per command; what they share is here.
 use anyhow::{bail, Context, Result};
 use pma_control::{ChirpReference, ControllerConfig, ControllerKind, Reference, SineReference};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 pub mod compare_leg;
 pub mod pendulum;
@@ -28,6 +28,20 @@ impl RefName {
             RefName::Chirp => ("chirp", Box::new(ChirpReference::paper())),
         }
     }
+}
+
+/// Where a control loop's run goes besides its summary: the time series to CSV, the
+/// figures as JSON, the state to Rerun (`simulate`, `pendulum`, `single`).
+#[derive(clap::Args, Clone, Default)]
+pub struct RunOutput {
+    /// Stream the time series to this CSV file (columns: docs/formats.md).
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Print one JSON object instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub rerun: RerunArgs,
 }
 
 /// Where a run's state goes in Rerun (every command that runs a control loop).

@@ -1,5 +1,5 @@
 //! `pma-exo pendulum`: the Wartenberg pendulum test on the leg's patient model.
-use super::{viz, RerunArgs, SampleCsv};
+use super::{viz, RunOutput, SampleCsv};
 use crate::output;
 use crate::say;
 use anyhow::Result;
@@ -7,7 +7,6 @@ use pma_leg::patient::{SpasticityPreset, SpasticitySettings};
 use pma_leg::Scenario;
 use pma_loop::{LoopSettings, Period};
 use pma_studies::pendulum::{self, PendulumReport, PendulumSample, PendulumSetup};
-use std::path::PathBuf;
 
 /// A spasticity preset on the command line.
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -51,14 +50,8 @@ pub struct Args {
     /// Replace the scenario's spasticity at hip and knee by this preset.
     #[arg(long, value_enum)]
     spasticity: Option<Spasticity>,
-    /// Write the time series here (CSV).
-    #[arg(long)]
-    csv: Option<PathBuf>,
-    /// Print one JSON object instead of the summary.
-    #[arg(long)]
-    json: bool,
     #[command(flatten)]
-    rerun: RerunArgs,
+    output: RunOutput,
 }
 
 /// Runs `pendulum`.
@@ -82,7 +75,7 @@ pub fn run(a: Args) -> Result<i32> {
         hip_rad: a.hip_deg.to_radians(),
         knee_rad: a.knee_deg.to_radians(),
     };
-    if let Some(csv) = &a.csv {
+    if let Some(csv) = &a.output.csv {
         output::refuse_input_as_output(
             &super::scenario_inputs(&a.scenario, &loaded, None),
             &[("--csv", csv)],
@@ -93,6 +86,7 @@ pub fn run(a: Args) -> Result<i32> {
     settings.periods(loaded.scenario.period_s)?;
     let damping = loaded.scenario.joints.knee.damping_nm_s_per_rad;
     let csv = a
+        .output
         .csv
         .as_deref()
         .map(|p| {
@@ -105,7 +99,7 @@ pub fn run(a: Args) -> Result<i32> {
         "# Pendulum test: {}\n\n{}\n\nthigh horizontal, hip held at {} deg, knee released from {} deg; muscles vented and unhooked.\n",
         loaded.scenario.name, loaded.scenario.description, a.hip_deg, a.knee_deg
     );
-    let viz = viz::pendulum(&a.rerun, &sim, &meta, damping)?;
+    let viz = viz::pendulum(&a.output.rerun, &sim, &meta, damping)?;
     let stop = output::stop_flag()?;
     let settings = settings.with_stop_flag(&stop);
     let mut recorders = (csv, viz);
@@ -113,7 +107,7 @@ pub fn run(a: Args) -> Result<i32> {
     let (csv, viz) = recorders;
     let non_finite =
         (!report.finite).then(|| format!("the pendulum test (scenario {})", report.scenario));
-    super::conclude((csv, viz), &report, non_finite, a.json, print_summary)?;
+    super::conclude((csv, viz), &report, non_finite, a.output.json, print_summary)?;
     if !report.settled {
         eprintln!(
             "warning: the knee still moved {:.1} deg in the last second: no resting angle, so no R2; run longer (--duration)",

@@ -33,7 +33,7 @@ pub enum RigCommand {
         #[arg(long, allow_negative_numbers = true)]
         duration: Option<f64>,
         /// Controller instead of the configuration's.
-        #[arg(long, value_name = crate::CONTROLLERS)]
+        #[arg(long, value_name = ControllerKind::NAMES)]
         controller: Option<ControllerKind>,
         /// Gain file for the controller.
         #[arg(long)]

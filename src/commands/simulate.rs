@@ -1,5 +1,5 @@
 //! `pma-exo simulate`: the gait-training simulation of the exoskeleton leg.
-use super::{viz, RerunArgs, SampleCsv};
+use super::{viz, RunOutput, SampleCsv};
 use crate::output::{self, INTERRUPTED};
 use crate::say;
 use anyhow::Result;
@@ -19,7 +19,7 @@ pub struct Args {
     #[arg(default_value = "gait_training")]
     scenario: String,
     /// Controller on every muscle (default: APRC-NDO with the scenario's gains).
-    #[arg(long, value_name = crate::CONTROLLERS)]
+    #[arg(long, value_name = ControllerKind::NAMES)]
     controller: Option<ControllerKind>,
     /// Gain file of the controller (default: its shipped leg gains, see crates/pma-control/models/gains/leg).
     #[arg(long, requires = "controller")]
@@ -27,17 +27,11 @@ pub struct Args {
     /// Simulated seconds (default: the scenario's); at least two strides.
     #[arg(long, allow_negative_numbers = true)]
     duration: Option<f64>,
-    /// Stream the time series (joints, and per muscle the states Rerun logs) to CSV.
-    #[arg(long)]
-    csv: Option<PathBuf>,
-    /// Print one JSON object instead of the summary.
-    #[arg(long)]
-    json: bool,
     /// Run even if it would take over an hour.
     #[arg(long)]
     yes: bool,
     #[command(flatten)]
-    rerun: RerunArgs,
+    output: RunOutput,
 }
 
 impl Default for Args {
@@ -48,10 +42,8 @@ impl Default for Args {
             controller: None,
             gains: None,
             duration: None,
-            csv: None,
-            json: false,
             yes: false,
-            rerun: RerunArgs::default(),
+            output: RunOutput::default(),
         }
     }
 }
@@ -87,13 +79,14 @@ pub fn run(a: Args) -> Result<i32> {
         .iter()
         .map(|m| m.geometry.name.clone())
         .collect();
-    if let Some(csv) = &a.csv {
+    if let Some(csv) = &a.output.csv {
         output::refuse_input_as_output(
             &super::scenario_inputs(&a.scenario, &loaded, a.gains.as_deref()),
             &[("--csv", csv)],
         )?;
     }
     let csv = a
+        .output
         .csv
         .as_deref()
         .map(|p| SampleCsv::create(p, &LegSample::schema(&names), LegSample::of))
@@ -108,7 +101,7 @@ pub fn run(a: Args) -> Result<i32> {
         config.kind(),
         config
     );
-    let viz = viz::leg(&a.rerun, &sim, &meta)?;
+    let viz = viz::leg(&a.output.rerun, &sim, &meta)?;
     let bar = output::progress_bar(periods, "periods");
     let progress = Progress {
         bar: bar.clone(),
@@ -123,7 +116,7 @@ pub fn run(a: Args) -> Result<i32> {
     let (csv, viz, _) = recorders;
     let non_finite =
         (!report.finite).then(|| format!("the simulation (scenario {})", report.scenario));
-    super::conclude((csv, viz), &report, non_finite, a.json, print_summary)?;
+    super::conclude((csv, viz), &report, non_finite, a.output.json, print_summary)?;
     if report.interrupted {
         eprintln!(
             "interrupted after {} s: the figures and the CSV cover the run so far",

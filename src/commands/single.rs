@@ -1,5 +1,5 @@
 //! `pma-exo single`: one controller on the single-muscle bench.
-use super::{check_duration, load_gains, viz, RefName, RerunArgs, SampleCsv};
+use super::{check_duration, load_gains, viz, RefName, RunOutput, SampleCsv};
 use crate::output::{self, INTERRUPTED};
 use crate::say;
 use anyhow::{bail, Result};
@@ -14,7 +14,7 @@ const BENCH_PERIOD_S: f64 = 1e-6;
 #[derive(clap::Args)]
 pub struct Args {
     /// Controller.
-    #[arg(long, default_value = "aprc-ndo", value_name = crate::CONTROLLERS)]
+    #[arg(long, default_value = "aprc-ndo", value_name = ControllerKind::NAMES)]
     controller: ControllerKind,
     /// Reference trajectory.
     #[arg(long, value_enum, default_value = "sine")]
@@ -28,17 +28,11 @@ pub struct Args {
     /// Gain file (TOML) for the controller.
     #[arg(long)]
     gains: Option<PathBuf>,
-    /// Stream the time series to this CSV file.
-    #[arg(long)]
-    csv: Option<PathBuf>,
-    /// Print one JSON object instead of a summary line.
-    #[arg(long)]
-    json: bool,
     /// Run even if it would take over an hour.
     #[arg(long)]
     yes: bool,
     #[command(flatten)]
-    rerun: RerunArgs,
+    output: RunOutput,
 }
 
 /// Runs `single`.
@@ -53,7 +47,7 @@ pub fn run(a: Args) -> Result<i32> {
     };
     spec.validate()?;
     output::check_wall_time("this run", spec.periods()? as f64, BENCH_PERIOD_S, a.yes)?;
-    if let Some(csv) = &a.csv {
+    if let Some(csv) = &a.output.csv {
         let mut inputs = Vec::new();
         if let Some(p) = output::input_file(&a.plant) {
             inputs.push(("plant file", p));
@@ -64,6 +58,7 @@ pub fn run(a: Args) -> Result<i32> {
         output::refuse_input_as_output(&inputs, &[("--csv", csv)])?;
     }
     let csv = a
+        .output
         .csv
         .as_deref()
         .map(|p| SampleCsv::create(p, &Sample::schema(), Sample::of))
@@ -74,7 +69,7 @@ pub fn run(a: Args) -> Result<i32> {
         plant.name,
         config.to_toml_string()
     );
-    let viz = viz::bench(&a.rerun, "pma-exo single", spec.period_s, &meta)?;
+    let viz = viz::bench(&a.output.rerun, "pma-exo single", spec.period_s, &meta)?;
     let stop = output::stop_flag()?;
     let mut recorders = (csv, viz);
     let res = run_single_until(
@@ -104,7 +99,7 @@ pub fn run(a: Args) -> Result<i32> {
     } else {
         a.duration
     };
-    if a.json {
+    if a.output.json {
         let v = serde_json::json!({
             "controller": a.controller.as_str(),
             "reference": ref_name,

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 #[derive(clap::Args)]
 pub struct Args {
     /// The controller to tune.
-    #[arg(long, value_name = crate::CONTROLLERS)]
+    #[arg(long, value_name = ControllerKind::NAMES)]
     controller: ControllerKind,
     /// Plant the gains are tuned on (preset or .toml file).
     #[arg(long, default_value = "mismatch")]
@@ -148,7 +148,7 @@ pub struct LegArgs {
     #[arg(default_value = "gait_training")]
     scenario: String,
     /// The controller to tune (one gain set for the four muscles).
-    #[arg(long, value_name = crate::CONTROLLERS, default_value = "aprc-ndo")]
+    #[arg(long, value_name = ControllerKind::NAMES, default_value = "aprc-ndo")]
     controller: ControllerKind,
     /// Fireflies.
     #[arg(long, default_value_t = 20)]
