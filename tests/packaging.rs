@@ -52,7 +52,10 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
 fn every_embedded_file_lies_inside_its_crate() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut checked = 0;
-    for krate in std::fs::read_dir(root.join("crates")).expect("crates").flatten() {
+    for krate in std::fs::read_dir(root.join("crates"))
+        .expect("crates")
+        .flatten()
+    {
         let dir = resolve(&krate.path(), ".");
         let mut files = Vec::new();
         rust_files(&dir.join("src"), &mut files);

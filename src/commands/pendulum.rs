@@ -107,7 +107,13 @@ pub fn run(a: Args) -> Result<i32> {
     let (csv, viz) = recorders;
     let non_finite =
         (!report.finite).then(|| format!("the pendulum test (scenario {})", report.scenario));
-    super::conclude((csv, viz), &report, non_finite, a.output.json, print_summary)?;
+    super::conclude(
+        (csv, viz),
+        &report,
+        non_finite,
+        a.output.json,
+        print_summary,
+    )?;
     if !report.settled {
         eprintln!(
             "warning: the knee still moved {:.1} deg in the last second: no resting angle, so no R2; run longer (--duration)",

@@ -116,7 +116,13 @@ pub fn run(a: Args) -> Result<i32> {
     let (csv, viz, _) = recorders;
     let non_finite =
         (!report.finite).then(|| format!("the simulation (scenario {})", report.scenario));
-    super::conclude((csv, viz), &report, non_finite, a.output.json, print_summary)?;
+    super::conclude(
+        (csv, viz),
+        &report,
+        non_finite,
+        a.output.json,
+        print_summary,
+    )?;
     if report.interrupted {
         eprintln!(
             "interrupted after {} s: the figures and the CSV cover the run so far",

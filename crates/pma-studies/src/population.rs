@@ -25,12 +25,13 @@ pub struct Population {
     pub noise_rms_m: [f64; 2],
 }
 
-fn range_ok(
+/// `[lo, hi]` with `min <= lo <= hi <= max`, both finite; else the offending end.
+pub(crate) fn range_ok(
     name: &'static str,
     r: [f64; 2],
     min: f64,
     max: f64,
-    expected: &'static str,
+    expected: impl Into<std::borrow::Cow<'static, str>>,
 ) -> Result<(), StudyError> {
     if r[0].is_finite() && r[1].is_finite() && r[0] >= min && r[1] >= r[0] && r[1] <= max {
         Ok(())

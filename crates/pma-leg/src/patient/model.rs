@@ -375,19 +375,8 @@ impl Patient {
 
 #[cfg(test)]
 mod tests {
+    use super::super::settings::tests::spasms;
     use super::*;
-
-    fn spasms(rate_per_min: f64, seed: u64) -> SpasmSettings {
-        SpasmSettings {
-            rate_per_min,
-            amplitude_nm: [10.0, 30.0],
-            duration_s: [0.2, 0.8],
-            direction: SpasmDirection::Either,
-            rise_fraction: 0.3,
-            seed,
-            events: Vec::new(),
-        }
-    }
 
     #[test]
     fn random_spasms_come_at_the_set_rate_with_both_directions_and_in_range() {

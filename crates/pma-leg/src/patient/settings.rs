@@ -576,10 +576,11 @@ impl PatientSettings {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
-    fn spasms(rate_per_min: f64, seed: u64) -> SpasmSettings {
+    /// Random spasms at `rate_per_min`, 10-30 N m, 0.2-0.8 s, either direction.
+    pub(in crate::patient) fn spasms(rate_per_min: f64, seed: u64) -> SpasmSettings {
         SpasmSettings {
             rate_per_min,
             amplitude_nm: [10.0, 30.0],

@@ -149,20 +149,15 @@ pub struct SampledPatient {
     pub effort_fraction: f64,
 }
 
+/// `[lo, hi]` inside `[min, max]`.
 fn range_ok(name: &'static str, r: [f64; 2], min: f64, max: f64) -> Result<(), StudyError> {
-    if r[0].is_finite() && r[1].is_finite() && r[0] >= min && r[0] <= r[1] && r[1] <= max {
-        return Ok(());
-    }
-    let bad = if r[0].is_finite() && r[0] >= min {
-        r[1]
-    } else {
-        r[0]
-    };
-    Err(StudyError::from(pma_model::Invalid::new(
+    crate::population::range_ok(
         name,
-        bad,
+        r,
+        min,
+        max,
         format!("must be [lo, hi] with {min} <= lo <= hi <= {max}"),
-    )))
+    )
 }
 
 impl PatientPopulation {
