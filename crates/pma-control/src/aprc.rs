@@ -30,6 +30,19 @@ crate::gain_table! {
         boundary_layer_m_s: NonNegative;
         /// `Gamma_hat(0)`; the paper starts from 0.
         gain_initial: NonNegative;
+        /// Projection bound `Gamma_max` on the adaptive gain (Ioannou & Sun, Robust
+        /// Adaptive Control, 1996, §8.4.2): `Gamma_hat` stays in `[0, Gamma_max]`. Law (10)
+        /// alone never decreases `Gamma_hat`, so noise or a valve lag that keep `|S_p|`
+        /// above `delta` make it grow without bound. `0` (the default): no bound, the
+        /// paper's law.
+        gain_max: NonNegative;
+        /// `sigma_0` of the switching sigma-modification (Ioannou & Tsakalis, IEEE TAC
+        /// 31(11), 1986) added to law (10): `Gamma_hat' = gamma (|S_p| - sigma Gamma_hat)`
+        /// with `sigma = 0` below `M0 = Gamma_max / 2`, rising linearly to `sigma_0` at
+        /// `Gamma_max` ((m/s) per unit of gain). It pulls the gain back once it has drifted
+        /// past `M0` and leaves the ideal law untouched below it. Needs `gain_max > 0`; `0`:
+        /// projection only.
+        leakage_sigma: NonNegative;
         /// Bandwidth of the kinematic observer that supplies velocity and acceleration
         /// (rad/s). Not part of the paper (its rig differentiated position); 200 rad/s keeps
         /// the velocity lag error at 4.4 um/s on the 0.25 Hz sine (`3 jerk / omega^2`) and
@@ -51,8 +64,21 @@ impl AprcGains {
         proxy_mass: 1.0,
         boundary_layer_m_s: 5e-4,
         gain_initial: 0.0,
+        gain_max: 0.0,
+        leakage_sigma: 0.0,
         estimator_bandwidth_rad_s: 200.0,
     };
+
+    /// The leakage rate `sigma` of the switching sigma-modification at `gain_hat`: `0` up
+    /// to `M0 = gain_max / 2`, then linear to `leakage_sigma` at `gain_max`.
+    pub fn switching_sigma(&self, gain_hat: f64) -> f64 {
+        let m0 = 0.5 * self.gain_max;
+        if self.gain_max <= 0.0 || gain_hat <= m0 {
+            0.0
+        } else {
+            self.leakage_sigma * ((gain_hat - m0) / m0).min(1.0)
+        }
+    }
 
     /// `varpi = Kp c1 - Ki - Kd c2` of Theorems 1-2.
     pub fn varpi(&self) -> f64 {
@@ -169,8 +195,14 @@ impl AprcNdo {
     }
 
     fn adapt_gain(&mut self, s_p: f64, dt: f64) {
-        if self.cmd.saturation == Saturation::None && s_p.abs() >= self.gains.boundary_layer_m_s {
-            self.gain_hat += dt * self.gains.gamma * s_p.abs();
+        let g = &self.gains;
+        let leak = g.switching_sigma(self.gain_hat) * self.gain_hat;
+        if self.cmd.saturation == Saturation::None && s_p.abs() >= g.boundary_layer_m_s {
+            self.gain_hat += dt * g.gamma * s_p.abs();
+        }
+        // The leak acts while the valve saturates too: it only ever lowers the gain.
+        if g.gain_max > 0.0 {
+            self.gain_hat = (self.gain_hat - dt * g.gamma * leak).clamp(0.0, g.gain_max);
         }
     }
 }
@@ -254,6 +286,71 @@ impl Controller for AprcNdo {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn adapting(gain_max: f64, leakage_sigma: f64) -> AprcNdo {
+        let mut c = AprcNdo::new(
+            AprcGains {
+                gain_max,
+                leakage_sigma,
+                ..AprcGains::PAPER
+            },
+            NominalModel::paper(),
+            CommandLimits::default(),
+            true,
+        );
+        c.cmd.saturation = Saturation::None;
+        c
+    }
+
+    /// Law (10) with a persistent `|S_p| = 1 cm/s` (noise above the dead zone) for 100 s.
+    fn drive(c: &mut AprcNdo, s_p: f64, seconds: f64) {
+        for _ in 0..(seconds * 1e3) as usize {
+            c.adapt_gain(s_p, 1e-3);
+        }
+    }
+
+    #[test]
+    fn without_leakage_the_gain_drifts_without_bound_as_law_10_says() {
+        let mut c = adapting(0.0, 0.0);
+        drive(&mut c, 0.01, 100.0);
+        // gamma |S_p| t = 10 * 0.01 * 100.
+        assert!((c.gain_hat - 10.0).abs() < 1e-9, "{}", c.gain_hat);
+    }
+
+    #[test]
+    fn projection_holds_the_gain_at_its_bound() {
+        let mut c = adapting(5.0, 0.0);
+        drive(&mut c, 0.01, 100.0);
+        assert_eq!(c.gain_hat, 5.0);
+    }
+
+    #[test]
+    fn switching_sigma_settles_where_the_leak_balances_the_drive_and_stops_at_m0() {
+        // Equilibrium: |S_p| = sigma_0 (G / M0 - 1) G with M0 = 2.5, sigma_0 = 0.01,
+        // |S_p| = 0.01: G^2 - 2.5 G - 2.5 = 0.
+        let mut c = adapting(5.0, 0.01);
+        drive(&mut c, 0.01, 300.0);
+        let expected = (2.5 + (2.5f64 * 2.5 + 10.0).sqrt()) / 2.0;
+        assert!(
+            (c.gain_hat - expected).abs() < 1e-3,
+            "{} vs {expected}",
+            c.gain_hat
+        );
+        // The drive stops (|S_p| inside the dead zone): the gain leaks back to M0, no lower.
+        drive(&mut c, 0.0, 2000.0);
+        assert!((c.gain_hat - 2.5).abs() < 2e-3, "{}", c.gain_hat);
+        assert!(c.gain_hat >= 2.5);
+    }
+
+    #[test]
+    fn leakage_without_a_bound_is_refused() {
+        let g = AprcGains {
+            leakage_sigma: 0.01,
+            ..AprcGains::PAPER
+        };
+        let e = crate::ControllerConfig::AprcNdo(g).validate().unwrap_err();
+        assert!(e.to_string().contains("gain_max"), "{e}");
+    }
 
     #[test]
     fn paper_gains_satisfy_theorem_conditions() {

@@ -206,6 +206,20 @@ fn check_aprc(g: &AprcGains, kind: ControllerKind) -> Result<(), ConfigError> {
     if kind == ControllerKind::AprcNdo {
         Rule::Positive.check(kind.as_str(), "kappa_per_s", g.kappa_per_s)?;
     }
+    if g.leakage_sigma > 0.0 && g.gain_max <= 0.0 {
+        return Err(ConfigError::Invalid(pma_model::Invalid::new(
+            format!("{kind} gain `gain_max`"),
+            g.gain_max,
+            "> 0 when `leakage_sigma` is set: the leakage starts at gain_max / 2",
+        )));
+    }
+    if g.gain_max > 0.0 && g.gain_initial > g.gain_max {
+        return Err(ConfigError::Invalid(pma_model::Invalid::new(
+            format!("{kind} gain `gain_initial`"),
+            g.gain_initial,
+            format!("<= gain_max = {}", g.gain_max),
+        )));
+    }
     if g.proxy_mass <= 0.0 {
         return Err(ConfigError::Theorem {
             condition: "`m_p > 0`",
