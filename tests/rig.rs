@@ -716,3 +716,68 @@ fn replay_refuses_a_truncated_or_edited_log() {
     assert!(e.contains("period"), "{e}");
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// A column of a log, by name.
+fn log_column(path: &Path, name: &str) -> Vec<f64> {
+    let mut r = csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .from_path(path)
+        .expect("log");
+    let h = r.headers().expect("header").clone();
+    let c = h.iter().position(|n| n == name).expect("column");
+    r.records()
+        .map(|rec| rec.expect("row")[c].parse::<f64>().expect("number"))
+        .collect()
+}
+
+/// `rig excite` covers its pressure range, stays inside the position window (backing off
+/// before it: the window here is narrower than the muscle's travel at half pressure), is
+/// logged and vented like a run, and its log replays command for command.
+#[test]
+fn an_excitation_spans_its_range_backs_off_before_the_window_and_replays() {
+    let dir = temp_dir("excite");
+    let narrow = EMBEDDED_VIRTUAL.replace("position_max_m = 0.045", "position_max_m = 0.030");
+    assert_ne!(narrow, EMBEDDED_VIRTUAL);
+    let config = dir.join("narrow.toml");
+    std::fs::write(&config, narrow).expect("config");
+    let cfg = RigConfig::from_toml_str(&std::fs::read_to_string(&config).unwrap(), "narrow")
+        .expect("config");
+    let spec = cfg.default_excitation(40.0);
+    let log = dir.join("excite.csv");
+    let out = pma_exo(&[
+        "rig",
+        "excite",
+        "--config",
+        &config.display().to_string(),
+        "--duration",
+        "40",
+        "--out",
+        &log.display().to_string(),
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(out.status.code(), Some(0), "{v}");
+    assert_eq!(v["controller"], "excite");
+    assert_eq!(v["vented"], true);
+    let position = log_column(&log, "position_m");
+    let command = log_column(&log, "valve_cmd_pa");
+    let highest = position.iter().copied().fold(f64::MIN, f64::max);
+    assert!(highest < 0.030, "reached {highest} m");
+    assert!(
+        highest > spec.position_max_m,
+        "never needed to back off ({highest} m)"
+    );
+    let (lo, hi) = command
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), &c| (a.min(c), b.max(c)));
+    assert!(
+        lo <= spec.pressure_min_pa && hi >= 0.9 * spec.pressure_max_pa,
+        "{lo}..{hi} Pa"
+    );
+    let replay = pma_exo(&["rig", "replay", &log.display().to_string(), "--json"]);
+    let r: serde_json::Value = serde_json::from_slice(&replay.stdout).expect("json");
+    assert_eq!(replay.status.code(), Some(0), "{r}");
+    assert_eq!(r["mismatches"], 0);
+    assert_eq!(r["controller"], "excite");
+    std::fs::remove_dir_all(dir).ok();
+}

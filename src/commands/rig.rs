@@ -62,6 +62,33 @@ pub enum RigCommand {
         #[command(flatten)]
         rerun: RerunArgs,
     },
+    /// Excite the muscle open loop for identification, supervised and logged like `run`
+    /// (same log format, vented at the end): pressure steps up and down, then a 0.05-3 Hz
+    /// chirp, between 0.5 bar and half the pressure limit, backing off when the position
+    /// nears its window.
+    Excite {
+        /// Rig configuration: `virtual` (default), `pci6052e`, or a .toml file.
+        #[arg(long, default_value = "virtual")]
+        config: String,
+        /// The log to write (CSV, as `rig run --log`); an existing file is never overwritten.
+        #[arg(long)]
+        out: PathBuf,
+        /// Seconds of excitation.
+        #[arg(long, default_value_t = 60.0, allow_negative_numbers = true)]
+        duration: f64,
+        /// Virtual rig: run on wall-clock deadlines (1 kHz) instead of lockstep.
+        #[arg(long)]
+        realtime: bool,
+        /// Do not ask for SCHED_FIFO and mlockall (timer slack 1 ns only).
+        #[arg(long)]
+        no_fifo: bool,
+        /// Print one JSON object instead of the summary.
+        #[arg(long)]
+        json: bool,
+        /// Run even if it would take over an hour.
+        #[arg(long)]
+        yes: bool,
+    },
     /// Feed a log's measurements, references and periods back through the same
     /// controller and report the largest difference from the logged commands.
     Replay {
@@ -108,22 +135,33 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
                 clock: realtime.then_some(ClockMode::Realtime),
                 log_path: log,
                 fifo: no_fifo.then_some(false),
+                excitation: None,
             };
             let duration = options.duration_s.unwrap_or(cfg.duration_s);
-            super::check_duration(duration)?;
-            let lockstep = !realtime
-                && cfg
-                    .virtual_rig
-                    .as_ref()
-                    .is_some_and(|v| v.clock == ClockMode::Lockstep);
-            // Anything but a lockstep run runs in real time.
-            let per_period_s = if lockstep {
-                LOCKSTEP_PERIOD_S
-            } else {
-                cfg.period_s
-            };
-            output::check_wall_time("this rig run", duration / cfg.period_s, per_period_s, yes)?;
+            check_rig_wall_time(&cfg, duration, realtime, yes)?;
             run_rig(&cfg, &dir, &options, json, &rerun)
+                .with_context(|| format!("rig configuration `{config}`"))
+        }
+        RigCommand::Excite {
+            config,
+            out,
+            duration,
+            realtime,
+            no_fifo,
+            json,
+            yes,
+        } => {
+            let (cfg, dir) = RigConfig::load(&config)?;
+            check_rig_wall_time(&cfg, duration, realtime, yes)?;
+            let options = RunOptions {
+                duration_s: Some(duration),
+                clock: realtime.then_some(ClockMode::Realtime),
+                log_path: Some(out),
+                fifo: no_fifo.then_some(false),
+                excitation: Some(cfg.default_excitation(duration)),
+                ..RunOptions::default()
+            };
+            run_rig(&cfg, &dir, &options, json, &RerunArgs::default())
                 .with_context(|| format!("rig configuration `{config}`"))
         }
         RigCommand::Replay { log, json } => {
@@ -143,6 +181,23 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
             Ok(if r.mismatches == 0 { 0 } else { 4 })
         }
     }
+}
+
+/// Refuses a run over an hour of wall time unless `yes`; anything but a lockstep virtual
+/// run takes real time.
+fn check_rig_wall_time(cfg: &RigConfig, duration_s: f64, realtime: bool, yes: bool) -> Result<()> {
+    super::check_duration(duration_s)?;
+    let lockstep = !realtime
+        && cfg
+            .virtual_rig
+            .as_ref()
+            .is_some_and(|v| v.clock == ClockMode::Lockstep);
+    let per_period_s = if lockstep {
+        LOCKSTEP_PERIOD_S
+    } else {
+        cfg.period_s
+    };
+    output::check_wall_time("this rig run", duration_s / cfg.period_s, per_period_s, yes)
 }
 
 fn check(config: &str) -> Result<()> {
@@ -233,12 +288,16 @@ fn print_report(r: &pma_rig::RigReport) -> Result<()> {
     if let Some(d) = &r.fault_detail {
         say!("  {d}");
     }
-    say!(
-        "  tracking (measured): MAE {:.3e} m, IAE {:.3e} m, RTE {:.3} %",
-        r.mae_m,
-        r.iae_m,
-        r.rte_percent
-    );
+    if r.controller == "excite" {
+        say!("  an open-loop excitation: no tracking figures (identify from the log)");
+    } else {
+        say!(
+            "  tracking (measured): MAE {:.3e} m, IAE {:.3e} m, RTE {:.3} %",
+            r.mae_m,
+            r.iae_m,
+            r.rte_percent
+        );
+    }
     if r.clock == "realtime" {
         say!(
             "  timing: {} overruns, wake-up jitter p50 {:.0} us, p99 {:.0} us, max {:.0} us; compute p50 {:.1} us, p99 {:.1} us; SCHED_FIFO: {}",

@@ -693,6 +693,43 @@ impl RigConfig {
         )?)
     }
 
+    /// The controller of a run: the excitation if one is given, else `gains`' controller.
+    pub fn controller_for(
+        &self,
+        gains: &ControllerConfig,
+        excitation: Option<&pma_control::ExcitationSpec>,
+    ) -> Result<Box<dyn pma_control::Controller>, RigError> {
+        match excitation {
+            Some(spec) => Ok(Box::new(pma_control::Excitation::new(*spec).map_err(
+                |e| RigError::Field {
+                    field: "excitation",
+                    message: e.to_string(),
+                },
+            )?)),
+            None => self.build_controller(gains),
+        }
+    }
+
+    /// The default excitation of this rig for `duration_s`: steps and a 0.05-3 Hz chirp
+    /// between 0.5 bar (at most a tenth of the limit) and half the pressure limit, at half
+    /// the supervisor's rate limit, backing off 15 % of the position window inside it.
+    pub fn default_excitation(&self, duration_s: f64) -> pma_control::ExcitationSpec {
+        let l = &self.limits;
+        let margin = 0.15 * (l.position_max_m - l.position_min_m);
+        pma_control::ExcitationSpec {
+            duration_s,
+            pressure_min_pa: (0.5e5f64).min(0.1 * l.pressure_max_pa),
+            pressure_max_pa: 0.5 * l.pressure_max_pa,
+            steps_share: 0.4,
+            step_hold_s: 2.0,
+            chirp_start_hz: 0.05,
+            chirp_end_hz: 3.0,
+            slew_pa_per_s: 0.5 * l.pressure_rate_max_pa_per_s,
+            position_min_m: l.position_min_m + margin,
+            position_max_m: l.position_max_m - margin,
+        }
+    }
+
     /// The controller's model.
     pub fn nominal_model(&self) -> NominalModel {
         self.control.nominal.model()

@@ -26,6 +26,10 @@ pub(crate) const GAINS_BEGIN: &str = "begin gains";
 pub(crate) const GAINS_END: &str = "end gains";
 /// The header line that says where the reference started (m).
 pub(crate) const REFERENCE_START: &str = "reference start_m = ";
+/// The excitation section of an excitation's log (`rig excite`).
+pub(crate) const EXCITATION_BEGIN: &str = "begin excitation";
+/// Its end.
+pub(crate) const EXCITATION_END: &str = "end excitation";
 
 /// Valve volts recomputed from the command may differ from the log's by the clamp onto the
 /// output range (V).
@@ -111,6 +115,7 @@ fn header_lines(body: &str) -> Vec<String> {
 struct Header {
     config: RigConfig,
     gains: ControllerConfig,
+    excitation: Option<pma_control::ExcitationSpec>,
     reference: SmoothStart,
 }
 
@@ -139,10 +144,18 @@ fn parse_header(path: &Path, header: &[String]) -> Result<Header, RigError> {
         .ok_or_else(|| log_error(path, "the header does not say where the reference started"))?;
     let config = RigConfig::from_toml_str(&config_text, &format!("{} (header)", path.display()))?;
     let gains = ControllerConfig::from_toml_str(&gains_text)?;
+    let excitation = match section(header, EXCITATION_BEGIN, EXCITATION_END) {
+        Some(text) => Some(
+            toml::from_str(&text)
+                .map_err(|e| log_error(path, format!("the header's excitation section: {e}")))?,
+        ),
+        None => None,
+    };
     let reference = config.reference(start_m);
     Ok(Header {
         config,
         gains,
+        excitation,
         reference,
     })
 }
@@ -535,13 +548,16 @@ pub fn replay(path: &Path) -> Result<ReplayReport, RigError> {
     let mut limits = header.config.supervisor_limits();
     limits.watchdog_periods = 0;
     let mut rig = Supervised::new(player, limits, None);
-    let controller = header.config.build_controller(&header.gains)?;
+    let controller = header
+        .config
+        .controller_for(&header.gains, header.excitation.as_ref())?;
+    let controller_name = controller.name().to_owned();
     let mut task = MuscleTask::new(controller, &header.reference);
     let mut compare = Compare {
         path,
         report: ReplayReport {
             log: path.display().to_string(),
-            controller: header.gains.kind().as_str().to_owned(),
+            controller: controller_name,
             periods: 0,
             max_abs_difference_pa: 0.0,
             mismatches: 0,

@@ -6,12 +6,13 @@ use crate::daq::{Daq, DaqError, OutputHandle};
 use crate::error::RigError;
 use crate::log::{LogSpec, LogSummary, RigLog};
 use crate::replay::{
-    format_line, CONFIG_BEGIN, CONFIG_END, GAINS_BEGIN, GAINS_END, REFERENCE_START,
+    format_line, CONFIG_BEGIN, CONFIG_END, EXCITATION_BEGIN, EXCITATION_END, GAINS_BEGIN,
+    GAINS_END, REFERENCE_START,
 };
 use crate::timing::{enter_realtime, RealtimeStatus, TimingSummary};
 use crate::virtual_daq::{Injection, VirtualDaq};
 use pma_control::supervisor::{Alarm, Fault, Supervised, VentAction, WatchdogFactory};
-use pma_control::{ControllerConfig, MuscleStep, MuscleTask, Tracking};
+use pma_control::{ControllerConfig, ExcitationSpec, MuscleStep, MuscleTask, Tracking};
 use pma_loop::{End, LoopSettings, Recorder};
 use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
@@ -37,6 +38,8 @@ pub struct RunOptions {
     pub log_path: Option<PathBuf>,
     /// Ask for `SCHED_FIFO` (or not) instead of the configuration's `realtime.fifo`.
     pub fifo: Option<bool>,
+    /// Excite the muscle open loop (`rig excite`) instead of running the controller.
+    pub excitation: Option<ExcitationSpec>,
 }
 
 /// A run's outcome.
@@ -230,6 +233,7 @@ impl VirtualOrBoard {
 fn header(
     config: &RigConfig,
     gains: &ControllerConfig,
+    excitation: Option<&ExcitationSpec>,
     reference_start_m: f64,
 ) -> Result<String, RigError> {
     let mut cfg = config.clone();
@@ -239,8 +243,18 @@ fn header(
         field: "config",
         message: format!("cannot serialise the configuration for the log: {e}"),
     })?;
+    let excitation = match excitation {
+        Some(e) => {
+            let text = toml::to_string(e).map_err(|e| RigError::Field {
+                field: "excitation",
+                message: format!("cannot serialise the excitation for the log: {e}"),
+            })?;
+            format!("{EXCITATION_BEGIN}\n{text}{EXCITATION_END}\n")
+        }
+        None => String::new(),
+    };
     Ok(format!(
-        "{}\n{CONFIG_BEGIN}\n{toml}{CONFIG_END}\n{GAINS_BEGIN}\n{}{GAINS_END}\n{REFERENCE_START}{reference_start_m:?}",
+        "{}\n{CONFIG_BEGIN}\n{toml}{CONFIG_END}\n{GAINS_BEGIN}\n{}{GAINS_END}\n{excitation}{REFERENCE_START}{reference_start_m:?}",
         format_line(),
         gains.to_toml_string()
     ))
@@ -282,11 +296,8 @@ struct Armed {
 /// Opens and configures the board (the vent value written, the sensor read), registers
 /// the valve with the panic hook and puts the supervisor, its watchdog and the log's
 /// alarm around the backend.
-fn arm(
-    cfg: &RigConfig,
-    gains: &ControllerConfig,
-    injections: &[Injection],
-) -> Result<Armed, RigError> {
+fn arm(cfg: &RigConfig, gains: &ControllerConfig, options: &RunOptions) -> Result<Armed, RigError> {
+    let injections = &options.injections;
     let board = VirtualOrBoard::open(cfg, injections)?;
     let clock = if board.lockstep.is_some() {
         "lockstep"
@@ -299,7 +310,7 @@ fn arm(
     let device = backend.device().to_owned();
     let start_m = backend.configure_reading_m();
     let vent_v = backend.vent_v();
-    let header = header(cfg, gains, start_m)?;
+    let header = header(cfg, gains, options.excitation.as_ref(), start_m)?;
     let panic_vent = PanicVent::register(backend.valve_handle()?, vent_v);
     let watchdog_handle = backend.valve_handle()?;
     let factory: WatchdogFactory = Box::new(move || {
@@ -438,9 +449,9 @@ where
     };
     let settings = LoopSettings::new(cfg.duration_s)?.with_stop_flag(stop);
     settings.periods(cfg.period_s)?;
-    let controller = cfg.build_controller(&gains)?;
+    let controller = cfg.controller_for(&gains, options.excitation.as_ref())?;
     let controller_name = controller.name().to_owned();
-    let mut armed = arm(&cfg, &gains, &options.injections)?;
+    let mut armed = arm(&cfg, &gains, options)?;
     let reference = armed.reference;
     let mut task = MuscleTask::new(controller, &reference);
     // A rig knows nothing but its reading.
