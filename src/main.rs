@@ -10,7 +10,7 @@ mod paper;
 mod plot;
 mod studies;
 
-use commands::{compare_leg, pendulum, rig, simulate, single, sweep, tune};
+use commands::{compare_leg, identify, pendulum, rig, simulate, single, sweep, tune};
 
 #[derive(Parser)]
 #[command(
@@ -50,6 +50,10 @@ enum Command {
     /// A grid of bench runs (controllers x gains x plants x references x events x seeds)
     /// in parallel, one JSON line per run; `--shard I/N` for job arrays; `sweep merge`.
     Sweep(sweep::Args),
+    /// Identify the muscle, its valve and the sensor noise from a rig log (`rig excite`):
+    /// a plant file for `single`, `tune` and the virtual rig, with intervals and a
+    /// held-out fit.
+    Identify(identify::Args),
     /// The hardware backend: one muscle on a DAQ rig (or the virtual rig).
     Rig {
         #[command(subcommand)]
@@ -131,6 +135,7 @@ fn run(cli: Cli) -> Result<i32> {
         Command::TuneLeg(a) => tune::run_leg(a),
         Command::CompareLeg(a) => compare_leg::run(a),
         Command::Sweep(a) => sweep::run(a),
+        Command::Identify(a) => identify::run(a),
         Command::Rig { command } => rig::run(command),
     }
 }

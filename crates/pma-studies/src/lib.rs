@@ -9,6 +9,7 @@ pub mod compare;
 mod error;
 pub mod experiments;
 mod files;
+pub mod identify;
 pub mod leg_tune;
 pub mod pendulum;
 pub mod population;

@@ -1,0 +1,87 @@
+//! `pma-exo identify`: a plant file from a rig log.
+use crate::output::{self, OutFile};
+use crate::say;
+use anyhow::{bail, Context, Result};
+use pma_studies::identify::{identify, read_log};
+use std::path::PathBuf;
+
+/// `identify`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The rig log (`rig excite --out`, or any `rig run` log).
+    log: PathBuf,
+    /// The plant file to write (takes `single --plant`, `tune --plant`, `[virtual] plant`).
+    #[arg(long)]
+    out: PathBuf,
+    /// The load the muscle lifted, weighed (kg).
+    #[arg(long, allow_negative_numbers = true)]
+    load_kg: f64,
+    /// Lowest held-out fit (%) for which the plant file is written.
+    #[arg(long, default_value_t = 90.0, allow_negative_numbers = true)]
+    min_fit: f64,
+    /// Write the plant file even if the held-out fit is below `--min-fit`.
+    #[arg(long)]
+    force: bool,
+    /// Seed of the bootstrap.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Print one JSON object instead of the summary.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs `identify`.
+pub fn run(a: Args) -> Result<i32> {
+    output::refuse_input_as_output(&[("log", &a.log)], &[("--out", &a.out)])?;
+    let out = OutFile::create(&a.out)?;
+    let log = read_log(&a.log)?;
+    let id = identify(&log, a.load_kg, a.seed)?;
+    if id.fit_percent < a.min_fit && !a.force {
+        bail!(
+            "the identified model fits the held-out quarter of the log at {:.1} % only (--min-fit {}): nothing written (--force writes it anyway)",
+            id.fit_percent,
+            a.min_fit
+        );
+    }
+    let plant = id.plant_config(&log);
+    let text = format!(
+        "# Identified by `pma-exo identify {} --load-kg {}` ({} simulations)\n# {}\n{}",
+        a.log.display(),
+        a.load_kg,
+        id.simulations,
+        id.force_scale,
+        toml::to_string(&plant).context("cannot serialise the plant")?
+    );
+    out.finish_with(&text)?;
+    if a.json {
+        say!("{}", serde_json::to_string(&id)?);
+        return Ok(0);
+    }
+    say!(
+        "identified from {:.0} s: valve {:.1} ms + {:.1} ms dead time, held-out fit {:.2} % ({:.1} um RMS), residual {:.1} um RMS; wrote {}",
+        id.log_s,
+        id.valve_time_constant_s * 1e3,
+        id.valve_dead_time_s * 1e3,
+        id.fit_percent,
+        id.rms_error_m * 1e6,
+        id.noise_rms_m * 1e6,
+        a.out.display()
+    );
+    for (name, e) in &id.parameters {
+        say!(
+            "  {name:<24} {:>10.4} [{:.4}, {:.4}]",
+            e.value,
+            e.low,
+            e.high
+        );
+    }
+    say!(
+        "  condition number {:.3e}; {}",
+        id.condition_number,
+        id.force_scale
+    );
+    for (p, q, rho) in &id.inseparable {
+        say!("  not separable: {p} and {q} (correlation {rho:.3})");
+    }
+    Ok(0)
+}

@@ -1,0 +1,229 @@
+//! `rig excite` then `identify` on the virtual rig: the plant behind the log comes back
+//! (the `realistic` preset: Table I with f0 x 0.9, k0 and b0 x 1.2, 2.5 kg, a 20 ms valve,
+//! 3 um of sensor noise on 16-bit converters), and a log that cannot identify anything is
+//! a one-line error. The figures over five plants are in docs/commissioning.md.
+use pma_rig::config::EMBEDDED_VIRTUAL;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+fn pma_exo(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("run pma-exo")
+}
+
+fn dir() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let d = std::env::temp_dir().join(format!("pma-exo-identify-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).expect("temp dir");
+        d
+    })
+}
+
+/// A 40 s excitation of the virtual rig with the `realistic` plant, made once.
+fn excite_log() -> &'static Path {
+    static LOG: OnceLock<PathBuf> = OnceLock::new();
+    LOG.get_or_init(|| {
+        let config = dir().join("realistic-rig.toml");
+        let text = EMBEDDED_VIRTUAL.replace("plant = \"mismatch\"", "plant = \"realistic\"");
+        assert_ne!(text, EMBEDDED_VIRTUAL);
+        std::fs::write(&config, text).expect("config");
+        let log = dir().join("excite.csv");
+        let out = pma_exo(&[
+            "rig",
+            "excite",
+            "--config",
+            &config.display().to_string(),
+            "--duration",
+            "40",
+            "--out",
+            &log.display().to_string(),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        log
+    })
+}
+
+fn s(p: &Path) -> String {
+    p.display().to_string()
+}
+
+#[test]
+fn identification_gives_the_realistic_rig_back() {
+    let plant = dir().join("identified.toml");
+    let out = pma_exo(&[
+        "identify",
+        &s(excite_log()),
+        "--load-kg",
+        "2.5",
+        "--out",
+        &s(&plant),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let lag = v["valve_lag_s"].as_f64().expect("lag");
+    assert!(
+        (lag - 0.020).abs() <= 0.15 * 0.020,
+        "valve lag {lag} s against 20 ms"
+    );
+    let fit = v["fit_percent"].as_f64().expect("fit");
+    assert!(fit >= 90.0, "held-out fit {fit} %");
+    let param = |name: &str| {
+        v["parameters"]
+            .as_array()
+            .expect("parameters")
+            .iter()
+            .find(|p| p[0] == name)
+            .map(|p| p[1]["value"].as_f64().expect("value"))
+            .expect("parameter")
+    };
+    for (name, truth) in [
+        ("f0_scale", 0.9),
+        ("k0_scale", 1.2),
+        ("b0_inflation_scale", 1.2),
+    ] {
+        let got = param(name);
+        assert!(
+            (got - truth).abs() <= 0.05 * truth,
+            "{name} {got} against {truth}"
+        );
+    }
+    for key in [
+        "valve_time_constant_s",
+        "valve_dead_time_s",
+        "load_mass_kg",
+        "noise_rms_m",
+        "rms_error_m",
+    ] {
+        assert!(v[key].is_number(), "{key}");
+    }
+    // The plant file is one every command takes, and it tells the controllers the lag.
+    let text = std::fs::read_to_string(&plant).expect("plant");
+    let cfg = pma_bench::PlantConfig::from_toml_str(&text, "identified").expect("plant file");
+    assert!((cfg.nominal.valve_time_constant_s - lag).abs() < 1e-12);
+    assert_eq!(cfg.nominal.mass_kg, 2.5);
+    let run = pma_exo(&["single", "--plant", &s(&plant), "--duration", "2"]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+}
+
+fn one_line_error(args: &[&str], needle: &str) {
+    let out = pma_exo(args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+    assert!(err.contains(needle), "{args:?}: {err}");
+}
+
+/// The excitation log with `edit` applied to its rows (header and comments kept).
+fn edited(name: &str, edit: impl Fn(usize, &str) -> Option<String>) -> PathBuf {
+    let text = std::fs::read_to_string(excite_log()).expect("log");
+    let mut out = String::new();
+    let mut row = 0usize;
+    let mut columns_seen = false;
+    for line in text.lines() {
+        if line.starts_with('#') || !columns_seen {
+            columns_seen |= !line.starts_with('#');
+            out.push_str(line);
+        } else {
+            row += 1;
+            match edit(row, line) {
+                Some(l) => out.push_str(&l),
+                None => continue,
+            }
+        }
+        out.push('\n');
+    }
+    let p = dir().join(name);
+    std::fs::write(&p, out).expect("write");
+    p
+}
+
+#[test]
+fn a_log_that_cannot_identify_anything_is_a_one_line_error() {
+    let out = dir().join("never.toml");
+    let o = s(&out);
+    let run = |log: &Path, needle: &str| {
+        one_line_error(
+            &["identify", &s(log), "--load-kg", "2.5", "--out", &o],
+            needle,
+        );
+    };
+    run(
+        &edited("short.csv", |k, l| (k <= 5000).then(|| l.to_owned())),
+        "too short",
+    );
+    run(
+        &edited("nan.csv", |k, l| {
+            Some(if k == 777 {
+                let mut f: Vec<&str> = l.split(',').collect();
+                f[6] = "NaN";
+                f.join(",")
+            } else {
+                l.to_owned()
+            })
+        }),
+        "not a finite number",
+    );
+    run(
+        &edited("flat.csv", |_, l| {
+            let mut f: Vec<&str> = l.split(',').collect();
+            if f[18] != "vent" {
+                f[10] = "100000";
+            }
+            Some(f.join(","))
+        }),
+        "no excitation",
+    );
+    let foreign = dir().join("foreign.csv");
+    std::fs::write(&foreign, "t_s,position_m\n0,0\n").expect("write");
+    run(&foreign, "not a pma-exo rig log");
+    one_line_error(
+        &["identify", &s(excite_log()), "--load-kg", "-1", "--out", &o],
+        "load_kg",
+    );
+    // A fit below the threshold writes nothing.
+    one_line_error(
+        &[
+            "identify",
+            &s(excite_log()),
+            "--load-kg",
+            "2.5",
+            "--out",
+            &o,
+            "--min-fit",
+            "99.99",
+        ],
+        "nothing written",
+    );
+    assert!(!out.exists());
+    // The log is never the output.
+    one_line_error(
+        &[
+            "identify",
+            &s(excite_log()),
+            "--load-kg",
+            "2.5",
+            "--out",
+            &s(excite_log()),
+        ],
+        "refusing to overwrite an input",
+    );
+}
