@@ -914,3 +914,60 @@ fn compare_leg_writes_one_row_per_controller_and_scenario() {
         "/proc/x",
     );
 }
+
+/// `tune --robust N`: every gain set scored on N plants around the plant; the gain file
+/// says how it was tuned, and the same seed gives the same file whatever the threads.
+#[test]
+fn a_robust_tuning_is_deterministic_and_says_how_it_was_made() {
+    let dir = temp("robust");
+    let run = |name: &str, threads: &str| {
+        let out = dir.join(name);
+        let args = [
+            "tune",
+            "--controller",
+            "pid",
+            "--plant",
+            "realistic",
+            "--population",
+            "4",
+            "--generations",
+            "2",
+            "--duration",
+            "2",
+            "--robust",
+            "3",
+            "--spread",
+            "0.2",
+            "--objective",
+            "worst",
+            "--threads",
+            threads,
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        pma_exo_ok(&args);
+        std::fs::read_to_string(out).expect("gains")
+    };
+    let (one, two) = (run("one.toml", "1"), run("two.toml", "2"));
+    assert_eq!(one, two);
+    assert!(
+        one.contains("--robust 3 --spread 0.2 --objective worst"),
+        "{one}"
+    );
+    assert_one_line_error(
+        &["tune", "--controller", "pid", "--robust", "0"],
+        "--robust",
+    );
+    assert_one_line_error(
+        &[
+            "tune",
+            "--controller",
+            "pid",
+            "--robust",
+            "2",
+            "--spread",
+            "0.9",
+        ],
+        "spread",
+    );
+}

@@ -34,6 +34,17 @@ pub struct Args {
     /// Write the gain file here (created before the search; printed otherwise).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Robust tuning: score every gain set on this many plants drawn around `--plant`
+    /// (each muscle scale, the load and the valve's lag times a factor in
+    /// 1 +- `--spread`; the controllers' nominal kept), combined by `--objective`.
+    #[arg(long, value_name = "N")]
+    robust: Option<usize>,
+    /// Half-width of the robust plants' factors (0..=0.5).
+    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
+    spread: f64,
+    /// How a robust tuning combines its plants' scores.
+    #[arg(long, value_enum, default_value = "mean")]
+    objective: ObjectiveArg,
     /// Worker threads (default: one per core); the result does not depend on it.
     #[arg(long)]
     threads: Option<usize>,
@@ -42,14 +53,45 @@ pub struct Args {
     yes: bool,
 }
 
+/// `--objective`.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum ObjectiveArg {
+    /// The mean IAE over the plants.
+    Mean,
+    /// The 90th percentile.
+    P90,
+    /// The worst plant.
+    Worst,
+}
+
+impl From<ObjectiveArg> for pma_studies::tune::Aggregate {
+    fn from(o: ObjectiveArg) -> Self {
+        match o {
+            ObjectiveArg::Mean => Self::Mean,
+            ObjectiveArg::P90 => Self::P90,
+            ObjectiveArg::Worst => Self::Worst,
+        }
+    }
+}
+
+/// Most plants a robust tuning takes.
+const MAX_ROBUST: usize = 1000;
+
 impl Args {
     /// The command line that reproduces a tuning (written into the gain file).
     fn command(&self, plant: &str) -> String {
         let budget = self
             .max_variation
             .map_or(String::new(), |v| format!(" --max-variation {v}"));
+        let robust = self.robust.map_or(String::new(), |n| {
+            format!(
+                " --robust {n} --spread {} --objective {}",
+                self.spread,
+                format!("{:?}", self.objective).to_lowercase()
+            )
+        });
         format!(
-            "pma-exo tune --controller {} --plant {plant} --population {} --generations {} --duration {} --seed {}{budget}",
+            "pma-exo tune --controller {} --plant {plant} --population {} --generations {} --duration {} --seed {}{budget}{robust}",
             self.controller, self.population, self.generations, self.duration, self.seed
         )
     }
@@ -91,7 +133,19 @@ pub fn run(a: Args) -> Result<i32> {
         ..Default::default()
     };
     let periods = spec.periods()? as f64;
-    output::check_wall_time("this tuning", periods * evaluations, 1e-6, a.yes)?;
+    let plants = match a.robust {
+        Some(n) if !(1..=MAX_ROBUST).contains(&n) => {
+            bail!("--robust must be 1..={MAX_ROBUST} plants (got {n})")
+        }
+        Some(n) => pma_studies::tune::robust_plants(&plant, n, a.spread, a.seed)?,
+        None => vec![plant.clone()],
+    };
+    output::check_wall_time(
+        "this tuning",
+        periods * evaluations * plants.len() as f64,
+        1e-6,
+        a.yes,
+    )?;
     if let (Some(out), Some(plant)) = (&a.out, output::input_file(&a.plant)) {
         output::refuse_input_as_output(&[("plant file", plant)], &[("--out", out)])?;
     }
@@ -108,18 +162,33 @@ pub fn run(a: Args) -> Result<i32> {
     };
     let stop = output::stop_flag()?;
     let found = super::with_threads(a.threads, || {
-        pma_studies::tune::tune(a.controller, &plant, &opts, &objective, &stop)
+        pma_studies::tune::tune_robust(
+            a.controller,
+            &plants,
+            a.objective.into(),
+            &opts,
+            &objective,
+            &stop,
+        )
     })?;
     if interrupted(&stop, a.out.as_deref()) {
         return Ok(output::INTERRUPTED);
     }
-    let Some(res) = found else {
+    let Some((res, scores)) = found else {
         bail!(
             "{} has no search space here (pass --gains to change its gains)",
             a.controller
         );
     };
     let (iae, var) = (res.score.iae_m, res.score.variation_pa_per_s / 1e5);
+    if a.robust.is_some() {
+        let worst = scores.iter().map(|s| s.iae_m).fold(0.0, f64::max);
+        eprintln!(
+            "robust over {} plants: IAE {:?} {iae:.4e} m, worst {worst:.4e} m",
+            scores.len(),
+            a.objective
+        );
+    }
     if !res.feasible {
         bail!(
             "{}: no gain set within the budget found after {} runs (best: {var:.2} bar/s, IAE {iae:.4e} m)",

@@ -186,6 +186,118 @@ pub fn sine_score(config: &ControllerConfig, plant: &PlantConfig, duration_s: f6
     }
 }
 
+/// How the scores of a robust tuning's plants are combined.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Aggregate {
+    /// The mean over the plants.
+    Mean,
+    /// The 90th percentile (the value below which 90 % of the plants fall).
+    P90,
+    /// The worst plant.
+    Worst,
+}
+
+impl Aggregate {
+    /// Combines per-plant costs.
+    pub fn of(self, costs: &mut [f64]) -> f64 {
+        match self {
+            Aggregate::Mean => costs.iter().sum::<f64>() / costs.len().max(1) as f64,
+            Aggregate::Worst => costs.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            Aggregate::P90 => {
+                costs.sort_by(f64::total_cmp);
+                let k = ((0.9 * costs.len() as f64).ceil() as usize).clamp(1, costs.len()) - 1;
+                costs[k]
+            }
+        }
+    }
+}
+
+/// `n` plants around `base` for a robust tuning: each muscle scale, the load and the
+/// valve's time constant and dead time multiplied by independent factors uniform in
+/// `[1 - spread, 1 + spread]`, seeded; the nominal (what the controllers are told) and
+/// the sensor kept. Plant `k` depends on (`seed`, `k`) only.
+pub fn robust_plants(
+    base: &PlantConfig,
+    n: usize,
+    spread: f64,
+    seed: u64,
+) -> Result<Vec<PlantConfig>, crate::StudyError> {
+    pma_model::error::within("spread", spread, 0.0, 0.5, "must be 0..=0.5")?;
+    (0..n)
+        .map(|k| {
+            let mut rng = GaussianRng::new(seed.wrapping_mul(0x9E37_79B9).wrapping_add(k as u64));
+            let mut f = || 1.0 + spread * (2.0 * rng.uniform() - 1.0);
+            let mut p = base.clone();
+            p.name = format!("{}/robust-{k}", base.name);
+            let m = &mut p.muscle;
+            for s in [
+                &mut m.f0_scale,
+                &mut m.f1_scale,
+                &mut m.k0_scale,
+                &mut m.k1_scale,
+                &mut m.b0_inflation_scale,
+                &mut m.b1_inflation_scale,
+                &mut m.b0_deflation_scale,
+                &mut m.b1_deflation_scale,
+            ] {
+                *s *= f();
+            }
+            p.load.mass_kg *= f();
+            p.valve.time_constant_s *= f();
+            p.valve.dead_time_s *= f();
+            p.sensor.seed = p.sensor.seed.wrapping_add(k as u64);
+            p.validate()?;
+            Ok(p)
+        })
+        .collect()
+}
+
+/// Tunes `kind` for the aggregate of its scores over `plants` (the robust tuning): each
+/// plant's cost as in [`Score::cost`], combined by `aggregate`. `None` for a controller
+/// without a search space. Returns the result and its score on every plant.
+pub fn tune_robust(
+    kind: ControllerKind,
+    plants: &[PlantConfig],
+    aggregate: Aggregate,
+    opts: &FireflyOptions,
+    objective: &Objective,
+    stop: &AtomicBool,
+) -> Option<(TuneResult, Vec<Score>)> {
+    let dims = kind.search_space().len();
+    if dims == 0 || plants.is_empty() {
+        return None;
+    }
+    let cost = |config: &ControllerConfig| {
+        let mut costs: Vec<f64> = plants
+            .iter()
+            .map(|p| sine_score(config, p, objective.duration_s).cost(objective))
+            .collect();
+        aggregate.of(&mut costs)
+    };
+    let (u, _, evaluations) = firefly(dims, opts, stop, |u| cost(&ControllerConfig::at(kind, u)));
+    let config = ControllerConfig::at(kind, &u);
+    let scores: Vec<Score> = plants
+        .iter()
+        .map(|p| sine_score(&config, p, objective.duration_s))
+        .collect();
+    let mut iae: Vec<f64> = scores.iter().map(|s| s.iae_m).collect();
+    let mut var: Vec<f64> = scores.iter().map(|s| s.variation_pa_per_s).collect();
+    let score = Score {
+        iae_m: aggregate.of(&mut iae),
+        variation_pa_per_s: aggregate.of(&mut var),
+    };
+    let feasible = scores.iter().all(|s| s.feasible(objective));
+    Some((
+        TuneResult {
+            config,
+            score,
+            feasible,
+            evaluations: evaluations * plants.len(),
+        },
+        scores,
+    ))
+}
+
 /// Result of [`tune`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct TuneResult {
@@ -240,6 +352,31 @@ mod tests {
         );
         assert_eq!(evals, 20 * 41);
         assert!(f < 1e-3, "f = {f}, x = {x:?}");
+    }
+
+    #[test]
+    fn aggregates_are_what_they_say() {
+        let mut c = [3.0, 1.0, 2.0, 10.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0];
+        assert_eq!(Aggregate::Mean.of(&mut c.clone()), 5.5);
+        assert_eq!(Aggregate::Worst.of(&mut c.clone()), 10.0);
+        assert_eq!(Aggregate::P90.of(&mut c), 9.0);
+    }
+
+    #[test]
+    fn robust_plants_stay_within_their_spread_and_depend_on_their_index_only() {
+        let base = PlantConfig::preset("realistic").unwrap();
+        let a = robust_plants(&base, 8, 0.1, 3).unwrap();
+        let b = robust_plants(&base, 3, 0.1, 3).unwrap();
+        assert_eq!(a[..3], b[..]);
+        for p in &a {
+            let r = p.muscle.k0_scale / base.muscle.k0_scale;
+            assert!((0.9..=1.1).contains(&r), "{r}");
+            let lag = p.valve.time_constant_s / base.valve.time_constant_s;
+            assert!((0.9..=1.1).contains(&lag), "{lag}");
+            assert_eq!(p.nominal, base.nominal);
+        }
+        assert_ne!(a[0].muscle, a[1].muscle);
+        assert!(robust_plants(&base, 2, 0.9, 3).is_err());
     }
 
     #[test]
