@@ -227,3 +227,54 @@ fn a_log_that_cannot_identify_anything_is_a_one_line_error() {
         "refusing to overwrite an input",
     );
 }
+
+/// `rig commission` on the virtual rig with the `realistic` plant: every stage runs, the
+/// directory holds the logs, the plant, the gains and the report, and the muscle tracks
+/// better after than before; an existing directory is refused.
+#[test]
+fn commissioning_the_realistic_rig_improves_its_tracking() {
+    excite_log();
+    let config = dir().join("realistic-rig.toml");
+    let out = dir().join("commission");
+    let args = [
+        "rig",
+        "commission",
+        "--config",
+        &s(&config),
+        "--out",
+        &s(&out),
+        "--load-kg",
+        "2.5",
+        "--excite-duration",
+        "40",
+        "--robust",
+        "2",
+        "--population",
+        "4",
+        "--generations",
+        "1",
+        "--json",
+    ];
+    let run = pma_exo(&args);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&run.stdout).expect("json");
+    let before = v["rte_before_percent"].as_f64().expect("before");
+    let after = v["rte_after_percent"].as_f64().expect("after");
+    assert!(after < 0.5 * before, "RTE {before} % -> {after} %");
+    for f in [
+        "before.csv",
+        "excite.csv",
+        "plant.toml",
+        "gains.toml",
+        "report.md",
+    ] {
+        assert!(out.join(f).exists(), "{f}");
+    }
+    let report = std::fs::read_to_string(out.join("report.md")).expect("report");
+    assert!(report.contains("| f0_scale |"), "{report}");
+    one_line_error(&args, "exists");
+}

@@ -89,6 +89,11 @@ pub enum RigCommand {
         #[arg(long)]
         yes: bool,
     },
+    /// Commission the muscle in one command: the configured controller, an excitation,
+    /// identification, a robust tuning on the identified plant, and a verification on
+    /// the rig; a report in a new directory. A real board asks before each stage that
+    /// moves the muscle (`--yes` skips).
+    Commission(super::commission::Args),
     /// Feed a log's measurements, references and periods back through the same
     /// controller and report the largest difference from the logged commands.
     Replay {
@@ -164,6 +169,7 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
             run_rig(&cfg, &dir, &options, json, &RerunArgs::default())
                 .with_context(|| format!("rig configuration `{config}`"))
         }
+        RigCommand::Commission(a) => super::commission::run(a),
         RigCommand::Replay { log, json } => {
             let r = pma_rig::replay(&log)?;
             if json {
@@ -185,7 +191,12 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
 
 /// Refuses a run over an hour of wall time unless `yes`; anything but a lockstep virtual
 /// run takes real time.
-fn check_rig_wall_time(cfg: &RigConfig, duration_s: f64, realtime: bool, yes: bool) -> Result<()> {
+pub(crate) fn check_rig_wall_time(
+    cfg: &RigConfig,
+    duration_s: f64,
+    realtime: bool,
+    yes: bool,
+) -> Result<()> {
     super::check_duration(duration_s)?;
     let lockstep = !realtime
         && cfg

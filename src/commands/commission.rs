@@ -1,0 +1,294 @@
+//! `pma-exo rig commission`: excite, identify, tune robustly and verify, in one command.
+use super::rig::check_rig_wall_time;
+use crate::output::{self, OutFile};
+use crate::say;
+use anyhow::{bail, Context, Result};
+use pma_control::{ControllerConfig, ControllerKind};
+use pma_rig::{RigConfig, RunOptions};
+use pma_studies::identify::{identify, read_log, Identified};
+use pma_studies::tune::{robust_plants, tune_robust, Aggregate, FireflyOptions, Objective};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+/// `rig commission`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Rig configuration: `virtual` (default), `pci6052e`, or a .toml file.
+    #[arg(long, default_value = "virtual")]
+    config: String,
+    /// A new directory for the logs, plant.toml, gains.toml, report.md.
+    #[arg(long)]
+    out: PathBuf,
+    /// The load the muscle lifts, weighed (kg).
+    #[arg(long, allow_negative_numbers = true)]
+    load_kg: f64,
+    /// The controller to commission (default: the configuration's).
+    #[arg(long, value_name = ControllerKind::NAMES)]
+    controller: Option<ControllerKind>,
+    /// Seconds of excitation.
+    #[arg(long, default_value_t = 60.0, allow_negative_numbers = true)]
+    excite_duration: f64,
+    /// Plants of the robust tuning.
+    #[arg(long, default_value_t = 8)]
+    robust: usize,
+    /// Their spread around the identified plant (0..=0.5).
+    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
+    spread: f64,
+    /// Budget on the command's activity in the tuning (bar/s).
+    #[arg(long, default_value_t = 12.0, allow_negative_numbers = true)]
+    max_variation: f64,
+    /// Fireflies of the tuning.
+    #[arg(long, default_value_t = 20)]
+    population: usize,
+    /// Generations of the tuning.
+    #[arg(long, default_value_t = 40)]
+    generations: usize,
+    /// Seed of the tuning and the bootstrap.
+    #[arg(long, default_value_t = 2019)]
+    seed: u64,
+    /// Do not ask before the stages that move the muscle (a real board asks).
+    #[arg(long)]
+    yes: bool,
+    /// Print one JSON object instead of the summary.
+    #[arg(long)]
+    json: bool,
+}
+
+/// What `--json` prints.
+#[derive(serde::Serialize)]
+struct Report<'a> {
+    config: &'a str,
+    controller: &'static str,
+    rte_before_percent: f64,
+    rte_told_percent: f64,
+    rte_tuned_percent: f64,
+    rte_after_percent: f64,
+    kept: &'static str,
+    plant: String,
+    gains: String,
+    report: String,
+    identified: &'a Identified,
+}
+
+/// Asks on the terminal before a stage that moves a real muscle.
+fn confirm(stage: &str, real: bool, yes: bool) -> Result<()> {
+    if !real || yes {
+        return Ok(());
+    }
+    eprint!("{stage}: the muscle will move. Air on, area clear? Type yes: ");
+    let mut line = String::new();
+    std::io::stdin()
+        .read_line(&mut line)
+        .context("cannot read the answer")?;
+    if line.trim() != "yes" {
+        bail!("commissioning stopped before `{stage}`: not confirmed");
+    }
+    Ok(())
+}
+
+/// One supervised rig run; its measured RTE.
+fn rig_run(cfg: &RigConfig, dir: &Path, options: &RunOptions, what: &str) -> Result<f64> {
+    let stop = output::stop_flag()?;
+    let report = pma_rig::run::run(cfg, dir, options, &stop, ())?;
+    if !report.vented {
+        eprintln!("DANGER: the valve could not be vented: dump the air by hand");
+    }
+    if let Some(f) = &report.fault {
+        bail!(
+            "{what} stopped: {f} ({}); log {}",
+            report.fault_detail.as_deref().unwrap_or(""),
+            report.log
+        );
+    }
+    Ok(report.rte_percent)
+}
+
+/// Runs `rig commission`.
+pub fn run(a: Args) -> Result<i32> {
+    let (cfg, dir) = RigConfig::load(&a.config)?;
+    let real = cfg.virtual_rig.is_none();
+    if a.out.exists() {
+        bail!(
+            "`{}` exists: commissioning writes into a new directory (nothing is overwritten)",
+            a.out.display()
+        );
+    }
+    if !(a.max_variation.is_finite() && a.max_variation > 0.0) {
+        bail!("--max-variation must be a finite number of bar/s > 0");
+    }
+    if !(1..=1000).contains(&a.robust) || a.population < 2 || a.generations < 1 {
+        bail!("--robust must be 1..=1000, --population at least 2, --generations at least 1");
+    }
+    check_rig_wall_time(&cfg, cfg.duration_s * 4.0 + a.excite_duration, false, a.yes)?;
+    let configured = cfg.control_kind()?;
+    let kind = a.controller.unwrap_or(configured);
+    // Another controller than the configured one starts from its defaults.
+    let current = if kind == configured {
+        cfg.control.controller_config(kind, &dir)?
+    } else {
+        kind.default_config()
+    };
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create `{}`", a.out.display()))?;
+    let path = |name: &str| a.out.join(name);
+    let stage = |n: u32, what: &str| eprintln!("[{n}/5] {what}");
+
+    stage(1, "the current controller, as configured");
+    confirm("the run before", real, a.yes)?;
+    let base = RunOptions {
+        controller: Some(current),
+        log_path: Some(path("before.csv")),
+        ..RunOptions::default()
+    };
+    let rte_before = rig_run(&cfg, &dir, &base, "the run before")?;
+
+    stage(2, "excitation");
+    confirm("the excitation", real, a.yes)?;
+    let excite = RunOptions {
+        duration_s: Some(a.excite_duration),
+        log_path: Some(path("excite.csv")),
+        excitation: Some(cfg.default_excitation(a.excite_duration)),
+        ..RunOptions::default()
+    };
+    rig_run(&cfg, &dir, &excite, "the excitation")?;
+
+    stage(3, "identification");
+    let log = read_log(&path("excite.csv"))?;
+    let id = identify(&log, a.load_kg, a.seed)?;
+    if id.fit_percent < 90.0 {
+        bail!(
+            "the identified model fits the held-out quarter at {:.1} % only: stopping before tuning (see {})",
+            id.fit_percent,
+            path("excite.csv").display()
+        );
+    }
+    let plant = id.plant_config(&log);
+    OutFile::create(&path("plant.toml"))?
+        .finish_with(&toml::to_string(&plant).context("cannot serialise the plant")?)?;
+
+    stage(
+        4,
+        &format!(
+            "robust tuning of {kind} on {} plants (about {:.0} s on this machine's cores)",
+            a.robust,
+            // 6 ms per 20 s run measured here (release, 2 cores).
+            0.006 * (a.robust * a.population * (a.generations + 1)) as f64
+                / rayon::current_num_threads() as f64
+        ),
+    );
+    let plants = robust_plants(&plant, a.robust, a.spread, a.seed)?;
+    let objective = Objective {
+        duration_s: 20.0,
+        max_variation_pa_per_s: Some(a.max_variation * 1e5),
+    };
+    let opts = FireflyOptions {
+        population: a.population,
+        generations: a.generations,
+        seed: a.seed,
+        ..FireflyOptions::default()
+    };
+    let stop = AtomicBool::new(false);
+    let tuned = tune_robust(kind, &plants, Aggregate::Mean, &opts, &objective, &stop)
+        .map(|(r, _)| r)
+        .filter(|r| r.feasible);
+
+    stage(5, "verification with the identified plant told");
+    let mut told = cfg.clone();
+    told.control.nominal = plant.nominal;
+    confirm("the verification", real, a.yes)?;
+    let verify = |gains: ControllerConfig, log: &str| -> Result<f64> {
+        let o = RunOptions {
+            controller: Some(gains),
+            log_path: Some(path(log)),
+            ..RunOptions::default()
+        };
+        rig_run(&told, &dir, &o, "the verification")
+    };
+    let rte_told = verify(current, "after-current-gains.csv")?;
+    let rte_tuned = match &tuned {
+        Some(t) => verify(t.config, "after-tuned-gains.csv")?,
+        None => f64::INFINITY,
+    };
+    // The tuned gains are kept only if the rig says they are better.
+    let (kept, gains, rte_after) = match &tuned {
+        Some(t) if rte_tuned < rte_told => ("tuned", t.config, rte_tuned),
+        _ => ("current", current, rte_told),
+    };
+    OutFile::create(&path("gains.toml"))?.finish_with(&format!(
+        "# `pma-exo rig commission` ({kept} gains; RTE {rte_after:.3} % on the rig told the identified plant)\n{}",
+        gains.to_toml_string()
+    ))?;
+    let md = report_md(&a, kind, &id, [rte_before, rte_told, rte_tuned], kept);
+    OutFile::create(&path("report.md"))?.finish_with(&md)?;
+    let report = Report {
+        config: &a.config,
+        controller: kind.as_str(),
+        rte_before_percent: rte_before,
+        rte_told_percent: rte_told,
+        rte_tuned_percent: rte_tuned,
+        rte_after_percent: rte_after,
+        kept,
+        plant: path("plant.toml").display().to_string(),
+        gains: path("gains.toml").display().to_string(),
+        report: path("report.md").display().to_string(),
+        identified: &id,
+    };
+    if a.json {
+        say!("{}", serde_json::to_string(&report)?);
+    } else {
+        say!(
+            "commissioned {kind} on `{}`: RTE {rte_before:.2} % before, {rte_after:.2} % after ({kept} gains); wrote {}",
+            a.config,
+            a.out.display()
+        );
+    }
+    Ok(0)
+}
+
+fn report_md(a: &Args, kind: ControllerKind, id: &Identified, rte: [f64; 3], kept: &str) -> String {
+    let mut md = format!(
+        "# Commissioning of {kind} on `{}`\n\n\
+         Load {} kg (weighed). Excitation {} s (`excite.csv`), identification (`plant.toml`), \
+         robust tuning on {} plants within {} % (`gains.toml` if it won), verification on the rig.\n\n\
+         | run | RTE (measured position) |\n|---|---|\n\
+         | before: configured gains and nominal (`before.csv`) | {:.3} % |\n\
+         | configured gains, identified plant told (`after-current-gains.csv`) | {:.3} % |\n\
+         | robustly tuned gains, identified plant told (`after-tuned-gains.csv`) | {} |\n\n\
+         Kept: the {kept} gains.\n\n## Identification\n\n\
+         Valve {:.2} ms + {:.2} ms dead time; held-out fit {:.2} % ({:.1} um RMS); residual {:.1} um RMS; \
+         condition number {:.0}. {}\n\n| parameter | estimate | 95 % interval | Table I / nominal |\n|---|---|---|---|\n",
+        a.config,
+        a.load_kg,
+        a.excite_duration,
+        a.robust,
+        a.spread * 100.0,
+        rte[0],
+        rte[1],
+        if rte[2].is_finite() {
+            format!("{:.3} %", rte[2])
+        } else {
+            "no gain set within the budget".into()
+        },
+        id.valve_time_constant_s * 1e3,
+        id.valve_dead_time_s * 1e3,
+        id.fit_percent,
+        id.rms_error_m * 1e6,
+        id.noise_rms_m * 1e6,
+        id.condition_number,
+        id.force_scale,
+    );
+    for (name, e) in &id.parameters {
+        let nominal = if name.ends_with("_scale") { "1" } else { "0" };
+        md.push_str(&format!(
+            "| {name} | {:.4} | [{:.4}, {:.4}] | {nominal} |\n",
+            e.value, e.low, e.high
+        ));
+    }
+    for (p, q, rho) in &id.inseparable {
+        md.push_str(&format!(
+            "\n- not separable by these data: {p} and {q} (correlation {rho:.3})"
+        ));
+    }
+    md.push('\n');
+    md
+}
