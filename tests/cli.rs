@@ -904,11 +904,28 @@ fn compare_leg_writes_one_row_per_controller_and_scenario() {
     assert_eq!(rows[9]["controller"], "pid");
     assert!(rows.iter().all(|r| r["finite"] == true));
     assert!(rows[0]["spasms"].as_u64().unwrap() > 0);
+    // Regression (issue 18): a run without spasms printed 0 deviation and 0 recovery; it
+    // has none, `null` in the JSON and `-` in the table.
+    let calm = rows
+        .iter()
+        .find(|r| r["scenario"] == "gait_resistive")
+        .unwrap();
+    assert_eq!(calm["spasms"], 0);
+    for key in [
+        "spasm_mean_deviation_deg",
+        "spasm_max_deviation_deg",
+        "spasm_max_recovery_s",
+        "spasm_peak_pressure_rate_bar_s",
+    ] {
+        assert!(calm[key].is_null(), "{key}: {calm}");
+        assert!(rows[0][key].is_number(), "{key}: {}", rows[0]);
+    }
     let md = std::fs::read_to_string(dir.join("compare-leg.md")).unwrap();
     assert!(
         md.contains("## gait_resistive") && md.contains("| sta |"),
         "{md}"
     );
+    assert!(md.contains("| 0 | - / - | - | 0 / 0 | - |"), "{md}");
     assert_one_line_error(
         &["compare-leg", "--out", "/proc/x", "--duration", "8"],
         "/proc/x",

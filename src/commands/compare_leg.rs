@@ -105,19 +105,23 @@ pub fn report(rows: &[CompareRow], duration_s: f64) -> String {
                 "\n## {scenario}\n\n| controller | hip RMS (deg) | knee RMS (deg) | spasms | spasm deviation mean / max (deg) | worst recovery (s) | not recovered / overlapped | peak dp/dt in spasms (bar/s) | peak dp/dt (bar/s) | command variation (bar/s) | peak force / rating | valve at a limit (s) | beyond limits (s) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
             );
         }
+        // `-` where there is nothing to show (no spasm, none recovered), never a 0.
+        let or_dash = |v: Option<f64>, digits: usize| {
+            v.map_or_else(|| "-".to_owned(), |x| format!("{x:.digits$}"))
+        };
         let _ = writeln!(
             md,
-            "| {} | {:.3} | {:.3} | {} | {:.2} / {:.2} | {:.2} | {} / {} | {:.0} | {:.0} | {:.1} | {:.2} | {:.2} | {:.3} |",
+            "| {} | {:.3} | {:.3} | {} | {} / {} | {} | {} / {} | {} | {:.0} | {:.1} | {:.2} | {:.2} | {:.3} |",
             r.controller,
             r.hip_rms_deg,
             r.knee_rms_deg,
             r.spasms,
-            r.spasm_mean_deviation_deg,
-            r.spasm_max_deviation_deg,
-            r.spasm_max_recovery_s,
+            or_dash(r.spasm_mean_deviation_deg, 2),
+            or_dash(r.spasm_max_deviation_deg, 2),
+            or_dash(r.spasm_max_recovery_s, 2),
             r.spasms_unrecovered,
             r.spasms_overlapped,
-            r.spasm_peak_pressure_rate_bar_s,
+            or_dash(r.spasm_peak_pressure_rate_bar_s, 0),
             r.peak_pressure_rate_bar_s,
             r.command_variation_bar_per_s,
             r.peak_force_over_rated,

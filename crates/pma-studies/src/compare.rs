@@ -20,19 +20,22 @@ pub struct CompareRow {
     pub knee_rms_deg: f64,
     /// Spasms in the run.
     pub spasms: usize,
-    /// Mean over the spasms of their peak deviation from the reference (deg; 0 if none).
-    pub spasm_mean_deviation_deg: f64,
-    /// Largest peak deviation of a spasm (deg; 0 if none).
-    pub spasm_max_deviation_deg: f64,
-    /// Largest recovery time to within 1 deg of a spasm that recovered (s; 0 if none).
-    pub spasm_max_recovery_s: f64,
+    /// Mean over the spasms of their peak deviation from the reference (deg; `None`
+    /// without spasms).
+    pub spasm_mean_deviation_deg: Option<f64>,
+    /// Largest peak deviation of a spasm (deg; `None` without spasms).
+    pub spasm_max_deviation_deg: Option<f64>,
+    /// Largest recovery time to within 1 deg of a spasm that recovered (s; `None` if no
+    /// spasm recovered).
+    pub spasm_max_recovery_s: Option<f64>,
     /// Spasms after which the joint was not back within 1 deg within 3 s or before the
     /// joint's next spasm (overlapped ones not counted).
     pub spasms_unrecovered: usize,
     /// Spasms overlapped by the joint's next one before they ended (no recovery to time).
     pub spasms_overlapped: usize,
-    /// Largest muscle |dp/dt| during a spasm or its follow-up (bar/s; 0 if none).
-    pub spasm_peak_pressure_rate_bar_s: f64,
+    /// Largest muscle |dp/dt| during a spasm or its follow-up (bar/s; `None` without
+    /// spasms).
+    pub spasm_peak_pressure_rate_bar_s: Option<f64>,
     /// Largest muscle |dp/dt| over the run (bar/s).
     pub peak_pressure_rate_bar_s: f64,
     /// Mean |du/dt| of the commands (bar/s).
@@ -52,7 +55,10 @@ impl CompareRow {
     pub fn of(report: &LegReport, controller: &str) -> Self {
         let rms = |j: &str| report.joints.get(j).map_or(f64::NAN, |s| s.rms_deg);
         let spasms = &report.spasms;
-        let fold = |f: fn(&pma_leg::SpasmReport) -> f64| spasms.iter().map(f).fold(0.0, f64::max);
+        // `None` where there is nothing to take the largest of (no spasm, none recovered).
+        let fold = |f: fn(&pma_leg::SpasmReport) -> Option<f64>| {
+            spasms.iter().filter_map(f).reduce(f64::max)
+        };
         let muscles = report.safety.muscles.values();
         Self {
             scenario: report.scenario.clone(),
@@ -60,19 +66,17 @@ impl CompareRow {
             hip_rms_deg: rms("hip"),
             knee_rms_deg: rms("knee"),
             spasms: spasms.len(),
-            spasm_mean_deviation_deg: if spasms.is_empty() {
-                0.0
-            } else {
+            spasm_mean_deviation_deg: (!spasms.is_empty()).then(|| {
                 spasms.iter().map(|s| s.peak_deviation_deg).sum::<f64>() / spasms.len() as f64
-            },
-            spasm_max_deviation_deg: fold(|s| s.peak_deviation_deg),
-            spasm_max_recovery_s: fold(|s| s.recovery_s.unwrap_or(0.0)),
+            }),
+            spasm_max_deviation_deg: fold(|s| Some(s.peak_deviation_deg)),
+            spasm_max_recovery_s: fold(|s| s.recovery_s),
             spasms_unrecovered: spasms
                 .iter()
                 .filter(|s| s.recovery_s.is_none() && !s.overlapped)
                 .count(),
             spasms_overlapped: spasms.iter().filter(|s| s.overlapped).count(),
-            spasm_peak_pressure_rate_bar_s: fold(|s| s.peak_pressure_rate_bar_s),
+            spasm_peak_pressure_rate_bar_s: fold(|s| Some(s.peak_pressure_rate_bar_s)),
             peak_pressure_rate_bar_s: muscles
                 .clone()
                 .map(|m| m.peak_pressure_rate_bar_s)

@@ -488,7 +488,7 @@ impl LegPoint {
             knee_rms_deg,
             knee_max_deg,
             spasms: row.spasms,
-            spasm_max_deviation_deg: (row.spasms > 0).then_some(row.spasm_max_deviation_deg),
+            spasm_max_deviation_deg: row.spasm_max_deviation_deg,
             spasms_unrecovered: row.spasms_unrecovered,
             command_variation_bar_per_s: row.command_variation_bar_per_s,
             peak_force_over_rated: row.peak_force_over_rated,

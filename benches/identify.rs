@@ -1,0 +1,55 @@
+//! Cost of identification: `identify` on a 20 s excitation of the `realistic` plant
+//! (steps then a chirp, as `rig excite` drives it), from the log to the intervals. A 60 s
+//! log costs about three times as much (docs/commissioning.md: 10-15 s).
+use criterion::{criterion_group, criterion_main, Criterion};
+use pma_bench::{MuscleBench, PlantConfig};
+use pma_control::ExcitationSpec;
+use pma_studies::identify::{identify, IdLog};
+use std::hint::black_box;
+
+fn realistic_log(seconds: f64) -> IdLog {
+    let plant = PlantConfig::preset("realistic").expect("preset");
+    let spec = ExcitationSpec {
+        duration_s: seconds,
+        pressure_min_pa: 0.5e5,
+        pressure_max_pa: 3.0e5,
+        steps_share: 0.4,
+        step_hold_s: 2.0,
+        chirp_start_hz: 0.05,
+        chirp_end_hz: 3.0,
+        slew_pa_per_s: 1e8,
+        position_min_m: -1.0,
+        position_max_m: 1.0,
+    };
+    let mut bench = MuscleBench::vented(&plant).expect("bench");
+    let start_m = bench.measure().position_m;
+    let n = (seconds * 1e3) as usize;
+    let command_pa: Vec<f64> = (0..n).map(|k| spec.schedule_pa(k as f64 * 1e-3)).collect();
+    let position_m = command_pa
+        .iter()
+        .map(|&c| {
+            bench.apply(c, 1e-3);
+            bench.measure().position_m
+        })
+        .collect();
+    IdLog {
+        period_s: 1e-3,
+        command_pa,
+        position_m,
+        start_m,
+        pressure_max_pa: 6e5,
+    }
+}
+
+fn identify_20s(c: &mut Criterion) {
+    let log = realistic_log(20.0);
+    let mut group = c.benchmark_group("identify");
+    group.sample_size(10);
+    group.bench_function("realistic_20s_log", |b| {
+        b.iter(|| black_box(identify(black_box(&log), 2.5, 1)).expect("identified"))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, identify_20s);
+criterion_main!(benches);
