@@ -66,16 +66,26 @@ pub fn read_log(path: &Path) -> Result<IdLog, StudyError> {
             "not a pma-exo rig log (no `# pma-exo rig log` header)",
         ));
     }
-    let header_value = |key: &str| {
+    // `key = value` of the header's configuration, in `section` (`""`: before any).
+    let header_value = |section: &str, key: &str| {
+        let mut current = String::new();
         text.lines()
             .take_while(|l| l.starts_with('#'))
-            .find_map(|l| l.strip_prefix("# ")?.strip_prefix(key)?.strip_prefix(" = "))
+            .filter_map(|l| l.strip_prefix("# "))
+            .find_map(|l| {
+                if let Some(s) = l.strip_prefix('[').and_then(|s| s.strip_suffix(']')) {
+                    current = s.to_owned();
+                    return None;
+                }
+                (current == section).then_some(())?;
+                l.strip_prefix(key)?.strip_prefix(" = ")
+            })
             .and_then(|v| v.trim().parse::<f64>().ok())
     };
-    let period_s =
-        header_value("period_s").ok_or_else(|| log_error(path, "the header has no period_s"))?;
-    let pressure_max_pa = header_value("pressure_max_pa")
-        .ok_or_else(|| log_error(path, "the header has no pressure_max_pa"))?;
+    let period_s = header_value("", "period_s")
+        .ok_or_else(|| log_error(path, "the header has no period_s"))?;
+    let pressure_max_pa = header_value("limits", "pressure_max_pa")
+        .ok_or_else(|| log_error(path, "the header has no [limits] pressure_max_pa"))?;
     let mut lines = text.lines().filter(|l| !l.starts_with('#'));
     let columns: Vec<&str> = lines
         .next()
@@ -747,6 +757,29 @@ mod tests {
         (0..(seconds * 1e3) as usize)
             .map(|k| spec.schedule_pa(k as f64 * 1e-3))
             .collect()
+    }
+
+    /// Regression: the header's first `pressure_max_pa` is the muscle's rating; the valve's
+    /// limit is the one under `[limits]`.
+    #[test]
+    fn the_pressure_limit_is_read_from_the_limits_section() {
+        let dir = std::env::temp_dir().join(format!("pma-id-header-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("log.csv");
+        let mut text = String::from(
+            "# pma-exo rig log, format 2\n# begin config\n# period_s = 0.001\n\
+             # [muscle]\n# pressure_max_pa = 600000.0\n# [limits]\n# pressure_max_pa = 400000.0\n\
+             # end config\nt_s,period,valve_cmd_pa,position_m,event\n",
+        );
+        for (k, c) in excite_like(12.0).iter().enumerate() {
+            let y = 0.01 + 1e-7 * c;
+            text.push_str(&format!("{},{k},{c},{y},\n", k as f64 * 1e-3));
+        }
+        std::fs::write(&path, text).unwrap();
+        let log = read_log(&path).unwrap();
+        assert_eq!(log.pressure_max_pa, 4.0e5);
+        assert_eq!(log.period_s, 1e-3);
+        std::fs::remove_dir_all(dir).ok();
     }
 
     #[test]
