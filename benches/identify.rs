@@ -9,18 +9,7 @@ use std::hint::black_box;
 
 fn realistic_log(seconds: f64) -> IdLog {
     let plant = PlantConfig::preset("realistic").expect("preset");
-    let spec = ExcitationSpec {
-        duration_s: seconds,
-        pressure_min_pa: 0.5e5,
-        pressure_max_pa: 3.0e5,
-        steps_share: 0.4,
-        step_hold_s: 2.0,
-        chirp_start_hz: 0.05,
-        chirp_end_hz: 3.0,
-        slew_pa_per_s: 1e8,
-        position_min_m: -1.0,
-        position_max_m: 1.0,
-    };
+    let spec = ExcitationSpec::steps_and_chirp(seconds, 0.5e5, 3.0e5, 1e8);
     let mut bench = MuscleBench::vented(&plant).expect("bench");
     let start_m = bench.measure().position_m;
     let n = (seconds * 1e3) as usize;

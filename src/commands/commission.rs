@@ -90,9 +90,7 @@ fn confirm(stage: &str, real: bool, yes: bool) -> Result<()> {
 fn rig_run(cfg: &RigConfig, dir: &Path, options: &RunOptions, what: &str) -> Result<f64> {
     let stop = output::stop_flag()?;
     let report = pma_rig::run::run(cfg, dir, options, &stop, ())?;
-    if !report.vented {
-        eprintln!("DANGER: the valve could not be vented: dump the air by hand");
-    }
+    super::rig::warn_if_not_vented(&report);
     if let Some(f) = &report.fault {
         bail!(
             "{what} stopped: {f} ({}); log {}",

@@ -265,11 +265,7 @@ fn run_rig(
     if let Err(e) = viz::finish(viz) {
         eprintln!("warning: Rerun: {e}");
     }
-    if !report.vented {
-        eprintln!(
-            "DANGER: the valve could not be vented at the end of the run: dump the air by hand"
-        );
-    }
+    warn_if_not_vented(&report);
     if json {
         say!("{}", serde_json::to_string(&report)?);
     } else {
@@ -279,6 +275,15 @@ fn run_rig(
         eprintln!("error: the log `{}` is incomplete: {e}", report.log);
     }
     Ok(report.exit_code())
+}
+
+/// The one message a run that could not vent must print, whatever else happens.
+pub(crate) fn warn_if_not_vented(report: &pma_rig::RigReport) {
+    if !report.vented {
+        eprintln!(
+            "DANGER: the valve could not be vented at the end of the run: dump the air by hand"
+        );
+    }
 }
 
 fn print_report(r: &pma_rig::RigReport) -> Result<()> {

@@ -56,6 +56,29 @@ pub struct ExcitationError {
 }
 
 impl ExcitationSpec {
+    /// Steps over 40 % of `duration_s` (held 2 s each), then a 0.05-3 Hz chirp, between
+    /// `pressure_min_pa` and `pressure_max_pa`, at most `slew_pa_per_s`; no position
+    /// window (set `position_min_m` / `position_max_m` to back off before one).
+    pub fn steps_and_chirp(
+        duration_s: f64,
+        pressure_min_pa: f64,
+        pressure_max_pa: f64,
+        slew_pa_per_s: f64,
+    ) -> Self {
+        Self {
+            duration_s,
+            pressure_min_pa,
+            pressure_max_pa,
+            steps_share: 0.4,
+            step_hold_s: 2.0,
+            chirp_start_hz: 0.05,
+            chirp_end_hz: 3.0,
+            slew_pa_per_s,
+            position_min_m: f64::MIN,
+            position_max_m: f64::MAX,
+        }
+    }
+
     /// Checks the fields.
     pub fn validate(&self) -> Result<(), ExcitationError> {
         let check = |field, value: f64, ok: bool, expected| {
@@ -227,16 +250,9 @@ mod tests {
 
     fn spec() -> ExcitationSpec {
         ExcitationSpec {
-            duration_s: 60.0,
-            pressure_min_pa: 0.5e5,
-            pressure_max_pa: 3.0e5,
-            steps_share: 0.4,
-            step_hold_s: 2.0,
-            chirp_start_hz: 0.05,
-            chirp_end_hz: 3.0,
-            slew_pa_per_s: 1e7,
             position_min_m: -0.01,
             position_max_m: 0.03,
+            ..ExcitationSpec::steps_and_chirp(60.0, 0.5e5, 3.0e5, 1e7)
         }
     }
 

@@ -717,16 +717,14 @@ impl RigConfig {
         let l = &self.limits;
         let margin = 0.15 * (l.position_max_m - l.position_min_m);
         pma_control::ExcitationSpec {
-            duration_s,
-            pressure_min_pa: (0.5e5f64).min(0.1 * l.pressure_max_pa),
-            pressure_max_pa: 0.5 * l.pressure_max_pa,
-            steps_share: 0.4,
-            step_hold_s: 2.0,
-            chirp_start_hz: 0.05,
-            chirp_end_hz: 3.0,
-            slew_pa_per_s: 0.5 * l.pressure_rate_max_pa_per_s,
             position_min_m: l.position_min_m + margin,
             position_max_m: l.position_max_m - margin,
+            ..pma_control::ExcitationSpec::steps_and_chirp(
+                duration_s,
+                (0.5e5f64).min(0.1 * l.pressure_max_pa),
+                0.5 * l.pressure_max_pa,
+                0.5 * l.pressure_rate_max_pa_per_s,
+            )
         }
     }
 

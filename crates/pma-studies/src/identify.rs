@@ -283,15 +283,25 @@ fn simulate(q: &Params, load_kg: f64, log: &IdLog) -> Option<Vec<f64>> {
     Some(out)
 }
 
-/// Residuals of `q` over samples `range`.
-fn residuals(
-    q: &Params,
+/// The log and load a fit runs against, counting the simulations it runs.
+struct Problem<'a> {
+    log: &'a IdLog,
     load_kg: f64,
-    log: &IdLog,
-    range: std::ops::Range<usize>,
-) -> Option<Vec<f64>> {
-    let sim = simulate(q, load_kg, log)?;
-    Some(range.map(|k| sim[k] - log.position_m[k]).collect())
+    simulations: std::cell::Cell<usize>,
+}
+
+impl Problem<'_> {
+    /// Residuals of `q` over samples `range`.
+    fn residuals(&self, q: &Params, range: std::ops::Range<usize>) -> Option<Vec<f64>> {
+        self.simulations.set(self.simulations.get() + 1);
+        let sim = simulate(q, self.load_kg, self.log)?;
+        Some(range.map(|k| sim[k] - self.log.position_m[k]).collect())
+    }
+
+    /// RMS of those residuals; infinite for a plant that cannot be simulated.
+    fn cost(&self, q: &Params, range: std::ops::Range<usize>) -> f64 {
+        self.residuals(q, range).map_or(f64::INFINITY, |r| rms(&r))
+    }
 }
 
 fn rms(r: &[f64]) -> f64 {
@@ -303,12 +313,11 @@ fn rms(r: &[f64]) -> f64 {
 fn levenberg_marquardt(
     q: &mut Params,
     free: &[usize],
-    load_kg: f64,
-    log: &IdLog,
+    problem: &Problem<'_>,
     range: std::ops::Range<usize>,
     iterations: usize,
 ) -> (f64, Option<DMatrix<f64>>) {
-    let Some(mut r) = residuals(q, load_kg, log, range.clone()) else {
+    let Some(mut r) = problem.residuals(q, range.clone()) else {
         return (f64::INFINITY, None);
     };
     let mut cost = rms(&r);
@@ -321,7 +330,7 @@ fn levenberg_marquardt(
             let h = step(i, q[i]);
             let mut qh = *q;
             qh[i] += h;
-            let Some(rh) = residuals(&qh, load_kg, log, range.clone()) else {
+            let Some(rh) = problem.residuals(&qh, range.clone()) else {
                 continue;
             };
             for k in 0..n {
@@ -345,7 +354,7 @@ fn levenberg_marquardt(
             for (c, &i) in free.iter().enumerate() {
                 trial[i] += delta[c];
             }
-            if let Some(rt) = residuals(&trial, load_kg, log, range.clone()) {
+            if let Some(rt) = problem.residuals(&trial, range.clone()) {
                 let ct = rms(&rt);
                 if ct < cost {
                     let gain = (cost - ct) / cost;
@@ -421,7 +430,7 @@ pub struct Identified {
     pub parameters: Vec<(String, Estimate)>,
     /// Why the force scale is what it is.
     pub force_scale: String,
-    /// Simulations run.
+    /// Simulations run by the fit (the held-out validation not counted).
     pub simulations: usize,
 }
 
@@ -464,7 +473,11 @@ pub fn identify(log: &IdLog, load_kg: f64, seed: u64) -> Result<Identified, Stud
     let n = log.command_pa.len();
     let split = n * 3 / 4;
     let fit = 0..split;
-    let mut sims = 0usize;
+    let problem = Problem {
+        log,
+        load_kg,
+        simulations: std::cell::Cell::new(0),
+    };
     // (1)-(2) Starts: at each time constant of a grid, the muscle by least squares on
     // smoothed signals (Table I where they cannot tell), then output error with f1 at
     // Table I (the force scale anchored); the best of the starts goes on. The output
@@ -480,16 +493,11 @@ pub fn identify(log: &IdLog, load_kg: f64, seed: u64) -> Result<Identified, Stud
             let mut ls = t;
             ls[0] = start[0];
             ls[2..MUSCLE].copy_from_slice(&start[1..]);
-            sims += 2;
-            let cost_of = |p: &Params| {
-                residuals(p, load_kg, log, fit.clone()).map_or(f64::INFINITY, |r| rms(&r))
-            };
-            if cost_of(&ls) < cost_of(&t) {
+            if problem.cost(&ls, fit.clone()) < problem.cost(&t, fit.clone()) {
                 t = ls;
             }
         }
-        let (c, _) = levenberg_marquardt(&mut t, &anchored, load_kg, log, fit.clone(), 30);
-        sims += 30 * (anchored.len() + 2);
+        let (c, _) = levenberg_marquardt(&mut t, &anchored, &problem, fit.clone(), 30);
         if c < best {
             best = c;
             q = t;
@@ -498,16 +506,14 @@ pub fn identify(log: &IdLog, load_kg: f64, seed: u64) -> Result<Identified, Stud
     // (3) Then f1 free too: the load's inertia fixes the force scale when it is heavy
     // enough; starting from the anchored optimum, the free fit can only improve on it.
     let free: Vec<usize> = (0..=TAU).collect();
-    let (mut cost, _) = levenberg_marquardt(&mut q, &free, load_kg, log, fit.clone(), 60);
-    sims += 60 * (free.len() + 2);
+    let (mut cost, _) = levenberg_marquardt(&mut q, &free, &problem, fit.clone(), 60);
     // (4) The lag split between time constant and dead time.
     let lag = q[TAU];
     for share in [0.2, 0.4, 0.6] {
         let mut t = q;
         t[THETA] = share * lag;
         t[TAU] = lag - t[THETA];
-        let (c, _) = levenberg_marquardt(&mut t, &free, load_kg, log, fit.clone(), 20);
-        sims += 20 * (free.len() + 2);
+        let (c, _) = levenberg_marquardt(&mut t, &free, &problem, fit.clone(), 20);
         if c < cost {
             cost = c;
             q = t;
@@ -515,15 +521,14 @@ pub fn identify(log: &IdLog, load_kg: f64, seed: u64) -> Result<Identified, Stud
     }
     // The final Jacobian over every parameter (the dead time free too, one polish step).
     let all: Vec<usize> = (0..10).collect();
-    let (c, jac) = levenberg_marquardt(&mut q, &all, load_kg, log, fit.clone(), 10);
-    sims += 10 * 12;
+    let (c, jac) = levenberg_marquardt(&mut q, &all, &problem, fit.clone(), 10);
     cost = cost.min(c);
     let jac = jac.ok_or_else(|| StudyError::Parse {
         what: "identification of",
         file: "the log".into(),
         message: "the model could not be simulated at the start values".into(),
     })?;
-    let r_fit = residuals(&q, load_kg, log, fit.clone()).unwrap_or_default();
+    let r_fit = problem.residuals(&q, fit.clone()).unwrap_or_default();
     // (4) Intervals: moving-block bootstrap of the residuals through the linearised fit.
     let (condition_number, correlations, spread) =
         bootstrap(&jac, &r_fit, (1.0 / log.period_s).round() as usize, seed);
@@ -573,7 +578,7 @@ pub fn identify(log: &IdLog, load_kg: f64, seed: u64) -> Result<Identified, Stud
         inseparable,
         parameters,
         force_scale: "f1 fitted with the rest, the force scale fixed by the weighed load's inertia alone (weakly: a common factor on every force parameter is the least determined direction, see `inseparable`); positions, the valve lag and the controllers' inversion hardly depend on it".into(),
-        simulations: sims,
+        simulations: problem.simulations.get(),
     })
 }
 
@@ -742,18 +747,7 @@ mod tests {
     use super::*;
 
     fn excite_like(seconds: f64) -> Vec<f64> {
-        let spec = pma_control::ExcitationSpec {
-            duration_s: seconds,
-            pressure_min_pa: 0.5e5,
-            pressure_max_pa: 1.8e5,
-            steps_share: 0.4,
-            step_hold_s: 2.0,
-            chirp_start_hz: 0.05,
-            chirp_end_hz: 3.0,
-            slew_pa_per_s: 1e8,
-            position_min_m: -1.0,
-            position_max_m: 1.0,
-        };
+        let spec = pma_control::ExcitationSpec::steps_and_chirp(seconds, 0.5e5, 1.8e5, 1e8);
         (0..(seconds * 1e3) as usize)
             .map(|k| spec.schedule_pa(k as f64 * 1e-3))
             .collect()
