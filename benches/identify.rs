@@ -1,6 +1,7 @@
 //! Cost of identification: `identify` on a 20 s excitation of the `realistic` plant
-//! (steps then a chirp, as `rig excite` drives it), from the log to the intervals. A 60 s
-//! log costs about three times as much (docs/commissioning.md: 10-15 s).
+//! (steps then a chirp, as `rig excite` drives it), from the log to the intervals, with
+//! the position alone and with the valve's pressure channel. A 60 s log costs about three
+//! times as much (docs/commissioning.md).
 use criterion::{criterion_group, criterion_main, Criterion};
 use pma_bench::{MuscleBench, PlantConfig};
 use pma_control::ExcitationSpec;
@@ -14,28 +15,38 @@ fn realistic_log(seconds: f64) -> IdLog {
     let start_m = bench.measure().position_m;
     let n = (seconds * 1e3) as usize;
     let command_pa: Vec<f64> = (0..n).map(|k| spec.schedule_pa(k as f64 * 1e-3)).collect();
-    let position_m = command_pa
+    let (position_m, pressure_pa) = command_pa
         .iter()
         .map(|&c| {
             bench.apply(c, 1e-3);
-            bench.measure().position_m
+            (bench.measure().position_m, bench.pressure())
         })
-        .collect();
+        .unzip();
     IdLog {
         period_s: 1e-3,
         command_pa,
         position_m,
         start_m,
         pressure_max_pa: 6e5,
+        pressure_pa: Some(pressure_pa),
+        weighed_kg: Some(2.5),
+        added_mass_kg: 0.0,
     }
 }
 
 fn identify_20s(c: &mut Criterion) {
-    let log = realistic_log(20.0);
+    let with_pressure = realistic_log(20.0);
+    let position_only = IdLog {
+        pressure_pa: None,
+        ..with_pressure.clone()
+    };
     let mut group = c.benchmark_group("identify");
     group.sample_size(10);
     group.bench_function("realistic_20s_log", |b| {
-        b.iter(|| black_box(identify(black_box(&log), 2.5, 1)).expect("identified"))
+        b.iter(|| black_box(identify(black_box(&position_only), 2.5, 1)).expect("identified"))
+    });
+    group.bench_function("realistic_20s_log_pressure_channel", |b| {
+        b.iter(|| black_box(identify(black_box(&with_pressure), 2.5, 1)).expect("identified"))
     });
     group.finish();
 }

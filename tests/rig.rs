@@ -653,7 +653,7 @@ fn replay_refuses_a_truncated_or_edited_log() {
         .position(|l| !l.starts_with('#'))
         .expect("columns");
     let row = header_end + 3000;
-    // Columns: t_s,period,dt_s,...,position_m(6),position_v(7),...,valve_v(11),...,fault(18)
+    // Columns: t_s,period,dt_s,...,position_m(6),position_v(7),...,valve_v(11),...,fault(20)
     let edit_field = |line: &str, field: usize, value: &str| -> String {
         let mut f: Vec<String> = line.split(',').map(str::to_owned).collect();
         f[field] = value.to_owned();
@@ -682,7 +682,7 @@ fn replay_refuses_a_truncated_or_edited_log() {
         ),
         (
             "fault edited",
-            with_line(row, edit_field(lines[row], 18, "stall")),
+            with_line(row, edit_field(lines[row], 20, "stall")),
             "digest",
         ),
         (
@@ -779,5 +779,61 @@ fn an_excitation_spans_its_range_backs_off_before_the_window_and_replays() {
     assert_eq!(replay.status.code(), Some(0), "{r}");
     assert_eq!(r["mismatches"], 0);
     assert_eq!(r["controller"], "excite");
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// The valve's pressure channel: logged every period; a reading above the pressure limit
+/// plus 10 % (a valve stuck open, reporting the 8 bar supply) stops the run and vents,
+/// naming the reading.
+#[test]
+fn a_pressure_reading_above_the_limit_stops_the_run_and_vents() {
+    let mut cfg = virtual_config();
+    cfg.signals.pressure = Some(AnalogChannel {
+        subdevice: 0,
+        channel: 1,
+        range: 0,
+        aref: pma_rig::daq::Aref::Ground,
+    });
+    let dir = temp_dir("pressure");
+    let log = dir.join("honest.csv");
+    let honest = run_virtual(
+        &cfg,
+        &RunOptions {
+            duration_s: Some(4.0),
+            log_path: Some(log.clone()),
+            ..RunOptions::default()
+        },
+    );
+    assert!(honest.completed, "{honest:?}");
+    let measured = log_column(&log, "pressure_pa");
+    let commanded = log_column(&log, "valve_cmd_pa");
+    assert!(measured.iter().all(|p| p.is_finite()));
+    // The mismatch plant's valve is ideal: the pressure read in a period is the previous
+    // period's command, to the converter's 30 Pa step.
+    let k = measured.len() / 2;
+    assert!(
+        (measured[k] - commanded[k - 1]).abs() < 100.0,
+        "{} against {}",
+        measured[k],
+        commanded[k - 1]
+    );
+    let r = run_virtual(
+        &cfg,
+        &RunOptions {
+            duration_s: Some(8.0),
+            log_path: Some(dir.join("stuck-open.csv")),
+            injections: vec!["pressure-high@3".parse().expect("injection")],
+            ..RunOptions::default()
+        },
+    );
+    assert_eq!(r.fault.as_deref(), Some("daq-error"), "{r:?}");
+    assert!(
+        r.fault_detail
+            .as_deref()
+            .is_some_and(|d| d.contains("the valve reports")),
+        "{r:?}"
+    );
+    assert!(r.vented, "{r:?}");
+    assert_eq!(r.periods, 2999, "{r:?}");
     std::fs::remove_dir_all(dir).ok();
 }

@@ -5,7 +5,7 @@ use crate::say;
 use anyhow::{bail, Context, Result};
 use pma_control::{ControllerConfig, ControllerKind};
 use pma_rig::{RigConfig, RunOptions};
-use pma_studies::identify::{identify, read_log, Identified};
+use pma_studies::identify::{identify_logs, read_log, Identified};
 use pma_studies::tune::{robust_plants, tune_robust, Aggregate, FireflyOptions, Objective};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -19,9 +19,14 @@ pub struct Args {
     /// A new directory for the logs, plant.toml, gains.toml, report.md.
     #[arg(long)]
     out: PathBuf,
-    /// The load the muscle lifts, weighed (kg).
+    /// The load the muscle lifts, weighed (kg); default the configuration's `[load]
+    /// mass_kg`.
     #[arg(long, allow_negative_numbers = true)]
-    load_kg: f64,
+    load_kg: Option<f64>,
+    /// When the load is not weighed: a second excitation with this known mass added (kg)
+    /// identifies it (a real rig asks you to hang it).
+    #[arg(long, allow_negative_numbers = true, conflicts_with = "load_kg")]
+    added_mass_kg: Option<f64>,
     /// The controller to commission (default: the configuration's).
     #[arg(long, value_name = ControllerKind::NAMES)]
     controller: Option<ControllerKind>,
@@ -117,7 +122,32 @@ pub fn run(a: Args) -> Result<i32> {
     if !(1..=1000).contains(&a.robust) || a.population < 2 || a.generations < 1 {
         bail!("--robust must be 1..=1000, --population at least 2, --generations at least 1");
     }
-    check_rig_wall_time(&cfg, cfg.duration_s * 4.0 + a.excite_duration, false, a.yes)?;
+    let load_kg = a.load_kg.or(cfg.load.mass_kg);
+    let added = match (load_kg, a.added_mass_kg) {
+        (None, None) => bail!(
+            "the load is not known: pass --load-kg (weighed), set [load] mass_kg in the rig configuration, or pass --added-mass-kg M for a second excitation with M kg added"
+        ),
+        (Some(_), Some(_)) => bail!(
+            "--added-mass-kg is for an unweighed load; the configuration's [load] mass_kg is set"
+        ),
+        (_, added) => added,
+    };
+    // Fails before anything moves if the added mass is not a valid mass.
+    let cfg_added = added
+        .map(|m| {
+            let mut c = cfg.clone();
+            c.load.added_mass_kg += m;
+            c.validate().map(|()| c)
+        })
+        .transpose()
+        .context("--added-mass-kg")?;
+    let excitations = if added.is_some() { 2.0 } else { 1.0 };
+    check_rig_wall_time(
+        &cfg,
+        cfg.duration_s * 4.0 + excitations * a.excite_duration,
+        false,
+        a.yes,
+    )?;
     let configured = cfg.control_kind()?;
     let kind = a.controller.unwrap_or(configured);
     // Another controller than the configured one starts from its defaults.
@@ -149,10 +179,24 @@ pub fn run(a: Args) -> Result<i32> {
         ..RunOptions::default()
     };
     rig_run(&cfg, &dir, &excite, "the excitation")?;
+    let mut logs = vec![read_log(&path("excite.csv"))?];
+    if let (Some(m), Some(cfg_added)) = (added, &cfg_added) {
+        confirm(
+            &format!("the excitation with {m} kg more on the load (hang it now)"),
+            real,
+            a.yes,
+        )?;
+        let o = RunOptions {
+            log_path: Some(path("excite-added-mass.csv")),
+            ..excite.clone()
+        };
+        rig_run(cfg_added, &dir, &o, "the excitation with the added mass")?;
+        logs.push(read_log(&path("excite-added-mass.csv"))?);
+    }
 
     stage(3, "identification");
-    let log = read_log(&path("excite.csv"))?;
-    let id = identify(&log, a.load_kg, a.seed)?;
+    let log = &logs[0];
+    let id = identify_logs(&logs, load_kg, a.seed)?;
     if id.fit_percent < 90.0 {
         bail!(
             "the identified model fits the held-out quarter at {:.1} % only: stopping before tuning (see {})",
@@ -160,7 +204,7 @@ pub fn run(a: Args) -> Result<i32> {
             path("excite.csv").display()
         );
     }
-    let plant = id.plant_config(&log);
+    let plant = id.plant_config(log);
     OutFile::create(&path("plant.toml"))?
         .finish_with(&toml::to_string(&plant).context("cannot serialise the plant")?)?;
 
@@ -246,7 +290,7 @@ pub fn run(a: Args) -> Result<i32> {
 fn report_md(a: &Args, kind: ControllerKind, id: &Identified, rte: [f64; 3], kept: &str) -> String {
     let mut md = format!(
         "# Commissioning of {kind} on `{}`\n\n\
-         Load {} kg (weighed). Excitation {} s (`excite.csv`), identification (`plant.toml`), \
+         Load {:.3} kg ({}). Excitation {} s (`excite.csv`{}), identification (`plant.toml`), \
          robust tuning on {} plants within {} % (`gains.toml` if it won), verification on the rig.\n\n\
          | run | RTE (measured position) |\n|---|---|\n\
          | before: configured gains and nominal (`before.csv`) | {:.3} % |\n\
@@ -256,8 +300,14 @@ fn report_md(a: &Args, kind: ControllerKind, id: &Identified, rte: [f64; 3], kep
          Valve {:.2} ms + {:.2} ms dead time; held-out fit {:.2} % ({:.1} um RMS); residual {:.1} um RMS; \
          condition number {:.0}. {}\n\n| parameter | estimate | 95 % interval | Table I / nominal |\n|---|---|---|---|\n",
         a.config,
-        a.load_kg,
+        id.load_mass_kg,
+        id.load_source,
         a.excite_duration,
+        if id.logs > 1 {
+            ", and `excite-added-mass.csv` with the added mass"
+        } else {
+            ""
+        },
         a.robust,
         a.spread * 100.0,
         rte[0],

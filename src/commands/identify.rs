@@ -2,20 +2,24 @@
 use crate::output::{self, OutFile};
 use crate::say;
 use anyhow::{bail, Context, Result};
-use pma_studies::identify::{identify, read_log};
+use pma_studies::identify::{identify_logs, read_log};
 use std::path::PathBuf;
 
 /// `identify`'s arguments.
 #[derive(clap::Args)]
 pub struct Args {
-    /// The rig log (`rig excite --out`, or any `rig run` log).
-    log: PathBuf,
+    /// The rig log (`rig excite --out`, or any `rig run` log); with an unweighed load, two
+    /// logs of the same muscle, the second with a known mass added (`rig excite
+    /// --added-mass-kg`).
+    #[arg(required = true, num_args = 1..=8)]
+    logs: Vec<PathBuf>,
     /// The plant file to write (takes `single --plant`, `tune --plant`, `[virtual] plant`).
     #[arg(long)]
     out: PathBuf,
-    /// The load the muscle lifted, weighed (kg).
+    /// The load the muscle lifted, weighed (kg); default the log's `[load] mass_kg`, else
+    /// identified from the added-mass logs.
     #[arg(long, allow_negative_numbers = true)]
-    load_kg: f64,
+    load_kg: Option<f64>,
     /// Lowest held-out fit (%) for which the plant file is written.
     #[arg(long, default_value_t = 90.0, allow_negative_numbers = true)]
     min_fit: f64,
@@ -32,10 +36,17 @@ pub struct Args {
 
 /// Runs `identify`.
 pub fn run(a: Args) -> Result<i32> {
-    output::refuse_input_as_output(&[("log", &a.log)], &[("--out", &a.out)])?;
+    let inputs: Vec<(&str, &std::path::Path)> =
+        a.logs.iter().map(|l| ("log", l.as_path())).collect();
+    output::refuse_input_as_output(&inputs, &[("--out", &a.out)])?;
     let out = OutFile::create(&a.out)?;
-    let log = read_log(&a.log)?;
-    let id = identify(&log, a.load_kg, a.seed)?;
+    let logs = a
+        .logs
+        .iter()
+        .map(|l| read_log(l))
+        .collect::<Result<Vec<_>, _>>()?;
+    let load_kg = a.load_kg.or(logs[0].weighed_kg);
+    let id = identify_logs(&logs, load_kg, a.seed)?;
     if id.fit_percent < a.min_fit && !a.force {
         bail!(
             "the identified model fits the held-out quarter of the log at {:.1} % only (--min-fit {}): nothing written (--force writes it anyway)",
@@ -43,11 +54,12 @@ pub fn run(a: Args) -> Result<i32> {
             a.min_fit
         );
     }
-    let plant = id.plant_config(&log);
+    let plant = id.plant_config(&logs[0]);
+    let names: Vec<String> = a.logs.iter().map(|l| l.display().to_string()).collect();
+    let load = load_kg.map_or(String::new(), |m| format!(" --load-kg {m}"));
     let text = format!(
-        "# Identified by `pma-exo identify {} --load-kg {}` ({} simulations)\n# {}\n{}",
-        a.log.display(),
-        a.load_kg,
+        "# Identified by `pma-exo identify {}{load}` ({} simulations)\n# {}\n{}",
+        names.join(" "),
         id.simulations,
         id.force_scale,
         toml::to_string(&plant).context("cannot serialise the plant")?
@@ -58,10 +70,13 @@ pub fn run(a: Args) -> Result<i32> {
         return Ok(0);
     }
     say!(
-        "identified from {:.0} s: valve {:.1} ms + {:.1} ms dead time, held-out fit {:.2} % ({:.1} um RMS), residual {:.1} um RMS; wrote {}",
+        "identified from {:.0} s: valve {:.1} ms + {:.1} ms dead time ({}), load {:.3} kg ({}), held-out fit {:.2} % ({:.1} um RMS), residual {:.1} um RMS; wrote {}",
         id.log_s,
         id.valve_time_constant_s * 1e3,
         id.valve_dead_time_s * 1e3,
+        id.valve_source,
+        id.load_mass_kg,
+        id.load_source,
         id.fit_percent,
         id.rms_error_m * 1e6,
         id.noise_rms_m * 1e6,

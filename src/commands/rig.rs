@@ -2,7 +2,7 @@
 use super::{viz, RerunArgs};
 use crate::output;
 use crate::say;
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::Subcommand;
 use pma_control::ControllerKind;
 use pma_rig::config::ClockMode;
@@ -39,8 +39,8 @@ pub enum RigCommand {
         #[arg(long)]
         gains: Option<PathBuf>,
         /// Inject a fault into the virtual rig at T seconds (0 < T < the duration):
-        /// sensor-nan, sensor-stuck, position-out, daq-error, stall or controller-panic
-        /// (repeatable).
+        /// sensor-nan, sensor-stuck, position-out, daq-error, stall, controller-panic, or
+        /// pressure-high (with the pressure channel) (repeatable).
         #[arg(long, value_name = "FAULT@T")]
         inject: Vec<Injection>,
         /// Virtual rig: run on wall-clock deadlines (1 kHz) instead of lockstep.
@@ -76,6 +76,11 @@ pub enum RigCommand {
         /// Seconds of excitation.
         #[arg(long, default_value_t = 60.0, allow_negative_numbers = true)]
         duration: f64,
+        /// A known mass added to the load for this excitation (kg): the second run of the
+        /// added-mass protocol when the load is not weighed (`identify LOG1 LOG2`). The
+        /// virtual rig hangs it itself; a real rig asks you to (`--yes` skips the question).
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        added_mass_kg: f64,
         /// Virtual rig: run on wall-clock deadlines (1 kHz) instead of lockstep.
         #[arg(long)]
         realtime: bool,
@@ -85,7 +90,7 @@ pub enum RigCommand {
         /// Print one JSON object instead of the summary.
         #[arg(long)]
         json: bool,
-        /// Run even if it would take over an hour.
+        /// Run even if it would take over an hour; do not ask for the added mass.
         #[arg(long)]
         yes: bool,
     },
@@ -151,12 +156,14 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
             config,
             out,
             duration,
+            added_mass_kg,
             realtime,
             no_fifo,
             json,
             yes,
         } => {
             let (cfg, dir) = RigConfig::load(&config)?;
+            let cfg = with_added_mass(cfg, added_mass_kg, yes)?;
             check_rig_wall_time(&cfg, duration, realtime, yes)?;
             let options = RunOptions {
                 duration_s: Some(duration),
@@ -187,6 +194,27 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
             Ok(if r.mismatches == 0 { 0 } else { 4 })
         }
     }
+}
+
+/// The configuration with `added_kg` hung on the load (validated); a real rig asks the
+/// user to hang it first unless `yes`.
+pub(crate) fn with_added_mass(mut cfg: RigConfig, added_kg: f64, yes: bool) -> Result<RigConfig> {
+    if added_kg == 0.0 {
+        return Ok(cfg);
+    }
+    cfg.load.added_mass_kg += added_kg;
+    cfg.validate().context("--added-mass-kg")?;
+    if cfg.virtual_rig.is_none() && !yes {
+        eprint!("Hang {added_kg} kg more on the load (weighed), then type yes to excite with it: ");
+        let mut line = String::new();
+        std::io::stdin()
+            .read_line(&mut line)
+            .context("cannot read the answer")?;
+        if line.trim() != "yes" {
+            bail!("the excitation with the added mass was not confirmed: nothing ran");
+        }
+    }
+    Ok(cfg)
 }
 
 /// Refuses a run over an hour of wall time unless `yes`; anything but a lockstep virtual
@@ -225,12 +253,21 @@ fn check(config: &str) -> Result<()> {
         backend.vent_v()
     );
     say!(
-        "  position: {:.3} mm ({:.4} V; calibration {} m/V, {} V at 0 m)",
+        "  position: {:.3} mm ({:.4} V; calibration {} m/V, {:.4} V at 0 m)",
         x * 1e3,
         c.position_v(x),
         c.position_m_per_v,
         c.position_offset_v
     );
+    if let Some(p) = backend.pressure_reading_pa() {
+        say!(
+            "  pressure channel: {:.3} bar ({} Pa/V, {:.4} V at 0 Pa); a reading above {:.2} bar stops a run",
+            p / 1e5,
+            c.pressure_pa_per_v.unwrap_or(c.valve_pa_per_v),
+            c.pressure_offset_v.unwrap_or(c.valve_offset_v),
+            (1.0 + pma_rig::backend::PRESSURE_FAULT_MARGIN) * l.pressure_max_pa / 1e5
+        );
+    }
     say!(
         "  valve: {} Pa/V, {} V at 0 Pa; 0..{} bar is {}..{} V",
         c.valve_pa_per_v,

@@ -45,6 +45,11 @@ pub struct Args {
     /// How a robust tuning combines its plants' scores.
     #[arg(long, value_enum, default_value = "mean")]
     objective: ObjectiveArg,
+    /// Robust tuning on plants drawn from a sweep's population ranges instead (a shipped
+    /// sweep such as `monte_carlo`, or a file), with `--seed` (which must differ from the
+    /// sweep's, so the tuning does not see the plants the sweep scores).
+    #[arg(long, value_name = "SWEEP", requires = "robust", conflicts_with_all = ["plant", "spread"])]
+    robust_from: Option<String>,
     /// Worker threads (default: one per core); the result does not depend on it.
     #[arg(long)]
     threads: Option<usize>,
@@ -83,15 +88,24 @@ impl Args {
         let budget = self
             .max_variation
             .map_or(String::new(), |v| format!(" --max-variation {v}"));
-        let robust = self.robust.map_or(String::new(), |n| {
-            format!(
-                " --robust {n} --spread {} --objective {}",
-                self.spread,
-                format!("{:?}", self.objective).to_lowercase()
-            )
-        });
+        let objective = format!("{:?}", self.objective).to_lowercase();
+        let robust = match (self.robust, &self.robust_from) {
+            (Some(n), Some(sweep)) => {
+                format!(" --robust {n} --robust-from {sweep} --objective {objective}")
+            }
+            (Some(n), None) => format!(
+                " --robust {n} --spread {} --objective {objective}",
+                self.spread
+            ),
+            (None, _) => String::new(),
+        };
+        let plant = if self.robust_from.is_some() {
+            String::new()
+        } else {
+            format!(" --plant {plant}")
+        };
         format!(
-            "pma-exo tune --controller {} --plant {plant} --population {} --generations {} --duration {} --seed {}{budget}{robust}",
+            "pma-exo tune --controller {}{plant} --population {} --generations {} --duration {} --seed {}{budget}{robust}",
             self.controller, self.population, self.generations, self.duration, self.seed
         )
     }
@@ -137,7 +151,12 @@ pub fn run(a: Args) -> Result<i32> {
         Some(n) if !(1..=MAX_ROBUST).contains(&n) => {
             bail!("--robust must be 1..={MAX_ROBUST} plants (got {n})")
         }
-        Some(n) => pma_studies::tune::robust_plants(&plant, n, a.spread, a.seed)?,
+        Some(n) => match &a.robust_from {
+            Some(sweep) => {
+                pma_studies::tune::population_plants(&pma_studies::sweep::load(sweep)?, n, a.seed)?
+            }
+            None => pma_studies::tune::robust_plants(&plant, n, a.spread, a.seed)?,
+        },
         None => vec![plant.clone()],
     };
     output::check_wall_time(

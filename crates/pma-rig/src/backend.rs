@@ -26,6 +26,10 @@ pub struct RigTelemetry {
     pub position_v: f64,
     /// The valve's last set point (V).
     pub valve_v: f64,
+    /// The pressure channel's voltage at the last read (V); NaN without the channel.
+    pub pressure_v: f64,
+    /// The pressure it means (Pa); NaN without the channel.
+    pub pressure_pa: f64,
 }
 
 /// The rig, configured. See the module documentation for its lifecycle.
@@ -44,7 +48,15 @@ pub struct RigBackend {
     vented: bool,
     vent_error: Option<DaqError>,
     configure_reading_m: f64,
+    /// Highest plausible measured pressure (Pa).
+    pressure_fault_pa: f64,
 }
+
+/// A measured pressure this far above the pressure limit (as a share of it) is a fault: the
+/// valve was never asked for more than the limit, so the valve, its supply regulator or the
+/// channel's calibration is wrong. 10 % is well above the VPPM's stated accuracy (about 1 %
+/// of full scale, Festo MPA-S info 2017/11, p. 31).
+pub const PRESSURE_FAULT_MARGIN: f64 = 0.1;
 
 fn range_error(field: &'static str, what: &str, volts: f64, range: (f64, f64)) -> RigError {
     RigError::Field {
@@ -71,7 +83,8 @@ impl RigBackend {
         let s = config.signals;
         let c = config.calibration;
         let lines: Vec<_> = s.charge_pump.into_iter().collect();
-        daq.check(&[s.position], &[s.valve], &lines)?;
+        let inputs: Vec<_> = std::iter::once(s.position).chain(s.pressure).collect();
+        daq.check(&inputs, &[s.valve], &lines)?;
         let out = daq.range_v(&s.valve, true)?;
         let inside =
             |v: f64, r: (f64, f64)| v >= r.0 - RANGE_TOLERANCE_V && v <= r.1 + RANGE_TOLERANCE_V;
@@ -112,7 +125,7 @@ impl RigBackend {
                 ),
             });
         }
-        Ok(Self {
+        let mut rig = Self {
             daq,
             signals: s,
             calibration: c,
@@ -125,17 +138,54 @@ impl RigBackend {
             telemetry: RigTelemetry {
                 position_v,
                 valve_v: vent_v,
+                pressure_v: f64::NAN,
+                pressure_pa: f64::NAN,
             },
             active: false,
             vented: true,
             vent_error: None,
             configure_reading_m: x,
-        })
+            pressure_fault_pa: (1.0 + PRESSURE_FAULT_MARGIN) * config.limits.pressure_max_pa,
+        };
+        // A pressure channel that reads nonsense or pressure in a vented muscle is found
+        // before the valve goes live.
+        rig.read_pressure()?;
+        Ok(rig)
+    }
+
+    /// Reads the pressure channel, if any: a NaN or a pressure above the limit plus
+    /// [`PRESSURE_FAULT_MARGIN`] is an error (the loop fails safe on it).
+    fn read_pressure(&mut self) -> Result<(), DaqError> {
+        let Some(channel) = self.signals.pressure else {
+            return Ok(());
+        };
+        let v = self.daq.read_analog(&channel)?;
+        self.telemetry.pressure_v = v;
+        let p = self.calibration.pressure_pa(v);
+        self.telemetry.pressure_pa = p;
+        if p.is_nan() || p > self.pressure_fault_pa {
+            return Err(DaqError::Implausible {
+                device: self.daq.device().to_owned(),
+                channel: channel.input_name(),
+                message: format!(
+                    "the valve reports {:.3} bar ({v} V), above the {:.3} bar the supervisor allows plus {:.0} %: the valve, its supply or the channel's calibration is wrong (a NaN is a broken wire or a reading outside the range)",
+                    p / 1e5,
+                    self.pressure_fault_pa / (1.0 + PRESSURE_FAULT_MARGIN) / 1e5,
+                    PRESSURE_FAULT_MARGIN * 100.0
+                ),
+            });
+        }
+        Ok(())
     }
 
     /// The reading taken at configure (m).
     pub fn configure_reading_m(&self) -> f64 {
         self.configure_reading_m
+    }
+
+    /// The pressure channel's reading at configure (Pa), if the rig has the channel.
+    pub fn pressure_reading_pa(&self) -> Option<f64> {
+        self.signals.pressure.map(|_| self.telemetry.pressure_pa)
     }
 
     /// The valve voltage that vents the muscle.
@@ -260,6 +310,7 @@ impl Backend for RigBackend {
     fn read(&mut self) -> Result<Measurement, DaqError> {
         let v = self.daq.read_analog(&self.signals.position)?;
         self.telemetry.position_v = v;
+        self.read_pressure()?;
         Ok(Measurement {
             position_m: self.calibration.position_m(v),
         })

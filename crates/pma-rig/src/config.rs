@@ -50,6 +50,12 @@ pub struct Signals {
     /// Charge-pump line toggled every period for the external dump-valve relay.
     #[serde(default)]
     pub charge_pump: Option<DigitalLine>,
+    /// The valve's actual-pressure output (the VPPM's 0-10 V actual value), analog input:
+    /// read and logged every period when present (identification fits the valve on it),
+    /// and a reading above the pressure limit is a fault. Put it on a bipolar range: 0 bar
+    /// is 0 V, the bottom of a unipolar range, where Comedi reports NaN.
+    #[serde(default)]
+    pub pressure: Option<AnalogChannel>,
 }
 
 impl Signals {
@@ -65,6 +71,9 @@ impl Signals {
         ];
         if let Some(p) = &self.charge_pump {
             used.push(("signals.charge_pump", p.subdevice, p.channel));
+        }
+        if let Some(p) = &self.pressure {
+            used.push(("signals.pressure", p.subdevice, p.channel));
         }
         for (i, a) in used.iter().enumerate() {
             if let Some(b) = used[..i].iter().find(|b| (b.1, b.2) == (a.1, a.2)) {
@@ -93,6 +102,13 @@ pub struct Calibration {
     pub valve_pa_per_v: f64,
     /// Valve: volts at zero (gauge) pressure (V).
     pub valve_offset_v: f64,
+    /// Pressure channel (`signals.pressure`): pressure per volt (Pa/V); default the valve's
+    /// set-point scale (the VPPM's actual value uses the set point's scale).
+    #[serde(default)]
+    pub pressure_pa_per_v: Option<f64>,
+    /// Pressure channel: volts at zero pressure (V); default the valve's.
+    #[serde(default)]
+    pub pressure_offset_v: Option<f64>,
 }
 
 impl Calibration {
@@ -111,6 +127,16 @@ impl Calibration {
     /// Pressure (Pa) of a valve voltage.
     pub fn valve_pa(&self, volts: f64) -> f64 {
         (volts - self.valve_offset_v) * self.valve_pa_per_v
+    }
+    /// Pressure (Pa) of the pressure channel's voltage.
+    pub fn pressure_pa(&self, volts: f64) -> f64 {
+        (volts - self.pressure_offset_v.unwrap_or(self.valve_offset_v))
+            * self.pressure_pa_per_v.unwrap_or(self.valve_pa_per_v)
+    }
+    /// The pressure channel's voltage of a pressure (Pa).
+    pub fn pressure_v(&self, pressure_pa: f64) -> f64 {
+        pressure_pa / self.pressure_pa_per_v.unwrap_or(self.valve_pa_per_v)
+            + self.pressure_offset_v.unwrap_or(self.valve_offset_v)
     }
 }
 
@@ -345,6 +371,20 @@ impl Default for RealtimeConfig {
     }
 }
 
+/// What hangs on the muscle.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoadConfig {
+    /// The load, weighed (kg): identification takes its force scale from it.
+    #[serde(default)]
+    pub mass_kg: Option<f64>,
+    /// A known mass added for this run (kg): the second run of the added-mass protocol,
+    /// when the load is not weighed (`rig excite --added-mass-kg`). The virtual rig hangs it
+    /// on its plant's load.
+    #[serde(default)]
+    pub added_mass_kg: f64,
+}
+
 /// A rig configuration file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -371,6 +411,9 @@ pub struct RigConfig {
     pub muscle: MuscleRating,
     /// Safety limits.
     pub limits: Limits,
+    /// The load (optional).
+    #[serde(default)]
+    pub load: LoadConfig,
     /// Controller.
     pub control: ControlConfig,
     /// Reference.
@@ -469,6 +512,28 @@ impl RigConfig {
             "must be a finite number > 0: a higher set point must mean more pressure (a negative scale would turn every vent into full pressure)",
         )?;
         finite("calibration.valve_offset_v", c.valve_offset_v)?;
+        if let Some(v) = c.pressure_pa_per_v {
+            nonzero("calibration.pressure_pa_per_v", v)?;
+        }
+        if let Some(v) = c.pressure_offset_v {
+            finite("calibration.pressure_offset_v", v)?;
+        }
+        if let Some(m) = self.load.mass_kg {
+            within(
+                "load.mass_kg",
+                m,
+                0.05,
+                pma_model::MAX_LOAD_KG,
+                "must be 0.05..=600 kg",
+            )?;
+        }
+        within(
+            "load.added_mass_kg",
+            self.load.added_mass_kg,
+            0.0,
+            pma_model::MAX_LOAD_KG,
+            "must be 0..=600 kg",
+        )?;
         self.muscle.validate()?;
         self.limits_check()?;
         self.control_kind()?;

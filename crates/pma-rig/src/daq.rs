@@ -167,6 +167,17 @@ pub enum DaqError {
         /// Range maximum (V).
         max_v: f64,
     },
+    /// A reading that cannot be true of a working rig (a pressure above the limit the
+    /// valve was never asked to exceed, a broken wire).
+    #[error("DAQ `{device}`, {channel}: {message}")]
+    Implausible {
+        /// Device path.
+        device: String,
+        /// Channel.
+        channel: ChannelName,
+        /// What was read and why it cannot be.
+        message: String,
+    },
     /// The process was built without the driver.
     #[error("{0}")]
     Unsupported(String),

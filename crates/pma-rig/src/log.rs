@@ -78,6 +78,8 @@ pub struct LogRecord {
     pub valve_cmd_pa: f64,
     /// Valve voltage (V).
     pub valve_v: f64,
+    /// The pressure channel's voltage (V) and pressure (Pa); NaN without the channel.
+    pub pressure: [f64; 2],
     /// Controller states.
     pub diagnostics: pma_control::Diagnostics,
     /// What the row is.
@@ -87,7 +89,7 @@ pub struct LogRecord {
 }
 
 /// CSV columns, in order.
-pub const COLUMNS: [&str; 19] = [
+pub const COLUMNS: [&str; 21] = [
     "t_s",
     "period",
     "dt_s",
@@ -100,6 +102,8 @@ pub const COLUMNS: [&str; 19] = [
     "command_pa",
     "valve_cmd_pa",
     "valve_v",
+    "pressure_v",
+    "pressure_pa",
     "proxy_m",
     "s_p",
     "s_q",
@@ -110,7 +114,7 @@ pub const COLUMNS: [&str; 19] = [
 ];
 
 impl LogRecord {
-    fn fields(&self) -> [String; 19] {
+    fn fields(&self) -> [String; 21] {
         let d = &self.diagnostics;
         let f = |v: f64| v.to_string();
         [
@@ -126,6 +130,8 @@ impl LogRecord {
             f(self.command_pa),
             f(self.valve_cmd_pa),
             f(self.valve_v),
+            optional(self.pressure[0]),
+            optional(self.pressure[1]),
             f(d.proxy_position_m),
             f(d.s_p),
             f(d.s_q),
@@ -134,6 +140,15 @@ impl LogRecord {
             self.event.name().to_owned(),
             self.fault.unwrap_or("").to_owned(),
         ]
+    }
+}
+
+/// A measurement the rig may not have: empty when NaN.
+fn optional(v: f64) -> String {
+    if v.is_nan() {
+        String::new()
+    } else {
+        v.to_string()
     }
 }
 
@@ -293,6 +308,7 @@ impl RigLog {
             command_pa: 0.0,
             valve_cmd_pa: 0.0,
             valve_v: vent_valve_v,
+            pressure: [f64::NAN; 2],
             diagnostics: pma_control::Diagnostics::NONE,
             event: Event::Period,
             fault: None,
@@ -485,6 +501,7 @@ impl Recorder<Rig, MuscleStep> for RigLog {
             command_pa: *s.held,
             valve_cmd_pa: *s.held,
             valve_v: s.truth.valve_v,
+            pressure: [s.truth.pressure_v, s.truth.pressure_pa],
             diagnostics: pma_control::Diagnostics::NONE,
             event: Event::Activate,
             fault: None,
@@ -503,6 +520,7 @@ impl Recorder<Rig, MuscleStep> for RigLog {
             command_pa: p.output.control.pressure_cmd_pa,
             valve_cmd_pa: *p.written,
             valve_v: p.backend.inner().truth().valve_v,
+            pressure: [p.truth.pressure_v, p.truth.pressure_pa],
             diagnostics: p.output.control.diagnostics,
             event: Event::Period,
             fault: None,
@@ -536,6 +554,7 @@ mod tests {
             command_pa: 1e5,
             valve_cmd_pa: 1e5,
             valve_v: 1.0,
+            pressure: [f64::NAN; 2],
             diagnostics: pma_control::Diagnostics::NONE,
             event: Event::Period,
             fault: None,

@@ -276,7 +276,11 @@ fn configured(config: &RigConfig, options: &RunOptions) -> Result<RigConfig, Rig
         cfg.realtime.fifo = fifo;
     }
     cfg.validate()?;
-    check_injections(&options.injections, cfg.duration_s)?;
+    check_injections(
+        &options.injections,
+        cfg.duration_s,
+        cfg.signals.pressure.is_some(),
+    )?;
     Ok(cfg)
 }
 
@@ -531,8 +535,21 @@ fn report(
 
 /// Every injected fault must fall inside the run (after the activation at 0 s, before the
 /// end): one that cannot fire would make a test of a fault path pass without the fault.
-fn check_injections(injections: &[Injection], duration_s: f64) -> Result<(), RigError> {
+fn check_injections(
+    injections: &[Injection],
+    duration_s: f64,
+    pressure_channel: bool,
+) -> Result<(), RigError> {
     for i in injections {
+        if i.fault == crate::InjectedFault::PressureHigh && !pressure_channel {
+            return Err(RigError::Field {
+                field: "--inject",
+                message: format!(
+                    "pressure-high@{} cannot fire: the rig has no pressure channel ([signals] pressure)",
+                    i.at_s
+                ),
+            });
+        }
         if !(i.at_s > 0.0 && i.at_s < duration_s) {
             return Err(RigError::Field {
                 field: "--inject",

@@ -34,17 +34,24 @@ pub enum InjectedFault {
     /// The control loop panics (the virtual board panics in a read, standing for any bug
     /// in the loop; it tests the panic path, not a board fault).
     ControllerPanic,
+    /// The valve's actual-value output reads the supply pressure, 8 bar (a valve stuck
+    /// open); only on a rig with the pressure channel.
+    PressureHigh,
 }
+
+/// The supply pressure a valve stuck open reports (Pa).
+const SUPPLY_PA: f64 = 8.0e5;
 
 impl InjectedFault {
     /// Every fault, with its command-line name.
-    pub const ALL: [(InjectedFault, &'static str); 6] = [
+    pub const ALL: [(InjectedFault, &'static str); 7] = [
         (InjectedFault::SensorNan, "sensor-nan"),
         (InjectedFault::SensorStuck, "sensor-stuck"),
         (InjectedFault::PositionOut, "position-out"),
         (InjectedFault::DaqError, "daq-error"),
         (InjectedFault::Stall, "stall"),
         (InjectedFault::ControllerPanic, "controller-panic"),
+        (InjectedFault::PressureHigh, "pressure-high"),
     ];
 
     /// Command-line name.
@@ -151,6 +158,8 @@ struct Hardware {
     sensor: PositionSensor,
     calibration: Calibration,
     input: Converter,
+    /// The pressure channel's converter, if the rig has one.
+    pressure_input: Option<Converter>,
     output: Converter,
     step_s: f64,
     steps_done: u64,
@@ -281,6 +290,7 @@ pub struct VirtualDaq {
     time: TimeSource,
     period_s: f64,
     position: AnalogChannel,
+    pressure: Option<AnalogChannel>,
     valve: AnalogChannel,
     pump: Option<DigitalLine>,
     injections: Vec<Injection>,
@@ -320,6 +330,8 @@ impl VirtualDaq {
             why: "the virtual driver needs a [virtual] section",
         })?;
         let mut plant = PlantConfig::load(&v.plant)?;
+        // The added mass of the added-mass protocol hangs on the plant's load.
+        plant.load.mass_kg += config.load.added_mass_kg;
         let seed = plant.sensor.seed;
         plant.sensor = SensorParams::ideal();
         let (step_s, substeps) = match v.clock {
@@ -339,12 +351,20 @@ impl VirtualDaq {
         let board = BoardLayout::pci6052e();
         let input_range = board_range(&board, &config.signals.position, false, v.input_range_v)?;
         let output_range = board_range(&board, &config.signals.valve, true, v.output_range_v)?;
+        let pressure_input = match &config.signals.pressure {
+            Some(c) => Some(Converter::new(
+                board_range(&board, c, false, None)?,
+                v.converter_bits,
+            )),
+            None => None,
+        };
         let latency_steps = (v.sensor_latency_s / step_s).round() as usize;
         let hw = Hardware {
             bench,
             sensor,
             calibration: config.calibration,
             input: Converter::new(input_range, v.converter_bits),
+            pressure_input,
             output: Converter::new(output_range, v.converter_bits),
             step_s,
             steps_done: 0,
@@ -365,6 +385,7 @@ impl VirtualDaq {
             time,
             period_s: config.period_s,
             position: config.signals.position,
+            pressure: config.signals.pressure,
             valve: config.signals.valve,
             pump: config.signals.charge_pump,
             injections: injections.to_vec(),
@@ -404,11 +425,26 @@ impl VirtualDaq {
             .any(|i| i.fault == fault && now >= i.at_s)
     }
 
+    /// The valve's actual-value output: the pressure in the muscle through the channel's
+    /// calibration and converter (the faults are the position sensor's).
+    fn read_pressure(&mut self) -> f64 {
+        let mut hw = lock(&self.hw);
+        let steps = self.steps_now(hw.step_s);
+        hw.integrate_to(steps);
+        let pressure = if self.active(InjectedFault::PressureHigh) {
+            SUPPLY_PA
+        } else {
+            hw.bench.pressure()
+        };
+        let volts = hw.calibration.pressure_v(pressure);
+        hw.pressure_input.map_or(f64::NAN, |c| c.sample(volts))
+    }
+
     fn wrong_channel(&self, channel: ChannelName) -> DaqError {
         DaqError::Channel {
             device: VIRTUAL_DEVICE.into(),
             channel,
-            message: "the virtual rig has no such channel (it has the configured position, valve and charge-pump signals only)".into(),
+            message: "the virtual rig has no such channel (it has the configured position, pressure, valve and charge-pump signals only)".into(),
         }
     }
 }
@@ -433,7 +469,10 @@ impl Daq for VirtualDaq {
         for l in lines {
             self.board.digital_line(VIRTUAL_DEVICE, l)?;
         }
-        if let Some(c) = inputs.iter().find(|c| **c != self.position) {
+        if let Some(c) = inputs
+            .iter()
+            .find(|c| **c != self.position && Some(**c) != self.pressure)
+        {
             return Err(self.wrong_channel(c.input_name()));
         }
         if let Some(c) = outputs.iter().find(|c| **c != self.valve) {
@@ -447,6 +486,11 @@ impl Daq for VirtualDaq {
 
     fn range_v(&mut self, channel: &AnalogChannel, output: bool) -> Result<(f64, f64), DaqError> {
         let hw = lock(&self.hw);
+        if !output && Some(*channel) == self.pressure {
+            if let Some(c) = &hw.pressure_input {
+                return Ok((c.min_v, c.max_v));
+            }
+        }
         match (output, *channel == self.valve, *channel == self.position) {
             (true, true, _) => Ok((hw.output.min_v, hw.output.max_v)),
             (false, _, true) => Ok((hw.input.min_v, hw.input.max_v)),
@@ -456,6 +500,9 @@ impl Daq for VirtualDaq {
     }
 
     fn read_analog(&mut self, channel: &AnalogChannel) -> Result<f64, DaqError> {
+        if Some(*channel) == self.pressure {
+            return Ok(self.read_pressure());
+        }
         if *channel != self.position {
             return Err(self.wrong_channel(channel.input_name()));
         }
