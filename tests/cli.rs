@@ -988,3 +988,62 @@ fn a_robust_tuning_is_deterministic_and_says_how_it_was_made() {
         "spread",
     );
 }
+
+/// `tune --robust N --robust-from SWEEP`: the plants come from the sweep's population
+/// ranges with the tuning's seed, never the sweep's own plants.
+#[test]
+fn a_robust_tuning_draws_from_a_sweeps_ranges_but_not_its_plants() {
+    let dir = temp("robust-from");
+    let out = dir.join("pid.toml");
+    pma_exo_ok(&[
+        "tune",
+        "--controller",
+        "pid",
+        "--population",
+        "3",
+        "--generations",
+        "1",
+        "--duration",
+        "2",
+        "--robust",
+        "2",
+        "--robust-from",
+        "monte_carlo",
+        "--objective",
+        "p90",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let text = std::fs::read_to_string(&out).expect("gains");
+    assert!(
+        text.contains("--robust 2 --robust-from monte_carlo --objective p90"),
+        "{text}"
+    );
+    assert!(!text.contains("--plant"), "{text}");
+    assert_one_line_error(
+        &[
+            "tune",
+            "--controller",
+            "pid",
+            "--robust",
+            "2",
+            "--robust-from",
+            "monte_carlo",
+            "--seed",
+            "1",
+        ],
+        "the very plants the sweep scores",
+    );
+    assert_one_line_error(
+        &[
+            "tune",
+            "--controller",
+            "pid",
+            "--robust",
+            "2",
+            "--robust-from",
+            "shocks",
+        ],
+        "population",
+    );
+}

@@ -5,6 +5,8 @@ use crate::say;
 use anyhow::{bail, Context, Result};
 use pma_control::{ControllerConfig, ControllerKind};
 use pma_rig::{RigConfig, RunOptions};
+use pma_studies::experiments::paper::{Plot, Varied};
+use pma_studies::experiments::Series;
 use pma_studies::identify::{identify_logs, read_log, Identified};
 use pma_studies::tune::{robust_plants, tune_robust, Aggregate, FireflyOptions, Objective};
 use std::path::{Path, PathBuf};
@@ -67,6 +69,9 @@ struct Report<'a> {
     rte_before_percent: f64,
     rte_told_percent: f64,
     rte_tuned_percent: f64,
+    /// Why the supervisor stopped a verification run, if it did.
+    told_fault: Option<String>,
+    tuned_fault: Option<String>,
     rte_after_percent: f64,
     kept: &'static str,
     plant: String,
@@ -91,19 +96,28 @@ fn confirm(stage: &str, real: bool, yes: bool) -> Result<()> {
     Ok(())
 }
 
-/// One supervised rig run; its measured RTE.
-fn rig_run(cfg: &RigConfig, dir: &Path, options: &RunOptions, what: &str) -> Result<f64> {
+/// One supervised rig run: its measured RTE, or why the supervisor stopped it (vented).
+fn rig_outcome(
+    cfg: &RigConfig,
+    dir: &Path,
+    options: &RunOptions,
+) -> Result<std::result::Result<f64, String>> {
     let stop = output::stop_flag()?;
     let report = pma_rig::run::run(cfg, dir, options, &stop, ())?;
     super::rig::warn_if_not_vented(&report);
-    if let Some(f) = &report.fault {
-        bail!(
-            "{what} stopped: {f} ({}); log {}",
+    Ok(match &report.fault {
+        Some(f) => Err(format!(
+            "{f} ({}); log {}",
             report.fault_detail.as_deref().unwrap_or(""),
             report.log
-        );
-    }
-    Ok(report.rte_percent)
+        )),
+        None => Ok(report.rte_percent),
+    })
+}
+
+/// One supervised rig run that must complete; its measured RTE.
+fn rig_run(cfg: &RigConfig, dir: &Path, options: &RunOptions, what: &str) -> Result<f64> {
+    rig_outcome(cfg, dir, options)?.map_err(|f| anyhow::anyhow!("{what} stopped: {f}"))
 }
 
 /// Runs `rig commission`.
@@ -238,19 +252,33 @@ pub fn run(a: Args) -> Result<i32> {
     let mut told = cfg.clone();
     told.control.nominal = plant.nominal;
     confirm("the verification", real, a.yes)?;
-    let verify = |gains: ControllerConfig, log: &str| -> Result<f64> {
+    // A gain set the supervisor stops (the muscle out of its window, say) is a result:
+    // it is not kept, and the other is verified all the same.
+    let verify = |gains: ControllerConfig, log: &str| -> Result<(f64, Option<String>)> {
         let o = RunOptions {
             controller: Some(gains),
             log_path: Some(path(log)),
             ..RunOptions::default()
         };
-        rig_run(&told, &dir, &o, "the verification")
+        Ok(match rig_outcome(&told, &dir, &o)? {
+            Ok(rte) => (rte, None),
+            Err(fault) => {
+                eprintln!("the verification with {log} stopped: {fault}");
+                (f64::INFINITY, Some(fault))
+            }
+        })
     };
-    let rte_told = verify(current, "after-current-gains.csv")?;
-    let rte_tuned = match &tuned {
+    let (rte_told, told_fault) = verify(current, "after-current-gains.csv")?;
+    let (rte_tuned, tuned_fault) = match &tuned {
         Some(t) => verify(t.config, "after-tuned-gains.csv")?,
-        None => f64::INFINITY,
+        None => (f64::INFINITY, None),
     };
+    if told_fault.is_some() && (tuned.is_none() || tuned_fault.is_some()) {
+        bail!(
+            "no gain set completed the verification (see {}): the rig keeps its configuration",
+            a.out.display()
+        );
+    }
     // The tuned gains are kept only if the rig says they are better.
     let (kept, gains, rte_after) = match &tuned {
         Some(t) if rte_tuned < rte_told => ("tuned", t.config, rte_tuned),
@@ -260,7 +288,16 @@ pub fn run(a: Args) -> Result<i32> {
         "# `pma-exo rig commission` ({kept} gains; RTE {rte_after:.3} % on the rig told the identified plant)\n{}",
         gains.to_toml_string()
     ))?;
-    let md = report_md(&a, kind, &id, [rte_before, rte_told, rte_tuned], kept);
+    draw_plots(&a.out, kind, &id, log, tuned.is_some())?;
+    let faults = [told_fault.as_deref(), tuned_fault.as_deref()];
+    let md = report_md(
+        &a,
+        kind,
+        &id,
+        [rte_before, rte_told, rte_tuned],
+        faults,
+        kept,
+    );
     OutFile::create(&path("report.md"))?.finish_with(&md)?;
     let report = Report {
         config: &a.config,
@@ -268,6 +305,8 @@ pub fn run(a: Args) -> Result<i32> {
         rte_before_percent: rte_before,
         rte_told_percent: rte_told,
         rte_tuned_percent: rte_tuned,
+        told_fault,
+        tuned_fault,
         rte_after_percent: rte_after,
         kept,
         plant: path("plant.toml").display().to_string(),
@@ -287,16 +326,123 @@ pub fn run(a: Args) -> Result<i32> {
     Ok(0)
 }
 
-fn report_md(a: &Args, kind: ControllerKind, id: &Identified, rte: [f64; 3], kept: &str) -> String {
+/// `t_s`, `reference_m` and `position_m` of a rig log's periods, every 10th.
+fn log_series(path: &Path, label: &str) -> Result<Series> {
+    let mut reader = csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .from_path(path)
+        .with_context(|| format!("cannot read `{}`", path.display()))?;
+    let names = reader.headers()?.clone();
+    let col = |n: &str| {
+        names
+            .iter()
+            .position(|c| c == n)
+            .with_context(|| format!("`{}` has no `{n}` column", path.display()))
+    };
+    let (t, r, x, e) = (
+        col("t_s")?,
+        col("reference_m")?,
+        col("position_m")?,
+        col("event")?,
+    );
+    let mut series = Series {
+        label: label.to_owned(),
+        ..Series::default()
+    };
+    for (k, row) in reader.records().enumerate() {
+        let row = row?;
+        if k % 10 != 0 || &row[e] == "vent" {
+            continue;
+        }
+        let num = |c: usize| row[c].parse::<f64>().unwrap_or(f64::NAN);
+        series.t_s.push(num(t));
+        series.reference_m.push(num(r));
+        series.position_m.push(num(x));
+    }
+    Ok(series)
+}
+
+/// `tracking.png` (the rig's runs against the reference) and `identification.png` (the
+/// measured excitation against the identified model, open loop).
+fn draw_plots(
+    dir: &Path,
+    kind: ControllerKind,
+    id: &Identified,
+    log: &pma_studies::identify::IdLog,
+    tuned: bool,
+) -> Result<()> {
+    crate::plot::register_font()?;
+    let mut runs = vec![
+        log_series(&dir.join("before.csv"), "before")?,
+        log_series(&dir.join("after-current-gains.csv"), "after, same gains")?,
+    ];
+    if tuned {
+        runs.push(log_series(
+            &dir.join("after-tuned-gains.csv"),
+            "after, tuned gains",
+        )?);
+    }
+    let tracking = Plot {
+        name: "tracking",
+        title: format!("Commissioning {kind}: the rig's measured position"),
+        setting: "before: as configured; after: the identified plant told (report.md)".into(),
+        legend_title: "run".into(),
+        varied: Varied::Controller,
+        events: Vec::new(),
+        series: runs,
+    };
+    let simulated = id.simulated_position_m(log).unwrap_or_default();
+    let t_s: Vec<f64> = (1..=simulated.len())
+        .map(|k| k as f64 * log.period_s)
+        .collect();
+    let decimate = |v: &[f64]| v.iter().step_by(10).copied().collect::<Vec<f64>>();
+    let held_out_s = log.duration_s() * 0.75;
+    let identification = Plot {
+        name: "identification",
+        title: "Identification: the excitation measured (grey) and the identified model".into(),
+        setting: format!(
+            "open loop from rest; fitted to {held_out_s:.0} s, held out after (fit {:.2} %)",
+            id.fit_percent
+        ),
+        legend_title: "model".into(),
+        varied: Varied::Setting,
+        events: vec![(held_out_s, "held out".into())],
+        series: vec![Series {
+            label: "identified".into(),
+            t_s: decimate(&t_s),
+            reference_m: decimate(&log.position_m),
+            position_m: decimate(&simulated),
+        }],
+    };
+    for plot in [tracking, identification] {
+        let path = dir.join(format!("{}.png", plot.name));
+        output::write_via_temp(&path, |tmp| crate::plot::draw(tmp, &plot))?;
+    }
+    Ok(())
+}
+
+fn report_md(
+    a: &Args,
+    kind: ControllerKind,
+    id: &Identified,
+    rte: [f64; 3],
+    faults: [Option<&str>; 2],
+    kept: &str,
+) -> String {
+    let cell = |rte: f64, fault: Option<&str>| match fault {
+        Some(f) => format!("stopped by the supervisor: {f}"),
+        None if rte.is_finite() => format!("{rte:.3} %"),
+        None => "no gain set within the budget".into(),
+    };
     let mut md = format!(
         "# Commissioning of {kind} on `{}`\n\n\
          Load {:.3} kg ({}). Excitation {} s (`excite.csv`{}), identification (`plant.toml`), \
          robust tuning on {} plants within {} % (`gains.toml` if it won), verification on the rig.\n\n\
          | run | RTE (measured position) |\n|---|---|\n\
          | before: configured gains and nominal (`before.csv`) | {:.3} % |\n\
-         | configured gains, identified plant told (`after-current-gains.csv`) | {:.3} % |\n\
+         | configured gains, identified plant told (`after-current-gains.csv`) | {} |\n\
          | robustly tuned gains, identified plant told (`after-tuned-gains.csv`) | {} |\n\n\
-         Kept: the {kept} gains.\n\n## Identification\n\n\
+         Kept: the {kept} gains.\n\n![tracking](tracking.png)\n\n## Identification\n\n![identification](identification.png)\n\n\
          Valve {:.2} ms + {:.2} ms dead time; held-out fit {:.2} % ({:.1} um RMS); residual {:.1} um RMS; \
          condition number {:.0}. {}\n\n| parameter | estimate | 95 % interval | Table I / nominal |\n|---|---|---|---|\n",
         a.config,
@@ -311,12 +457,8 @@ fn report_md(a: &Args, kind: ControllerKind, id: &Identified, rte: [f64; 3], kep
         a.robust,
         a.spread * 100.0,
         rte[0],
-        rte[1],
-        if rte[2].is_finite() {
-            format!("{:.3} %", rte[2])
-        } else {
-            "no gain set within the budget".into()
-        },
+        cell(rte[1], faults[0]),
+        cell(rte[2], faults[1]),
         id.valve_time_constant_s * 1e3,
         id.valve_dead_time_s * 1e3,
         id.fit_percent,
