@@ -1,0 +1,229 @@
+//! Every figure listed in `docs/figures.toml` is rerun from the command the docs show
+//! beside it, and the docs must say what it gives now: a figure written by hand goes stale
+//! at the next change, this test says which and what it should be. The fast figures run
+//! here; the slow ones (long runs, commissioning) with
+//! `cargo test --release --test docs_figures -- --ignored`.
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Manifest {
+    #[serde(default)]
+    file: Vec<InputFile>,
+    figure: Vec<Figure>,
+    #[serde(default)]
+    image: Vec<Image>,
+}
+
+/// An image of the docs: the command draws it at `drawn`; it must be the same bytes.
+/// `PMA_EXO_WRITE_DOCS=1` copies the drawn image over the doc's instead (regeneration).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Image {
+    path: String,
+    command: Vec<String>,
+    drawn: String,
+    #[serde(default)]
+    slow: bool,
+}
+
+/// An input the commands share: a repository file with replacements, written once.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InputFile {
+    name: String,
+    from: String,
+    #[serde(default)]
+    replace: Vec<[String; 2]>,
+}
+
+/// A figure: the command (`pma-exo` arguments; `{dir}` is the test's directory), and the
+/// text the doc must contain, with `{json.path:.N}` (optionally `{path*1e3:.N}`) where the
+/// command's JSON output goes.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Figure {
+    doc: String,
+    command: Vec<String>,
+    #[serde(default)]
+    text: Vec<String>,
+    /// A markdown file the command writes (`{dir}`-relative paths allowed): every table
+    /// row of it must be in the doc, as it is.
+    #[serde(default)]
+    rows_of: Option<String>,
+    #[serde(default)]
+    slow: bool,
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn manifest() -> Manifest {
+    let text = std::fs::read_to_string(root().join("docs/figures.toml")).expect("figures.toml");
+    toml::from_str(&text).expect("docs/figures.toml")
+}
+
+fn work_dir(m: &Manifest, name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pma-exo-docs-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("dir");
+    for f in &m.file {
+        let mut text = std::fs::read_to_string(root().join(&f.from)).expect("input");
+        for [from, to] in &f.replace {
+            assert!(text.contains(from.as_str()), "{}: no `{from}`", f.from);
+            text = text.replace(from.as_str(), to);
+        }
+        std::fs::write(dir.join(&f.name), text).expect("write input");
+    }
+    dir
+}
+
+/// The value at a dotted path (`a.b.0.c`), times an optional `*factor`.
+fn value(json: &serde_json::Value, expr: &str) -> f64 {
+    let (path, factor) = match expr.split_once('*') {
+        Some((p, f)) => (p, f.parse::<f64>().expect("factor")),
+        None => (expr, 1.0),
+    };
+    let mut v = json;
+    for key in path.split('.') {
+        v = match key.parse::<usize>() {
+            Ok(i) => &v[i],
+            Err(_) => &v[key],
+        };
+    }
+    v.as_f64()
+        .unwrap_or_else(|| panic!("`{path}` is not a number in {json}"))
+        * factor
+}
+
+/// `template` with every `{expr:.N}` replaced by the value, N decimals.
+fn expand(template: &str, json: &serde_json::Value) -> String {
+    let mut out = String::new();
+    let mut rest = template;
+    while let Some(open) = rest.find('{') {
+        out.push_str(&rest[..open]);
+        let close = rest[open..].find('}').expect("unclosed {") + open;
+        let field = &rest[open + 1..close];
+        let (expr, digits) = field.split_once(":.").expect("{expr:.N}");
+        let digits: usize = digits.parse().expect("digits");
+        out.push_str(&format!("{:.*}", digits, value(json, expr)));
+        rest = &rest[close + 1..];
+    }
+    out.push_str(rest);
+    out
+}
+
+/// The data rows of the markdown tables in `text` (not the header nor the separator).
+fn table_rows(text: &str) -> Vec<&str> {
+    let lines: Vec<&str> = text.lines().collect();
+    lines
+        .iter()
+        .enumerate()
+        .filter(|(i, l)| {
+            l.starts_with("| ")
+                && !l.starts_with("|---")
+                && !lines.get(i + 1).is_some_and(|n| n.starts_with("|---"))
+        })
+        .map(|(_, l)| *l)
+        .collect()
+}
+
+fn run(command: &[String], dir: &Path) -> serde_json::Value {
+    let args: Vec<String> = command
+        .iter()
+        .map(|a| a.replace("{dir}", &dir.display().to_string()))
+        .collect();
+    let out = Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args(&args)
+        .current_dir(dir)
+        .output()
+        .expect("run pma-exo");
+    assert!(
+        out.status.success() || out.status.code() == Some(3),
+        "pma-exo {}: {}",
+        args.join(" "),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let line = stdout.lines().last().unwrap_or_default();
+    serde_json::from_str(line).unwrap_or(serde_json::Value::Null)
+}
+
+fn check(slow: bool) {
+    let m = manifest();
+    let dir = work_dir(&m, if slow { "slow" } else { "fast" });
+    let mut stale = Vec::new();
+    let mut checked = 0;
+    for f in m.figure.iter().filter(|f| f.slow == slow) {
+        let json = run(&f.command, &dir);
+        let doc = std::fs::read_to_string(root().join(&f.doc)).expect("doc");
+        let mut expected: Vec<String> = f.text.iter().map(|t| expand(t, &json)).collect();
+        if let Some(path) = &f.rows_of {
+            let path = path.replace("{dir}", &dir.display().to_string());
+            let text = std::fs::read_to_string(&path).expect("the command's markdown");
+            expected.extend(table_rows(&text).into_iter().map(str::to_owned));
+        }
+        for expected in expected {
+            checked += 1;
+            if !doc.contains(&expected) {
+                stale.push(format!(
+                    "{}: should say `{expected}` (`pma-exo {}`)",
+                    f.doc,
+                    f.command.join(" ")
+                ));
+            }
+        }
+    }
+    let write = std::env::var_os("PMA_EXO_WRITE_DOCS").is_some();
+    for image in m.image.iter().filter(|i| i.slow == slow) {
+        run(&image.command, &dir);
+        let drawn = image.drawn.replace("{dir}", &dir.display().to_string());
+        let new = std::fs::read(&drawn).expect("the drawn image");
+        let path = root().join(&image.path);
+        checked += 1;
+        if write {
+            std::fs::write(&path, &new).expect("write the image");
+        } else if std::fs::read(&path).ok().as_deref() != Some(new.as_slice()) {
+            stale.push(format!(
+                "{}: differs from what `pma-exo {}` draws (PMA_EXO_WRITE_DOCS=1 regenerates it)",
+                image.path,
+                image.command.join(" ")
+            ));
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(
+        stale.is_empty(),
+        "{} of {checked} figures are stale:\n{}",
+        stale.len(),
+        stale.join("\n")
+    );
+}
+
+#[test]
+fn the_docs_say_what_their_commands_give() {
+    check(false);
+}
+
+#[test]
+#[ignore = "minutes: run with --release -- --ignored"]
+fn the_docs_say_what_their_slow_commands_give() {
+    check(true);
+}
+
+#[test]
+fn a_template_takes_paths_factors_and_decimals() {
+    let json: serde_json::Value =
+        serde_json::from_str(r#"{"a": {"b": [0.5, 0.012345]}, "c": 2}"#).expect("json");
+    assert_eq!(
+        expand("| {a.b.1*1e3:.2} mm | {c:.0} |", &json),
+        "| 12.35 mm | 2 |"
+    );
+    assert_eq!(
+        table_rows("| a | b |\n|---|---|\n| 1 | 2 |\ntext\n| 3 | 4 |\n"),
+        ["| 1 | 2 |", "| 3 | 4 |"]
+    );
+}
