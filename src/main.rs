@@ -8,6 +8,7 @@ mod commands;
 mod output;
 mod paper;
 mod plot;
+mod provenance;
 mod studies;
 
 use commands::{compare_leg, identify, pendulum, rig, simulate, single, sweep, tune};

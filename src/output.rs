@@ -184,10 +184,15 @@ pub struct CsvOut {
 }
 
 impl CsvOut {
-    /// Prepares `path` and writes the header now.
-    pub fn create(path: &Path, header: &[String]) -> Result<Self> {
+    /// Prepares `path` and writes the header now, after `comment` as a `# ` line if given.
+    pub fn create(path: &Path, header: &[String], comment: Option<&str>) -> Result<Self> {
         let staged = Staged::new(path, false)?;
-        let mut writer = csv::Writer::from_writer(BufWriter::with_capacity(1 << 16, staged));
+        let mut out = BufWriter::with_capacity(1 << 16, staged);
+        if let Some(c) = comment {
+            use std::io::Write;
+            writeln!(out, "# {c}").with_context(|| format!("cannot write `{}`", path.display()))?;
+        }
+        let mut writer = csv::Writer::from_writer(out);
         writer
             .write_record(header)
             .with_context(|| format!("cannot write `{}`", path.display()))?;

@@ -24,14 +24,25 @@ pub fn run(out: &Path) -> Result<()> {
     if stop.load(std::sync::atomic::Ordering::Relaxed) {
         return Err(crate::studies::Interrupted.into());
     }
-    let mut json = serde_json::to_value(&results)?;
+    let provenance = crate::provenance::Provenance {
+        plant: Some(results.plant.clone()),
+        controller: Some("every controller of Table II".into()),
+        gains: Some("paper (Section IV-A), tuned and equal-activity (embedded gain files)".into()),
+        ..crate::provenance::Provenance::of_this_run()
+    };
+    let mut json = provenance.attach(&results)?;
     if let Some(map) = json.as_object_mut() {
         for (key, summary) in &studies.summaries {
             map.insert((*key).to_owned(), serde_json::to_value(summary)?);
         }
     }
     json_file.finish_with(&serde_json::to_string_pretty(&json)?)?;
-    report_file.finish_with(&format!("{}{}", report(&results), studies.report))?;
+    report_file.finish_with(&format!(
+        "{}{}\n_{}_\n",
+        report(&results),
+        studies.report,
+        provenance.line()
+    ))?;
     for plot in &plots {
         let path = out.join(format!("{}.png", plot.name));
         crate::output::write_via_temp(&path, |tmp| crate::plot::draw(tmp, plot))?;

@@ -95,6 +95,14 @@ fn single_writes_the_csv_time_series() {
     ]);
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
+    // The first line says what ran (issue 18), then the header.
+    let what = lines.next().unwrap();
+    assert!(
+        what.starts_with("# pma-exo ")
+            && what.contains("`pma-exo single --controller pid")
+            && what.contains("controller pid"),
+        "{what}"
+    );
     assert_eq!(
         lines.next().unwrap(),
         "t_s,reference_m,position_m,pressure_cmd_pa,pressure_pa,proxy_m,s_p,s_q,gain_hat,disturbance_hat,measured_m,force_n,velocity_estimate_m_s"
@@ -562,7 +570,7 @@ fn regression_3_the_csv_is_streamed_and_complete_after_ctrl_c() {
     let ran = v["duration_s"].as_f64().unwrap();
     let text = std::fs::read_to_string(&csv).unwrap();
     assert!(text.ends_with('\n'), "the last row is complete");
-    let mut lines = text.lines();
+    let mut lines = text.lines().skip_while(|l| l.starts_with('#'));
     let header = lines.next().unwrap();
     // The controllers' states are in it, as in Rerun.
     for col in [
@@ -895,9 +903,15 @@ fn compare_leg_writes_one_row_per_controller_and_scenario() {
         "--duration",
         "8",
     ]);
-    let rows: Vec<serde_json::Value> =
+    let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("compare-leg.json")).unwrap())
             .unwrap();
+    // It says what ran (issue 18).
+    assert!(json["provenance"]["command"]
+        .as_str()
+        .unwrap()
+        .starts_with("pma-exo compare-leg --out"));
+    let rows = json["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 10);
     assert_eq!(rows[0]["scenario"], "gait_spasms");
     assert_eq!(rows[0]["controller"], "aprc-ndo");

@@ -290,13 +290,24 @@ pub fn run(a: Args) -> Result<i32> {
     ))?;
     draw_plots(&a.out, kind, &id, log, tuned.is_some())?;
     let faults = [told_fault.as_deref(), tuned_fault.as_deref()];
-    let md = report_md(
-        &a,
-        kind,
-        &id,
-        [rte_before, rte_told, rte_tuned],
-        faults,
-        kept,
+    let provenance = crate::provenance::Provenance {
+        plant: Some(format!("rig `{}` ({})", cfg.name, a.config)),
+        controller: Some(kind.as_str().to_owned()),
+        gains: Some(format!("{kept} (gains.toml)")),
+        seed: Some(a.seed),
+        ..crate::provenance::Provenance::of_this_run()
+    };
+    let md = format!(
+        "{}\n_{}_\n",
+        report_md(
+            &a,
+            kind,
+            &id,
+            [rte_before, rte_told, rte_tuned],
+            faults,
+            kept
+        ),
+        provenance.line()
     );
     OutFile::create(&path("report.md"))?.finish_with(&md)?;
     let report = Report {
@@ -315,7 +326,7 @@ pub fn run(a: Args) -> Result<i32> {
         identified: &id,
     };
     if a.json {
-        say!("{}", serde_json::to_string(&report)?);
+        say!("{}", provenance.attach(&report)?);
     } else {
         say!(
             "commissioned {kind} on `{}`: RTE {rte_before:.2} % before, {rte_after:.2} % after ({kept} gains); wrote {}",

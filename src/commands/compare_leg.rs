@@ -77,8 +77,28 @@ pub fn run(a: Args) -> Result<i32> {
     let json_file = OutFile::create(&a.out.join("compare-leg.json"))?;
     let md_file = OutFile::create(&a.out.join("compare-leg.md"))?;
     let rows = super::with_threads(a.threads, || compare(&scenarios, &controllers, a.duration))??;
-    let md = report(&rows, a.duration);
-    json_file.finish_with(&serde_json::to_string_pretty(&rows)?)?;
+    let provenance = crate::provenance::Provenance {
+        scenario: Some(
+            scenarios
+                .iter()
+                .map(|s| s.scenario.name.clone())
+                .collect::<Vec<_>>()
+                .join(","),
+        ),
+        controller: Some(
+            COMPARED
+                .iter()
+                .map(|k| k.as_str())
+                .collect::<Vec<_>>()
+                .join(","),
+        ),
+        gains: Some("shipped leg gains (crates/pma-leg/models/gains)".into()),
+        patient: Some("each scenario's".into()),
+        ..crate::provenance::Provenance::of_this_run()
+    };
+    let md = format!("{}\n_{}_\n", report(&rows, a.duration), provenance.line());
+    let json = serde_json::json!({ "provenance": provenance, "rows": rows });
+    json_file.finish_with(&serde_json::to_string_pretty(&json)?)?;
     md_file.finish_with(&md)?;
     say!("{md}");
     say!(

@@ -66,7 +66,12 @@ pub fn run(a: Args) -> Result<i32> {
     );
     out.finish_with(&text)?;
     if a.json {
-        say!("{}", serde_json::to_string(&id)?);
+        let provenance = crate::provenance::Provenance {
+            plant: Some(format!("identified into {}", a.out.display())),
+            seed: Some(a.seed),
+            ..crate::provenance::Provenance::of_this_run()
+        };
+        say!("{}", provenance.attach(&id)?);
         return Ok(0);
     }
     say!(

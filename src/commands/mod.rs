@@ -154,12 +154,18 @@ pub struct SampleCsv<F> {
 }
 
 impl<F> SampleCsv<F> {
-    /// Creates `path` with the header of `schema`; `sample` makes each period's sample.
-    pub fn create(path: &Path, schema: &pma_loop::Schema, sample: F) -> Result<Self> {
+    /// Creates `path` with a `# ` line naming what ran, then the header of `schema`;
+    /// `sample` makes each period's sample.
+    pub fn create(
+        path: &Path,
+        schema: &pma_loop::Schema,
+        sample: F,
+        provenance: &crate::provenance::Provenance,
+    ) -> Result<Self> {
         let mut header = vec!["t_s".to_owned()];
         header.extend(schema.columns());
         Ok(Self {
-            out: crate::output::CsvOut::create(path, &header)?,
+            out: crate::output::CsvOut::create(path, &header, Some(&provenance.line()))?,
             row: vec![0.0; header.len()],
             sample,
         })
@@ -218,6 +224,7 @@ pub fn check_duration(duration: f64) -> Result<()> {
 pub fn conclude<R: serde::Serialize, F>(
     (csv, viz): (Option<SampleCsv<F>>, Option<viz::Recorder>),
     report: &R,
+    provenance: &crate::provenance::Provenance,
     non_finite: Option<String>,
     json: bool,
     summary: impl FnOnce(&R) -> Result<()>,
@@ -230,9 +237,10 @@ pub fn conclude<R: serde::Serialize, F>(
         bail!("{what} went non-finite");
     }
     if json {
-        crate::say!("{}", serde_json::to_string(report)?);
+        crate::say!("{}", provenance.attach(report)?);
     } else {
         summary(report)?;
+        crate::say!("  ({})", provenance.line());
     }
     viz_result
 }

@@ -1,6 +1,7 @@
 //! `pma-exo pendulum`: the Wartenberg pendulum test on the leg's patient model.
 use super::{viz, RunOutput, SampleCsv};
 use crate::output;
+use crate::provenance::Provenance;
 use crate::say;
 use anyhow::Result;
 use pma_leg::patient::{SpasticityPreset, SpasticitySettings};
@@ -13,15 +14,24 @@ use pma_studies::pendulum::{self, PendulumReport, PendulumSample, PendulumSetup}
 pub enum Spasticity {
     /// No stretch reflex.
     None,
-    /// Mild.
+    /// Extensor reflex gain 1.5 N m s/rad above 2.6 rad/s (flexor half), 60 ms delay.
     Mild,
-    /// Moderate.
+    /// Gain 3.5 N m s/rad above 1.2 rad/s.
     Moderate,
-    /// Severe.
+    /// Gain 7.0 N m s/rad above 0.5 rad/s.
     Severe,
 }
 
 impl Spasticity {
+    fn name(self) -> &'static str {
+        match self {
+            Spasticity::None => "none",
+            Spasticity::Mild => "mild",
+            Spasticity::Moderate => "moderate",
+            Spasticity::Severe => "severe",
+        }
+    }
+
     fn preset(self) -> SpasticityPreset {
         match self {
             Spasticity::None => SpasticityPreset::None,
@@ -81,6 +91,16 @@ pub fn run(a: Args) -> Result<i32> {
             &[("--csv", csv)],
         )?;
     }
+    let provenance = Provenance {
+        scenario: Some(loaded.scenario.name.clone()),
+        controller: Some("none (muscles vented and unhooked)".into()),
+        patient: Some(match a.spasticity {
+            Some(s) => format!("spasticity {} at hip and knee", s.name()),
+            None => super::simulate::patient_name(&loaded),
+        }),
+        seed: super::simulate::spasm_seed(&loaded),
+        ..Provenance::of_this_run()
+    };
     let sim = pendulum::seated(&loaded, setup)?;
     let settings = LoopSettings::new(a.duration)?;
     settings.periods(loaded.scenario.period_s)?;
@@ -90,14 +110,21 @@ pub fn run(a: Args) -> Result<i32> {
         .csv
         .as_deref()
         .map(|p| {
-            SampleCsv::create(p, &PendulumSample::schema(), move |p: &Period<'_, _, _>| {
-                PendulumSample::of(p, damping)
-            })
+            SampleCsv::create(
+                p,
+                &PendulumSample::schema(),
+                move |p: &Period<'_, _, _>| PendulumSample::of(p, damping),
+                &provenance,
+            )
         })
         .transpose()?;
     let meta = format!(
-        "# Pendulum test: {}\n\n{}\n\nthigh horizontal, hip held at {} deg, knee released from {} deg; muscles vented and unhooked.\n",
-        loaded.scenario.name, loaded.scenario.description, a.hip_deg, a.knee_deg
+        "# Pendulum test: {}\n\n{}\n\n{}\n\nthigh horizontal, hip held at {} deg, knee released from {} deg; muscles vented and unhooked.\n",
+        loaded.scenario.name,
+        loaded.scenario.description,
+        provenance.line(),
+        a.hip_deg,
+        a.knee_deg
     );
     let viz = viz::pendulum(&a.output.rerun, &sim, &meta, damping)?;
     let stop = output::stop_flag()?;
@@ -110,6 +137,7 @@ pub fn run(a: Args) -> Result<i32> {
     super::conclude(
         (csv, viz),
         &report,
+        &provenance,
         non_finite,
         a.output.json,
         print_summary,

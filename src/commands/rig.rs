@@ -296,7 +296,13 @@ fn run_rig(
     rerun: &RerunArgs,
 ) -> Result<i32> {
     let stop = output::stop_flag()?;
-    let meta = format!("# rig `{}`\n\n{}\n", cfg.name, cfg.description);
+    let provenance = rig_provenance(cfg, options);
+    let meta = format!(
+        "# rig `{}`\n\n{}\n\n{}\n",
+        cfg.name,
+        cfg.description,
+        provenance.line()
+    );
     let mut viz = viz::bench(rerun, "pma-exo rig", cfg.period_s, &meta)?;
     let report = pma_rig::run::run(cfg, dir, options, &stop, &mut viz)?;
     if let Err(e) = viz::finish(viz) {
@@ -304,14 +310,43 @@ fn run_rig(
     }
     warn_if_not_vented(&report);
     if json {
-        say!("{}", serde_json::to_string(&report)?);
+        say!("{}", provenance.attach(&report)?);
     } else {
         print_report(&report)?;
+        say!("  ({})", provenance.line());
     }
     if let Some(e) = &report.log_error {
         eprintln!("error: the log `{}` is incomplete: {e}", report.log);
     }
     Ok(report.exit_code())
+}
+
+/// What a rig run runs: the rig, its plant (virtual) or device, the controller and where
+/// its gains come from.
+fn rig_provenance(cfg: &RigConfig, options: &RunOptions) -> crate::provenance::Provenance {
+    let controller = if options.excitation.is_some() {
+        "excitation (open loop)".to_owned()
+    } else {
+        match &options.controller {
+            Some(c) => c.kind().as_str().to_owned(),
+            None => cfg.control.controller.clone(),
+        }
+    };
+    let gains = match (&options.controller, &cfg.control.gains) {
+        _ if options.excitation.is_some() => None,
+        (Some(_), _) => Some("command line (--controller, --gains)".to_owned()),
+        (None, Some(path)) => Some(path.display().to_string()),
+        (None, None) => Some("the controller's defaults (APRC-NDO: the paper's)".to_owned()),
+    };
+    crate::provenance::Provenance {
+        plant: Some(match &cfg.virtual_rig {
+            Some(v) => format!("virtual rig `{}`, plant {}", cfg.name, v.plant),
+            None => format!("rig `{}` on {}", cfg.name, cfg.device.path),
+        }),
+        controller: Some(controller),
+        gains,
+        ..crate::provenance::Provenance::of_this_run()
+    }
 }
 
 /// The one message a run that could not vent must print, whatever else happens.

@@ -1,6 +1,7 @@
 //! `pma-exo simulate`: the gait-training simulation of the exoskeleton leg.
 use super::{viz, RunOutput, SampleCsv};
 use crate::output::{self, INTERRUPTED};
+use crate::provenance::Provenance;
 use crate::say;
 use anyhow::Result;
 use pma_control::{ControllerConfig, ControllerKind};
@@ -70,6 +71,14 @@ pub fn run(a: Args) -> Result<i32> {
     super::check_duration(duration)?;
     sc.check_run_duration(duration)?;
     let config = leg_config(a.controller, a.gains.as_deref(), &loaded)?;
+    let provenance = Provenance {
+        scenario: Some(sc.name.clone()),
+        controller: Some(config.kind().as_str().to_owned()),
+        gains: Some(gain_source(a.controller, a.gains.as_deref())),
+        patient: Some(patient_name(&loaded)),
+        seed: spasm_seed(&loaded),
+        ..Provenance::of_this_run()
+    };
     let mut sim = LegSim::with_controller(&loaded, &config)?;
     let settings = sim.settings(duration)?;
     let periods = settings.periods(sc.period_s)?;
@@ -89,11 +98,12 @@ pub fn run(a: Args) -> Result<i32> {
         .output
         .csv
         .as_deref()
-        .map(|p| SampleCsv::create(p, &LegSample::schema(&names), LegSample::of))
+        .map(|p| SampleCsv::create(p, &LegSample::schema(&names), LegSample::of, &provenance))
         .transpose()?;
     let meta = format!(
-        "# {}\n\n{}\n\ngait `{}` at a {} s stride; co-contraction {} bar; {} gains:\n\n```\n{:#?}\n```\n",
+        "# {}\n\n{}\n\n{}\n\ngait `{}` at a {} s stride; co-contraction {} bar; {} gains:\n\n```\n{:#?}\n```\n",
         sc.name,
+        provenance.line(),
         sc.description,
         sc.gait.speed,
         sc.gait.stride_period_s,
@@ -119,6 +129,7 @@ pub fn run(a: Args) -> Result<i32> {
     super::conclude(
         (csv, viz),
         &report,
+        &provenance,
         non_finite,
         a.output.json,
         print_summary,
@@ -131,6 +142,50 @@ pub fn run(a: Args) -> Result<i32> {
         return Ok(INTERRUPTED);
     }
     Ok(0)
+}
+
+/// Where `leg_config`'s gains come from.
+pub fn gain_source(kind: Option<ControllerKind>, gains: Option<&std::path::Path>) -> String {
+    match (kind, gains) {
+        (None, _) => "scenario (APRC-NDO)".into(),
+        (Some(_), Some(path)) => path.display().to_string(),
+        (Some(ControllerKind::Aprc), None) => "scenario (APRC-NDO's, observer off)".into(),
+        (Some(_), None) => "shipped leg gains".into(),
+    }
+}
+
+/// The seed of the scenario's random spasms, if it has any.
+pub fn spasm_seed(loaded: &pma_leg::LoadedScenario) -> Option<u64> {
+    let p = &loaded.scenario.patient;
+    [&p.hip, &p.knee]
+        .iter()
+        .find_map(|j| j.spasms.as_ref().map(|s| s.seed))
+}
+
+/// The patient of a scenario, as a name: `passive`, or its parts.
+pub fn patient_name(loaded: &pma_leg::LoadedScenario) -> String {
+    let p = &loaded.scenario.patient;
+    let joint = |j: &pma_leg::patient::JointPatientSettings| {
+        let mut parts = Vec::new();
+        if let Some(s) = &j.spasticity {
+            parts.push(match s.preset {
+                Some(preset) => format!("spasticity {preset:?}").to_lowercase(),
+                None => "spasticity".into(),
+            });
+        }
+        if j.spasms.is_some() {
+            parts.push("spasms".into());
+        }
+        if j.effort.is_some() {
+            parts.push("effort".into());
+        }
+        if parts.is_empty() {
+            "passive".into()
+        } else {
+            parts.join(" + ")
+        }
+    };
+    format!("hip {}, knee {}", joint(&p.hip), joint(&p.knee))
 }
 
 /// The controller of every muscle: the scenario's APRC-NDO by default, a gain file, or

@@ -1,6 +1,7 @@
 //! `pma-exo single`: one controller on the single-muscle bench.
 use super::{check_duration, load_gains, viz, RefName, RunOutput, SampleCsv};
 use crate::output::{self, INTERRUPTED};
+use crate::provenance::Provenance;
 use crate::say;
 use anyhow::{bail, Result};
 use pma_bench::{run_single_until, PlantConfig, RunSpec, Sample};
@@ -41,6 +42,17 @@ pub fn run(a: Args) -> Result<i32> {
     let plant = PlantConfig::load(&a.plant)?;
     let config = load_gains(a.controller, a.gains.as_deref())?;
     let (ref_name, reference) = a.reference.build();
+    let provenance = Provenance {
+        plant: Some(plant.name.clone()),
+        controller: Some(a.controller.as_str().to_owned()),
+        gains: Some(
+            a.gains
+                .as_ref()
+                .map_or("default".to_owned(), |g| g.display().to_string()),
+        ),
+        seed: (plant.sensor.noise_rms_m > 0.0).then_some(plant.sensor.seed),
+        ..Provenance::of_this_run()
+    };
     let spec = RunSpec {
         duration_s: a.duration,
         ..RunSpec::default()
@@ -61,10 +73,11 @@ pub fn run(a: Args) -> Result<i32> {
         .output
         .csv
         .as_deref()
-        .map(|p| SampleCsv::create(p, &Sample::schema(), Sample::of))
+        .map(|p| SampleCsv::create(p, &Sample::schema(), Sample::of, &provenance))
         .transpose()?;
     let meta = format!(
-        "# single muscle\n\ncontroller `{}`, reference `{ref_name}`, plant `{}`\n\n```toml\n{}```\n",
+        "# single muscle\n\n{}\n\ncontroller `{}`, reference `{ref_name}`, plant `{}`\n\n```toml\n{}```\n",
+        provenance.line(),
         a.controller,
         plant.name,
         config.to_toml_string()
@@ -115,7 +128,7 @@ pub fn run(a: Args) -> Result<i32> {
             "real_time_factor": res.real_time_factor,
             "interrupted": res.interrupted,
         });
-        say!("{v}");
+        say!("{}", provenance.attach(&v)?);
     } else {
         say!(
             "{} on {} ({ref_name}, {} s): MAE {:.3e} m, IAE {:.3e} m, RTE {:.3} %, RMS {:.3e} m, {:.0}x real time",
@@ -128,6 +141,7 @@ pub fn run(a: Args) -> Result<i32> {
             s.rms_m,
             res.real_time_factor
         );
+        say!("  ({})", provenance.line());
     }
     viz_result?;
     if res.interrupted {
