@@ -2,3 +2,8 @@
 //! layer, shared by the binary and the integration tests.
 #[cfg(feature = "rerun")]
 pub mod viz;
+
+/// The README's Rust example, compiled and run by `cargo test --doc`.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

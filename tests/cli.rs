@@ -881,11 +881,23 @@ fn simulate_any_controller_on_a_patient_reports_spasms_and_safety() {
     let m = &v["safety"]["muscles"]["knee_flexor"];
     assert_eq!(m["rated_force_n"], 1500.0);
     assert!(m["peak_over_rated"].as_f64().unwrap() > 0.0);
+    // Regression (issue 18): a spasm's "joint speed" was the gait's own peak speed (knee
+    // 203-237 deg/s whatever the spasm) and its deviation the whole tracking error; both
+    // are now measured beyond the same run without the spasms.
+    assert_eq!(knee_spasm["against_baseline"], true);
+    let speed = knee_spasm["peak_joint_speed_deg_s"].as_f64().unwrap();
+    assert!(speed < 150.0, "knee spasm speed {speed} deg/s");
     // The summary prints a line per spasm.
     let out = pma_exo_ok(&["simulate", "gait_spasms", "--duration", "8"]);
     let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("beyond the same run without the spasms"),
+        "{text}"
+    );
     assert_eq!(
-        text.lines().filter(|l| l.contains("spasm at")).count(),
+        text.lines()
+            .filter(|l| l.trim_start().starts_with("at ") && l.contains("N m for"))
+            .count(),
         spasms.len(),
         "{text}"
     );
@@ -1060,4 +1072,28 @@ fn a_robust_tuning_draws_from_a_sweeps_ranges_but_not_its_plants() {
         ],
         "population",
     );
+}
+
+/// `single --gains FILE` without `--controller` runs the file's controller (issue 18), and
+/// the JSON says so in its provenance.
+#[test]
+fn single_takes_the_controller_from_the_gain_file() {
+    let gains = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/crates/pma-control/models/gains/pid.toml"
+    );
+    let out = pma_exo(&["single", "--gains", gains, "--duration", "0.5", "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["controller"], "pid");
+    assert_eq!(v["provenance"]["controller"], "pid");
+    assert_eq!(v["provenance"]["gains"], gains);
+    assert!(v["provenance"]["program"]
+        .as_str()
+        .unwrap()
+        .starts_with("pma-exo "));
 }

@@ -94,6 +94,19 @@ impl RerunArgs {
 
 /// The gains of `kind`: its defaults, or a gain file (an APRC-NDO file may drive APRC, the
 /// ablation, and the other way round).
+/// The controller of a gain file, or `default` without one: for `--gains` given without
+/// `--controller`, the file says which controller it is.
+pub fn kind_of_gains(path: Option<&Path>, default: ControllerKind) -> Result<ControllerKind> {
+    let Some(path) = path else {
+        return Ok(default);
+    };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read gain file `{}`", path.display()))?;
+    Ok(ControllerConfig::from_toml_str(&text)
+        .with_context(|| format!("gain file `{}`", path.display()))?
+        .kind())
+}
+
 pub fn load_gains(kind: ControllerKind, path: Option<&Path>) -> Result<ControllerConfig> {
     let Some(path) = path else {
         return Ok(kind.default_config());

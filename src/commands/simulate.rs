@@ -249,6 +249,16 @@ fn print_patient(r: &LegReport) -> Result<()> {
         p.knee.torque_rms_nm,
         p.knee.torque_peak_nm
     );
+    if let Some(e) = r.spasms.first() {
+        say!(
+            "  spasms (deviation and joint speed {}):",
+            if e.against_baseline {
+                "beyond the same run without the spasms"
+            } else {
+                "absolute: no baseline run"
+            }
+        );
+    }
     for e in &r.spasms {
         let recovery = match e.recovery_s {
             Some(s) => format!("back within 1 deg {s:.2} s after its end"),
@@ -259,7 +269,7 @@ fn print_patient(r: &LegReport) -> Result<()> {
             None => format!("not back within 1 deg by {:.2} s", e.followed_until_s),
         };
         say!(
-            "  spasm at {:7.2} s: {:4} {} {:.1} N m for {:.2} s -> deviation {:.2} deg, joint speed {:.0} deg/s, pressure rate {:.0} bar/s, {recovery}",
+            "    at {:7.2} s: {:4} {} {:.1} N m for {:.2} s -> deviation {:.2} deg, joint speed {:.0} deg/s, pressure rate {:.0} bar/s, {recovery}",
             e.t_s,
             e.joint,
             e.direction,

@@ -14,9 +14,9 @@ const BENCH_PERIOD_S: f64 = 1e-6;
 /// `single`'s arguments.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Controller.
-    #[arg(long, default_value = "aprc-ndo", value_name = ControllerKind::NAMES)]
-    controller: ControllerKind,
+    /// Controller (default: the gain file's with `--gains`, else aprc-ndo).
+    #[arg(long, value_name = ControllerKind::NAMES)]
+    controller: Option<ControllerKind>,
     /// Reference trajectory.
     #[arg(long, value_enum, default_value = "sine")]
     reference: RefName,
@@ -40,11 +40,15 @@ pub struct Args {
 pub fn run(a: Args) -> Result<i32> {
     check_duration(a.duration)?;
     let plant = PlantConfig::load(&a.plant)?;
-    let config = load_gains(a.controller, a.gains.as_deref())?;
+    let kind = match a.controller {
+        Some(k) => k,
+        None => super::kind_of_gains(a.gains.as_deref(), ControllerKind::AprcNdo)?,
+    };
+    let config = load_gains(kind, a.gains.as_deref())?;
     let (ref_name, reference) = a.reference.build();
     let provenance = Provenance {
         plant: Some(plant.name.clone()),
-        controller: Some(a.controller.as_str().to_owned()),
+        controller: Some(kind.as_str().to_owned()),
         gains: Some(
             a.gains
                 .as_ref()
@@ -78,7 +82,7 @@ pub fn run(a: Args) -> Result<i32> {
     let meta = format!(
         "# single muscle\n\n{}\n\ncontroller `{}`, reference `{ref_name}`, plant `{}`\n\n```toml\n{}```\n",
         provenance.line(),
-        a.controller,
+        kind,
         plant.name,
         config.to_toml_string()
     );
@@ -102,7 +106,7 @@ pub fn run(a: Args) -> Result<i32> {
     if !res.finite {
         bail!(
             "the run went non-finite (controller {}, plant {})",
-            a.controller,
+            kind,
             plant.name
         );
     }
@@ -114,7 +118,7 @@ pub fn run(a: Args) -> Result<i32> {
     };
     if a.output.json {
         let v = serde_json::json!({
-            "controller": a.controller.as_str(),
+            "controller": kind.as_str(),
             "reference": ref_name,
             "plant": plant.name,
             "duration_s": ran_s,
@@ -132,7 +136,7 @@ pub fn run(a: Args) -> Result<i32> {
     } else {
         say!(
             "{} on {} ({ref_name}, {} s): MAE {:.3e} m, IAE {:.3e} m, RTE {:.3} %, RMS {:.3e} m, {:.0}x real time",
-            a.controller,
+            kind,
             plant.name,
             ran_s,
             s.mae_m,

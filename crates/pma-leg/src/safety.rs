@@ -47,9 +47,12 @@ pub struct SpasmReport {
     pub amplitude_nm: f64,
     /// Duration (s).
     pub duration_s: f64,
-    /// Largest |reference - angle| of its joint from onset to the end of the follow-up (deg).
+    /// Largest deviation of its joint from onset to the end of the follow-up (deg): of the
+    /// tracking error from the same run's without the spasms when `against_baseline`,
+    /// else of the tracking error itself.
     pub peak_deviation_deg: f64,
-    /// Largest |angular velocity| of its joint (deg/s).
+    /// Largest |angular velocity| of its joint beyond the same run's without the spasms
+    /// (deg/s) when `against_baseline`, else its largest |angular velocity|.
     pub peak_joint_speed_deg_s: f64,
     /// Largest |dp/dt| of its joint's two muscles (bar/s).
     pub peak_pressure_rate_bar_s: f64,
@@ -62,6 +65,10 @@ pub struct SpasmReport {
     pub overlapped: bool,
     /// End of the follow-up (s): [`FOLLOW_S`] after the spasm, the next spasm or the run's end.
     pub followed_until_s: f64,
+    /// Whether deviation, joint speed and recovery are measured against the same run
+    /// without the spasms (same seeds and controllers; `false` only for a simulation
+    /// continued from an earlier run or modified after it was built).
+    pub against_baseline: bool,
 }
 
 /// A joint against its URDF limits.
@@ -127,6 +134,24 @@ pub struct PatientMetrics {
     saturated_s: [f64; 4],
     peak_rate: [f64; 4],
     previous_p: [f64; 4],
+    /// The same run without its spasms: per period, the joints' errors (deg) and velocities
+    /// (deg/s).
+    baseline: Option<Vec<[f64; 4]>>,
+    period: usize,
+}
+
+/// Records, per period, the joints' tracking errors (deg) and velocities (deg/s): a run's
+/// baseline for its spasms.
+#[derive(Debug, Default)]
+pub struct BaselineTrace(pub Vec<[f64; 4]>);
+
+impl Recorder<SupervisedLeg, LegOutput> for BaselineTrace {
+    fn record(&mut self, p: &Period<'_, SupervisedLeg, LegOutput>) {
+        let s = p.truth;
+        let e = |j: usize| (p.output.reference_rad[j] - s.angle_rad[j]).to_degrees();
+        let w = |j: usize| s.velocity_rad_s[j].to_degrees();
+        self.0.push([e(0), e(1), w(0), w(1)]);
+    }
 }
 
 impl PatientMetrics {
@@ -138,6 +163,7 @@ impl PatientMetrics {
         end_s: f64,
         pressure_max_pa: f64,
         rated_force_n: f64,
+        baseline: Option<Vec<[f64; 4]>>,
     ) -> Self {
         let joint_of = std::array::from_fn(|i| plant.muscles().get(i).map_or(0, |m| m.joint));
         let spasms = events
@@ -178,6 +204,8 @@ impl PatientMetrics {
             saturated_s: [0.0; 4],
             peak_rate: [0.0; 4],
             previous_p: [f64::NAN; 4],
+            baseline,
+            period: 0,
         }
     }
 
@@ -252,6 +280,7 @@ impl PatientMetrics {
                     },
                     overlapped: s.overlapped,
                     followed_until_s: until,
+                    against_baseline: self.baseline.is_some(),
                 }
             })
             .collect()
@@ -324,9 +353,19 @@ impl Recorder<SupervisedLeg, LegOutput> for PatientMetrics {
                 self.saturated_s[i] += dt;
             }
         }
-        let error_deg: [f64; 2] =
-            std::array::from_fn(|j| (p.output.reference_rad[j] - s.angle_rad[j]).to_degrees());
-        let speed: [f64; 2] = std::array::from_fn(|j| s.velocity_rad_s[j].to_degrees());
+        // Against the run without spasms, period by period, when there is one.
+        let base = self
+            .baseline
+            .as_ref()
+            .and_then(|b| b.get(self.period))
+            .copied()
+            .unwrap_or([0.0; 4]);
+        self.period += 1;
+        let error_deg: [f64; 2] = std::array::from_fn(|j| {
+            (p.output.reference_rad[j] - s.angle_rad[j]).to_degrees() - base[j]
+        });
+        let speed: [f64; 2] =
+            std::array::from_fn(|j| s.velocity_rad_s[j].to_degrees() - base[2 + j]);
         self.push_spasms(p.t_s, error_deg, speed, rate);
         self.previous_p = s.pressure_pa;
     }

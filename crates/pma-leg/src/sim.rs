@@ -149,6 +149,9 @@ pub struct LegSim {
     scenario: Scenario,
     plant: SupervisedLeg,
     controllers: LegControllers,
+    /// What built it, while the simulation is as built (no pose held, state set or plant
+    /// touched): the spasms' baseline run is the same simulation without the spasms.
+    origin: Option<Box<(LoadedScenario, ControllerConfig, Mount)>>,
 }
 
 /// Pressures `(flexor, extensor)` with equal forces at the given contractions and mean
@@ -260,27 +263,32 @@ impl LegSim {
             scenario: sc,
             plant: Supervised::new(plant, limits, None),
             controllers,
+            origin: Some(Box::new((loaded.clone(), *config, mount))),
         })
     }
 
     /// Replaces the gait by a constant pose (rad): the reference for a static hold.
     pub fn hold_pose(&mut self, angles: [f64; 2]) {
+        self.origin = None;
         self.controllers.hold_pose(angles);
     }
 
     /// Puts the leg at `angles` with `velocities` (the muscles' valves keep their pressure).
     pub fn set_state(&mut self, angles: [f64; 2], velocities: [f64; 2]) {
+        self.origin = None;
         self.plant.inner_mut().set_state(angles, velocities);
     }
 
     /// One period with the valves commanded directly (no controllers, no supervisor):
     /// open-loop checks.
     pub fn step_with_commands(&mut self, commands: [f64; 4]) -> LegState {
+        self.origin = None;
         self.plant.inner_mut().apply(commands)
     }
 
     /// Vents every muscle at once and unhooks its cable: the limb moves on its own.
     pub fn release_muscles(&mut self) -> Result<(), LegError> {
+        self.origin = None;
         let plant = self.plant.inner_mut();
         plant.set_pressures([0.0; 4])?;
         plant.attach_muscles(false);
@@ -289,6 +297,7 @@ impl LegSim {
 
     /// The plant, to mount or hold the leg (studies such as the pendulum test).
     pub fn plant_mut(&mut self) -> &mut LegPlant {
+        self.origin = None;
         self.plant.inner_mut()
     }
 
@@ -403,6 +412,14 @@ impl LegSim {
             }
             None => Vec::new(),
         };
+        // A spasm's effect is measured against the same run without the spasms (same
+        // seeds, same controllers): its deviation and joint speed beyond what the gait
+        // itself does there.
+        let baseline = match (&self.origin, events.is_empty(), t0 == 0.0) {
+            (Some(origin), false, true) => Some(baseline_trace(origin, settings)?),
+            _ => None,
+        };
+        let sc = &self.scenario;
         let mut metrics = LegMetrics::new(sc.gait.stride_period_s, sc.period_s);
         let mut patient = PatientMetrics::new(
             &self.plant,
@@ -410,6 +427,7 @@ impl LegSim {
             t_end,
             sc.plant.valve.pressure_max_pa,
             sc.plant.muscle_rated_force_n,
+            baseline,
         );
         let outcome = pma_loop::run(
             &mut self.plant,
@@ -447,6 +465,25 @@ impl LegSim {
         report.safety = patient.safety(&names);
         Ok((report, fault))
     }
+}
+
+/// The joint errors and velocities (deg, deg/s) of every period of `origin`'s simulation
+/// without its spasms, over `settings`' duration (no stop flag: it is short).
+fn baseline_trace(
+    origin: &(LoadedScenario, ControllerConfig, Mount),
+    settings: &LoopSettings,
+) -> Result<Vec<[f64; 4]>, LegError> {
+    let (loaded, config, mount) = origin;
+    let mut calm = loaded.clone();
+    calm.scenario.patient.hip.spasms = None;
+    calm.scenario.patient.knee.spasms = None;
+    let mut sim = LegSim::mounted(&calm, config, *mount)?;
+    let plain = LoopSettings::new(settings.duration_s())?;
+    let periods = plain.periods(sim.scenario.period_s)?;
+    let mut trace = crate::safety::BaselineTrace(Vec::with_capacity(periods as usize + 1));
+    // A baseline the supervisor stops still covers its periods up to the fault.
+    let _ = sim.run_until_fault(&plain, &mut trace)?;
+    Ok(trace.0)
 }
 
 /// Why the supervisor stopped a leg run (it vented every muscle).
