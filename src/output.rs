@@ -331,6 +331,49 @@ pub fn human_duration(s: f64) -> String {
     }
 }
 
+/// A progress bar of `len` `unit`s that follows `counter` (work done, counted by the
+/// workers) from a thread of its own until the returned guard is dropped.
+pub fn follow_progress(
+    counter: &'static std::sync::atomic::AtomicUsize,
+    len: u64,
+    unit: &str,
+) -> FollowedBar {
+    let bar = progress_bar(len, unit);
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let thread = {
+        let (bar, done) = (bar.clone(), std::sync::Arc::clone(&done));
+        std::thread::spawn(move || {
+            use std::sync::atomic::Ordering::Relaxed;
+            while !done.load(Relaxed) {
+                bar.set_position(counter.load(Relaxed) as u64);
+                std::thread::sleep(std::time::Duration::from_millis(100));
+            }
+        })
+    };
+    FollowedBar {
+        bar,
+        done,
+        thread: Some(thread),
+    }
+}
+
+/// Stops following and clears the bar when dropped.
+pub struct FollowedBar {
+    bar: indicatif::ProgressBar,
+    done: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Drop for FollowedBar {
+    fn drop(&mut self) {
+        self.done.store(true, std::sync::atomic::Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+        self.bar.finish_and_clear();
+    }
+}
+
 /// A progress bar on stderr (hidden when stderr is not a terminal): position, ETA.
 pub fn progress_bar(len: u64, unit: &str) -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::with_draw_target(

@@ -18,7 +18,7 @@ struct Manifest {
 }
 
 /// An image of the docs: the command draws it at `drawn`; it must be the same bytes.
-/// `PMA_EXO_WRITE_DOCS=1` copies the drawn image over the doc's instead (regeneration).
+/// `PMA_BLESS=1` copies the drawn image over the doc's instead (regeneration).
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Image {
@@ -177,7 +177,7 @@ fn check(slow: bool) {
             }
         }
     }
-    let write = std::env::var_os("PMA_EXO_WRITE_DOCS").is_some();
+    let write = std::env::var_os("PMA_BLESS").is_some();
     for image in m.image.iter().filter(|i| i.slow == slow) {
         run(&image.command, &dir);
         let drawn = image.drawn.replace("{dir}", &dir.display().to_string());
@@ -188,7 +188,7 @@ fn check(slow: bool) {
             std::fs::write(&path, &new).expect("write the image");
         } else if std::fs::read(&path).ok().as_deref() != Some(new.as_slice()) {
             stale.push(format!(
-                "{}: differs from what `pma-exo {}` draws (PMA_EXO_WRITE_DOCS=1 regenerates it)",
+                "{}: differs from what `pma-exo {}` draws (PMA_BLESS=1 regenerates it)",
                 image.path,
                 image.command.join(" ")
             ));

@@ -241,7 +241,10 @@ fn spasms_are_logged_as_events_markers_and_torque_series() {
     );
     assert_eq!(knee.len(), samples.len());
     for (k, s) in samples.iter().enumerate() {
-        assert_eq!((knee[k], spasm[k]), (s.patient_nm[1], s.spasm_nm[1]));
+        assert_eq!(
+            (knee[k], spasm[k]),
+            (s.patient_nm[1], s.patient_parts_nm.spasm_nm[1])
+        );
     }
     assert!(spasm.iter().any(|x| *x != 0.0));
     // A log line at each onset and end, within a period of the event's times.

@@ -76,7 +76,13 @@ pub fn run(a: Args) -> Result<i32> {
         .with_context(|| format!("cannot create `{}`", a.out.display()))?;
     let json_file = OutFile::create(&a.out.join("compare-leg.json"))?;
     let md_file = OutFile::create(&a.out.join("compare-leg.md"))?;
-    let rows = super::with_threads(a.threads, || compare(&scenarios, &controllers, a.duration))??;
+    static DONE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let bar =
+        crate::output::follow_progress(&DONE, (scenarios.len() * controllers.len()) as u64, "runs");
+    let rows = super::with_threads(a.threads, || {
+        compare(&scenarios, &controllers, a.duration, Some(&DONE))
+    })??;
+    drop(bar);
     let provenance = crate::provenance::Provenance {
         scenario: Some(
             scenarios

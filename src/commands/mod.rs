@@ -230,6 +230,31 @@ pub fn check_duration(duration: f64) -> Result<()> {
     Ok(())
 }
 
+/// A progress bar over a loop's periods, advanced every 1 % of the run.
+pub struct Progress {
+    /// The bar (clear it when the run ends).
+    pub bar: indicatif::ProgressBar,
+    every: u64,
+}
+
+impl Progress {
+    /// A bar over `periods` periods.
+    pub fn new(periods: u64) -> Self {
+        Self {
+            bar: crate::output::progress_bar(periods, "periods"),
+            every: (periods / 100).max(1),
+        }
+    }
+}
+
+impl<B: pma_loop::Backend, O> pma_loop::Recorder<B, O> for Progress {
+    fn record(&mut self, p: &pma_loop::Period<'_, B, O>) {
+        if p.index.is_multiple_of(self.every) {
+            self.bar.set_position(p.index);
+        }
+    }
+}
+
 /// The end of a run with optional CSV and Rerun outputs: the CSV completed, the viewer
 /// closed, a non-finite run refused (`non_finite` says what went), the report printed as
 /// JSON or by `summary`, and only then the viewer's error, so a failed viewer never hides

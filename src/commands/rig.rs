@@ -304,7 +304,21 @@ fn run_rig(
         provenance.line()
     );
     let mut viz = viz::bench(rerun, "pma-exo rig", cfg.period_s, &meta)?;
-    let report = pma_rig::run::run(cfg, dir, options, &stop, &mut viz)?;
+    // Real time: a bar over the periods (a lockstep run is over before one would draw).
+    let realtime = options.clock == Some(ClockMode::Realtime)
+        || cfg.virtual_rig.is_none()
+        || cfg
+            .virtual_rig
+            .as_ref()
+            .is_some_and(|v| v.clock == ClockMode::Realtime);
+    let duration = options.duration_s.unwrap_or(cfg.duration_s);
+    let progress = realtime.then(|| super::Progress::new((duration / cfg.period_s) as u64));
+    let bar = progress.as_ref().map(|p| p.bar.clone());
+    let report = pma_rig::run::run(cfg, dir, options, &stop, (&mut viz, progress));
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    let report = report?;
     if let Err(e) = viz::finish(viz) {
         eprintln!("warning: Rerun: {e}");
     }

@@ -6,7 +6,6 @@ use crate::say;
 use anyhow::Result;
 use pma_control::{ControllerConfig, ControllerKind};
 use pma_leg::{LegReport, LegSample, LegSim, Scenario};
-use pma_loop::{Period, Recorder};
 use std::path::PathBuf;
 
 /// Estimated wall time of one leg period (release build, with margin).
@@ -45,20 +44,6 @@ impl Default for Args {
             duration: None,
             yes: false,
             output: RunOutput::default(),
-        }
-    }
-}
-
-/// Advances the progress bar every 1 % of the run.
-struct Progress {
-    bar: indicatif::ProgressBar,
-    every: u64,
-}
-
-impl<B: pma_loop::Backend, O> Recorder<B, O> for Progress {
-    fn record(&mut self, p: &Period<'_, B, O>) {
-        if p.index.is_multiple_of(self.every) {
-            self.bar.set_position(p.index);
         }
     }
 }
@@ -112,11 +97,8 @@ pub fn run(a: Args) -> Result<i32> {
         config
     );
     let viz = viz::leg(&a.output.rerun, &sim, &meta)?;
-    let bar = output::progress_bar(periods, "periods");
-    let progress = Progress {
-        bar: bar.clone(),
-        every: (periods / 100).max(1),
-    };
+    let progress = super::Progress::new(periods);
+    let bar = progress.bar.clone();
     let stop = output::stop_flag()?;
     let settings = settings.with_stop_flag(&stop);
     let mut recorders = (csv, viz, progress);

@@ -79,6 +79,9 @@ impl From<ObjectiveArg> for pma_studies::tune::Aggregate {
     }
 }
 
+/// Evaluations done by this process's search (one search per process).
+static EVALUATED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
 /// Most plants a robust tuning takes.
 const MAX_ROBUST: usize = 1000;
 
@@ -173,8 +176,10 @@ pub fn run(a: Args) -> Result<i32> {
         population: a.population,
         generations: a.generations,
         seed: a.seed,
+        progress: Some(&EVALUATED),
         ..Default::default()
     };
+    let _bar = output::follow_progress(&EVALUATED, evaluations as u64, "runs");
     let objective = pma_studies::tune::Objective {
         duration_s: a.duration,
         max_variation_pa_per_s: a.max_variation.map(|v| v * 1e5),
@@ -285,8 +290,10 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
         population: a.population,
         generations: a.generations,
         seed: a.seed,
+        progress: Some(&EVALUATED),
         ..Default::default()
     };
+    let _bar = output::follow_progress(&EVALUATED, evaluations as u64, "runs");
     let stop = output::stop_flag()?;
     let found = super::with_threads(a.threads, || {
         pma_studies::leg_tune::tune(&loaded, a.controller, &opts, a.duration, &stop)

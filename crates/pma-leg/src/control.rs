@@ -75,6 +75,8 @@ impl Lever {
 pub struct LegOutput {
     /// Reference joint angles (rad), hip and knee.
     pub reference_rad: [f64; 2],
+    /// Reference joint velocities (rad/s).
+    pub reference_velocity_rad_s: [f64; 2],
     /// Muscle length references (m).
     pub length_ref_m: [f64; 4],
     /// Pressure commands (Pa).
@@ -237,6 +239,7 @@ impl Task for LegControllers {
         ];
         let mut out = LegOutput {
             reference_rad: [g.hip.angle_rad, g.knee.angle_rad],
+            reference_velocity_rad_s: [g.hip.velocity_rad_s, g.knee.velocity_rad_s],
             length_ref_m: [0.0; 4],
             pressure_cmd_pa: [0.0; 4],
             diagnostics: [Diagnostics::NONE; 4],
@@ -294,15 +297,19 @@ impl Vented {
     }
 
     fn output(&self, t_s: f64) -> LegOutput {
-        let reference_rad = match &self.gait {
+        let (reference_rad, reference_velocity_rad_s) = match &self.gait {
             Some(g) => {
                 let s = g.sample(t_s);
-                [s.hip.angle_rad, s.knee.angle_rad]
+                (
+                    [s.hip.angle_rad, s.knee.angle_rad],
+                    [s.hip.velocity_rad_s, s.knee.velocity_rad_s],
+                )
             }
-            None => self.pose,
+            None => (self.pose, [0.0; 2]),
         };
         LegOutput {
             reference_rad,
+            reference_velocity_rad_s,
             length_ref_m: [f64::NAN; 4],
             pressure_cmd_pa: [0.0; 4],
             diagnostics: [Diagnostics::NONE; 4],

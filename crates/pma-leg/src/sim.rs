@@ -6,7 +6,7 @@ use crate::error::{invalid, LegError};
 use crate::gait::GaitReference;
 use crate::leg::{Leg, Mount, JOINT_NAMES};
 use crate::metrics::{LegMetrics, LegReport};
-use crate::patient::{Patient, SpasmEvent};
+use crate::patient::{Patient, PatientTorques, SpasmEvent};
 use crate::plant::{LegPlant, LegState, MuscleActuator, SupervisedLeg, LIMIT_OVERSHOOT_MAX_RAD};
 use crate::safety::PatientMetrics;
 use pma_control::supervisor::{ReadingWindow, Supervised, SupervisorLimits};
@@ -24,6 +24,10 @@ pub struct LegSample {
     pub reference_rad: [f64; 2],
     /// Joint angles (rad).
     pub angle_rad: [f64; 2],
+    /// Reference joint velocities (rad/s).
+    pub reference_velocity_rad_s: [f64; 2],
+    /// Joint velocities (rad/s).
+    pub velocity_rad_s: [f64; 2],
     /// Pressure commands computed from this reading (Pa), muscle order of the geometry file.
     pub pressure_cmd_pa: [f64; 4],
     /// Pressures (Pa).
@@ -38,8 +42,9 @@ pub struct LegSample {
     pub diagnostics: [Diagnostics; 4],
     /// The patient's torque at hip and knee (N m, flexion positive), all parts.
     pub patient_nm: [f64; 2],
-    /// Of which spasms (N m): non-zero while a spasm acts on the joint.
-    pub spasm_nm: [f64; 2],
+    /// Its parts (N m): reflex, spasm (non-zero while a spasm acts on the joint), voluntary
+    /// effort, passive stiffness.
+    pub patient_parts_nm: PatientTorques,
 }
 
 impl LegSample {
@@ -50,6 +55,8 @@ impl LegSample {
             t_s: p.t_s,
             reference_rad: o.reference_rad,
             angle_rad: s.angle_rad,
+            reference_velocity_rad_s: o.reference_velocity_rad_s,
+            velocity_rad_s: s.velocity_rad_s,
             pressure_cmd_pa: *p.written,
             pressure_pa: s.pressure_pa,
             length_ref_m: o.length_ref_m,
@@ -57,7 +64,7 @@ impl LegSample {
             force_n: s.force_n,
             diagnostics: o.diagnostics,
             patient_nm: s.patient.total(),
-            spasm_nm: s.patient.spasm_nm,
+            patient_parts_nm: s.patient,
         }
     }
 }
@@ -77,14 +84,39 @@ impl LegSample {
                 .push_part(
                     "joints",
                     j,
+                    "reference_velocity_deg_s",
+                    "reference velocity (deg/s)",
+                )
+                .push_part("joints", j, "velocity_deg_s", "velocity (deg/s)")
+                .push_part(
+                    "joints",
+                    j,
                     "patient_torque_nm",
                     "patient torque (N m, flexion +)",
                 )
                 .push_part(
                     "joints",
                     j,
+                    "reflex_torque_nm",
+                    "patient's stretch reflex (N m, flexion +)",
+                )
+                .push_part(
+                    "joints",
+                    j,
                     "spasm_torque_nm",
                     "spasm torque (N m, flexion +)",
+                )
+                .push_part(
+                    "joints",
+                    j,
+                    "effort_torque_nm",
+                    "patient's voluntary effort (N m, flexion +)",
+                )
+                .push_part(
+                    "joints",
+                    j,
+                    "stiffness_torque_nm",
+                    "patient's passive stiffness (N m, flexion +)",
                 );
         }
         for m in muscles {
@@ -120,7 +152,19 @@ impl Signals for LegSample {
                 self.reference_rad[j].to_degrees(),
                 self.angle_rad[j].to_degrees(),
             );
-            for v in [r, a, r - a, self.patient_nm[j], self.spasm_nm[j]] {
+            let p = &self.patient_parts_nm;
+            for v in [
+                r,
+                a,
+                r - a,
+                self.reference_velocity_rad_s[j].to_degrees(),
+                self.velocity_rad_s[j].to_degrees(),
+                self.patient_nm[j],
+                p.reflex_nm[j],
+                p.spasm_nm[j],
+                p.effort_nm[j],
+                p.stiffness_nm[j],
+            ] {
                 put(v);
             }
         }

@@ -100,11 +100,12 @@ impl CompareRow {
 
 /// Runs every controller of `controllers` on every scenario for `duration_s`, in parallel
 /// on rayon's pool (the caller's `install` sets its size); rows in scenario-major order,
-/// the same for any thread count.
+/// the same for any thread count. `progress` counts the runs done (for a progress bar).
 pub fn compare(
     scenarios: &[LoadedScenario],
     controllers: &[ControllerConfig],
     duration_s: f64,
+    progress: Option<&std::sync::atomic::AtomicUsize>,
 ) -> Result<Vec<CompareRow>, LegError> {
     let pairs: Vec<(&LoadedScenario, &ControllerConfig)> = scenarios
         .iter()
@@ -115,6 +116,9 @@ pub fn compare(
         .map(|(loaded, config)| {
             let mut sim = LegSim::with_controller(loaded, config)?;
             let report = sim.run(duration_s, &mut ())?;
+            if let Some(n) = progress {
+                n.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            }
             Ok(CompareRow::of(&report, &config.kind().to_string()))
         })
         .collect()

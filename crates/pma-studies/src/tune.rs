@@ -8,10 +8,10 @@
 use pma_bench::{run_single, PlantConfig, RunSpec};
 use pma_control::{ControllerConfig, ControllerKind, SineReference};
 use pma_model::GaussianRng;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// Firefly algorithm settings; the budget is `population * (generations + 1)` runs.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy)]
 pub struct FireflyOptions {
     /// Number of fireflies.
     pub population: usize,
@@ -25,6 +25,8 @@ pub struct FireflyOptions {
     pub alpha0: f64,
     /// Seed.
     pub seed: u64,
+    /// Counts the evaluations done, for a progress bar (the search does not read it).
+    pub progress: Option<&'static AtomicUsize>,
 }
 
 impl Default for FireflyOptions {
@@ -36,6 +38,7 @@ impl Default for FireflyOptions {
             absorption: 1.0,
             alpha0: 0.2,
             seed: 2019,
+            progress: None,
         }
     }
 }
@@ -47,15 +50,20 @@ fn evaluate_all(
     pos: &[Vec<f64>],
     stop: &AtomicBool,
     objective: &(impl Fn(&[f64]) -> f64 + Sync),
+    progress: Option<&AtomicUsize>,
 ) -> Vec<f64> {
     use rayon::prelude::*;
     pos.par_iter()
         .map(|p| {
-            if stop.load(Ordering::Relaxed) {
+            let c = if stop.load(Ordering::Relaxed) {
                 f64::INFINITY
             } else {
                 objective(p)
+            };
+            if let Some(n) = progress {
+                n.fetch_add(1, Ordering::Relaxed);
             }
+            c
         })
         .collect()
 }
@@ -75,7 +83,7 @@ pub fn firefly(
     let mut pos: Vec<Vec<f64>> = (0..n)
         .map(|_| (0..dims).map(|_| rng.uniform()).collect())
         .collect();
-    let mut cost = evaluate_all(&pos, stop, &objective);
+    let mut cost = evaluate_all(&pos, stop, &objective, opts.progress);
     let mut evals = n;
     let decay = 0.1f64.powf(1.0 / opts.generations.max(1) as f64);
     let mut alpha = opts.alpha0;
@@ -107,7 +115,7 @@ pub fn firefly(
                 }
             }
         }
-        let new_cost = evaluate_all(&pos, stop, &objective);
+        let new_cost = evaluate_all(&pos, stop, &objective, opts.progress);
         evals += n;
         for (i, c) in new_cost.into_iter().enumerate() {
             // Elitism per firefly: keep the better of old and new position.
