@@ -740,3 +740,204 @@ mod tests {
         assert_eq!(decade_label(0.1), "100 mm");
     }
 }
+
+/// A leg run, every 10th period: what `simulate --plot` draws.
+#[derive(Debug, Clone, Default)]
+pub struct LegTrace {
+    /// Time (s).
+    pub t_s: Vec<f64>,
+    /// Reference and angle (deg) of hip and knee.
+    pub reference_deg: [Vec<f64>; 2],
+    /// Joint angles (deg).
+    pub angle_deg: [Vec<f64>; 2],
+    /// Pressures (bar), muscle order of `muscles`.
+    pub pressure_bar: [Vec<f64>; 4],
+    /// Forces (N).
+    pub force_n: [Vec<f64>; 4],
+    /// The patient's torque (N m) at hip and knee.
+    pub patient_nm: [Vec<f64>; 2],
+    /// Muscle names.
+    pub muscles: Vec<String>,
+    /// Spasms: joint (0 hip, 1 knee), onset and end (s).
+    pub spasms: Vec<(usize, f64, f64)>,
+    /// The valve's limit (bar) and the muscles' rated force (N).
+    pub pressure_max_bar: f64,
+    /// Rated force (N).
+    pub rated_force_n: f64,
+}
+
+/// One panel of lines over time with dashed horizontal marks and shaded spasms.
+struct LinePanel<'a> {
+    y_desc: &'a str,
+    lines: Vec<(String, &'a [f64], RGBColor, bool)>,
+    marks: Vec<(f64, String)>,
+    spasms: Vec<(f64, f64)>,
+}
+
+fn draw_line_panel(area: &Area, t: &[f64], panel: &LinePanel) -> DrawResult {
+    let t_max = t.last().copied().unwrap_or(1.0).max(1e-3);
+    let values = panel
+        .lines
+        .iter()
+        .flat_map(|(_, v, _, _)| v.iter().copied())
+        .chain(panel.marks.iter().map(|m| m.0));
+    let y = padded_range(values.filter(|v| v.is_finite()));
+    let mut chart = linear_chart(area, 0.0..t_max, y.clone(), panel.y_desc)?;
+    for (t0, t1) in &panel.spasms {
+        chart.draw_series(std::iter::once(Rectangle::new(
+            [(*t0, y.start), (*t1, y.end)],
+            RGBColor(255, 200, 120).mix(0.35).filled(),
+        )))?;
+    }
+    for (value, label) in &panel.marks {
+        chart.draw_series(DashedLineSeries::new(
+            [(0.0, *value), (t_max, *value)],
+            6,
+            4,
+            BLACK.mix(0.6).stroke_width(1),
+        ))?;
+        chart.draw_series(std::iter::once(Text::new(
+            label.clone(),
+            (t_max * 0.005, *value),
+            (FONT, SMALL_TICK_PX).into_font(),
+        )))?;
+    }
+    for (label, v, colour, dashed) in &panel.lines {
+        // One pixel: a thicker polyline grows miter spikes at the valves' sharp turns.
+        let style = colour.stroke_width(1);
+        let colour = *colour;
+        // Inside the panel: plotters does not clip a line to its chart.
+        let (lo, hi) = (y.start, y.end);
+        let pts = t
+            .iter()
+            .zip(v.iter())
+            .filter(|(_, b)| b.is_finite())
+            .map(move |(a, b)| (*a, b.clamp(lo, hi)));
+        let series = if *dashed {
+            chart.draw_series(LineSeries::new(pts, colour.mix(0.35).stroke_width(5)))?
+        } else {
+            chart.draw_series(LineSeries::new(pts, style))?
+        };
+        series
+            .label(label.clone())
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], colour.stroke_width(3)));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK.mix(0.3))
+        .label_font((FONT, SMALL_TICK_PX))
+        .draw()?;
+    Ok(())
+}
+
+/// `simulate --plot`: joint angles over their references, tracking errors, the four
+/// pressures against the valve's limit, the forces against the rating, and the patient's
+/// torques, spasms shaded.
+pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawResult {
+    let root = BitMapBackend::new(path, (1400, 1300)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (head, body) = root.split_vertically(TITLE_HEIGHT);
+    title_block(&head, title, setting)?;
+    let rows = body.split_evenly((3, 2));
+    let spasms = |j: Option<usize>| -> Vec<(f64, f64)> {
+        tr.spasms
+            .iter()
+            .filter(|(sj, ..)| j.is_none_or(|j| *sj == j))
+            .map(|(_, a, b)| (*a, *b))
+            .collect()
+    };
+    let errors: Vec<Vec<f64>> = (0..2)
+        .map(|j| {
+            tr.reference_deg[j]
+                .iter()
+                .zip(&tr.angle_deg[j])
+                .map(|(r, a)| r - a)
+                .collect()
+        })
+        .collect();
+    let joint_panel = |j: usize, name: &'static str| LinePanel {
+        y_desc: if j == 0 {
+            "hip flexion (deg)"
+        } else {
+            "knee flexion (deg)"
+        },
+        lines: vec![
+            (
+                format!("{name} reference"),
+                &tr.reference_deg[j][..],
+                REFERENCE_GREY,
+                true,
+            ),
+            (
+                format!("{name} angle"),
+                &tr.angle_deg[j][..],
+                colour(j),
+                false,
+            ),
+        ],
+        marks: Vec::new(),
+        spasms: spasms(Some(j)),
+    };
+    let panels = [
+        joint_panel(0, "hip"),
+        joint_panel(1, "knee"),
+        LinePanel {
+            y_desc: "tracking error (deg)",
+            lines: vec![
+                ("hip".into(), &errors[0][..], colour(0), false),
+                ("knee".into(), &errors[1][..], colour(1), false),
+            ],
+            marks: Vec::new(),
+            spasms: spasms(None),
+        },
+        LinePanel {
+            y_desc: "patient torque (N m, flexion +)",
+            lines: vec![
+                ("hip".into(), &tr.patient_nm[0][..], colour(0), false),
+                ("knee".into(), &tr.patient_nm[1][..], colour(1), false),
+            ],
+            marks: Vec::new(),
+            spasms: spasms(None),
+        },
+        LinePanel {
+            y_desc: "pressure (bar)",
+            lines: (0..4)
+                .map(|i| {
+                    (
+                        tr.muscles.get(i).cloned().unwrap_or_default(),
+                        &tr.pressure_bar[i][..],
+                        colour(i + 2),
+                        false,
+                    )
+                })
+                .collect(),
+            marks: vec![
+                (tr.pressure_max_bar, "valve limit".into()),
+                (0.0, "vented".into()),
+            ],
+            spasms: spasms(None),
+        },
+        LinePanel {
+            y_desc: "force (N)",
+            lines: (0..4)
+                .map(|i| {
+                    (
+                        tr.muscles.get(i).cloned().unwrap_or_default(),
+                        &tr.force_n[i][..],
+                        colour(i + 2),
+                        false,
+                    )
+                })
+                .collect(),
+            marks: vec![(tr.rated_force_n, "rated force".into())],
+            spasms: spasms(None),
+        },
+    ];
+    for (area, panel) in rows.iter().zip(&panels) {
+        draw_line_panel(area, &tr.t_s, panel)?;
+    }
+    root.present()?;
+    Ok(())
+}

@@ -1097,3 +1097,20 @@ fn single_takes_the_controller_from_the_gain_file() {
         .unwrap()
         .starts_with("pma-exo "));
 }
+
+/// `simulate --plot DIR` draws the run (issue 18): a PNG in DIR, written whole.
+#[test]
+fn simulate_draws_the_run_when_asked() {
+    let dir = temp("leg-plot");
+    pma_exo_ok(&[
+        "simulate",
+        "gait_spasms",
+        "--duration",
+        "6.4",
+        "--plot",
+        dir.to_str().unwrap(),
+    ]);
+    let png = std::fs::read(dir.join("leg.png")).expect("leg.png");
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    assert!(png.len() > 50_000, "{} bytes", png.len());
+}

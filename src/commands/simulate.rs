@@ -30,6 +30,10 @@ pub struct Args {
     /// Run even if it would take over an hour.
     #[arg(long)]
     yes: bool,
+    /// Draw the run into this directory (`leg.png`: angles over their references, tracking
+    /// errors, patient torques, pressures and forces against their limits, spasms shaded).
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
     #[command(flatten)]
     output: RunOutput,
 }
@@ -43,6 +47,7 @@ impl Default for Args {
             gains: None,
             duration: None,
             yes: false,
+            plot: None,
             output: RunOutput::default(),
         }
     }
@@ -99,13 +104,35 @@ pub fn run(a: Args) -> Result<i32> {
     let viz = viz::leg(&a.output.rerun, &sim, &meta)?;
     let progress = super::Progress::new(periods);
     let bar = progress.bar.clone();
+    if let Some(dir) = &a.plot {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("cannot create `{}`: {e}", dir.display()))?;
+    }
+    let trace = a.plot.as_ref().map(|_| Trace::with_capacity(periods));
     let stop = output::stop_flag()?;
     let settings = settings.with_stop_flag(&stop);
-    let mut recorders = (csv, viz, progress);
+    let mut recorders = (csv, viz, progress, trace);
     let report = sim.run_with(&settings, &mut recorders);
     bar.finish_and_clear();
     let report = report?;
-    let (csv, viz, _) = recorders;
+    let (csv, viz, _, trace) = recorders;
+    if let (Some(dir), Some(mut trace)) = (&a.plot, trace) {
+        trace.0.muscles = names.clone();
+        trace.0.pressure_max_bar = sc.plant.valve.pressure_max_pa / 1e5;
+        trace.0.rated_force_n = sc.plant.muscle_rated_force_n;
+        trace.0.spasms = report
+            .spasms
+            .iter()
+            .map(|e| (usize::from(e.joint == "knee"), e.t_s, e.t_s + e.duration_s))
+            .collect();
+        crate::plot::register_font()?;
+        let path = dir.join("leg.png");
+        let title = format!("{}: {} on every muscle", sc.name, config.kind());
+        output::write_via_temp(&path, |tmp| {
+            crate::plot::leg_run(tmp, &title, &provenance.command, &trace.0)
+        })?;
+        eprintln!("wrote {}", path.display());
+    }
     let non_finite =
         (!report.finite).then(|| format!("the simulation (scenario {})", report.scenario));
     super::conclude(
@@ -124,6 +151,44 @@ pub fn run(a: Args) -> Result<i32> {
         return Ok(INTERRUPTED);
     }
     Ok(0)
+}
+
+/// Every 10th period of a leg run, for `--plot`.
+struct Trace(crate::plot::LegTrace);
+
+impl Trace {
+    fn with_capacity(periods: u64) -> Self {
+        let n = (periods / 10 + 2) as usize;
+        let v = || Vec::with_capacity(n);
+        Self(crate::plot::LegTrace {
+            t_s: v(),
+            reference_deg: [v(), v()],
+            angle_deg: [v(), v()],
+            pressure_bar: [v(), v(), v(), v()],
+            force_n: [v(), v(), v(), v()],
+            patient_nm: [v(), v()],
+            ..Default::default()
+        })
+    }
+}
+
+impl pma_loop::Recorder<pma_leg::SupervisedLeg, pma_leg::LegOutput> for Trace {
+    fn record(&mut self, p: &pma_loop::Period<'_, pma_leg::SupervisedLeg, pma_leg::LegOutput>) {
+        if !p.index.is_multiple_of(10) {
+            return;
+        }
+        let (s, o, t) = (p.truth, p.output, &mut self.0);
+        t.t_s.push(p.t_s);
+        for (j, torque) in s.patient.total().into_iter().enumerate() {
+            t.reference_deg[j].push(o.reference_rad[j].to_degrees());
+            t.angle_deg[j].push(s.angle_rad[j].to_degrees());
+            t.patient_nm[j].push(torque);
+        }
+        for (i, (p, f)) in s.pressure_pa.iter().zip(&s.force_n).enumerate() {
+            t.pressure_bar[i].push(p / 1e5);
+            t.force_n[i].push(*f);
+        }
+    }
 }
 
 /// Where `leg_config`'s gains come from.
