@@ -85,12 +85,9 @@ fn confirm(stage: &str, real: bool, yes: bool) -> Result<()> {
     if !real || yes {
         return Ok(());
     }
-    eprint!("{stage}: the muscle will move. Air on, area clear? Type yes: ");
-    let mut line = String::new();
-    std::io::stdin()
-        .read_line(&mut line)
-        .context("cannot read the answer")?;
-    if line.trim() != "yes" {
+    if !super::answered_yes(&format!(
+        "{stage}: the muscle will move. Air on, area clear?"
+    ))? {
         bail!("commissioning stopped before `{stage}`: not confirmed");
     }
     Ok(())

@@ -230,6 +230,16 @@ pub fn check_duration(duration: f64) -> Result<()> {
     Ok(())
 }
 
+/// Asks `question` on the terminal; `Ok(true)` only for the answer `yes`.
+pub fn answered_yes(question: &str) -> Result<bool> {
+    eprint!("{question} Type yes: ");
+    let mut line = String::new();
+    std::io::stdin()
+        .read_line(&mut line)
+        .context("cannot read the answer")?;
+    Ok(line.trim() == "yes")
+}
+
 /// A progress bar over a loop's periods, advanced every 1 % of the run.
 pub struct Progress {
     /// The bar (clear it when the run ends).

@@ -204,15 +204,13 @@ pub(crate) fn with_added_mass(mut cfg: RigConfig, added_kg: f64, yes: bool) -> R
     }
     cfg.load.added_mass_kg += added_kg;
     cfg.validate().context("--added-mass-kg")?;
-    if cfg.virtual_rig.is_none() && !yes {
-        eprint!("Hang {added_kg} kg more on the load (weighed), then type yes to excite with it: ");
-        let mut line = String::new();
-        std::io::stdin()
-            .read_line(&mut line)
-            .context("cannot read the answer")?;
-        if line.trim() != "yes" {
-            bail!("the excitation with the added mass was not confirmed: nothing ran");
-        }
+    let asked = cfg.virtual_rig.is_none() && !yes;
+    if asked
+        && !super::answered_yes(&format!(
+            "Hang {added_kg} kg more on the load (weighed), then excite with it?"
+        ))?
+    {
+        bail!("the excitation with the added mass was not confirmed: nothing ran");
     }
     Ok(cfg)
 }

@@ -826,22 +826,7 @@ fn common_factor(q: &Params, problem: &Problem<'_>) -> Params {
     else {
         return *q;
     };
-    let (mut a, mut b) = (best - step, best + step);
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (cost(c), cost(d));
-    for _ in 0..12 {
-        if fc < fd {
-            (b, d, fd) = (d, c, fc);
-            c = b - g * (b - a);
-            fc = cost(c);
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + g * (b - a);
-            fd = cost(d);
-        }
-    }
-    scaled(0.5 * (a + b))
+    scaled(golden_section(cost, best - step, best + step, 12).0)
 }
 
 /// `q` moved along the direction a log's statics cannot see, the load and `f0` together
@@ -858,27 +843,34 @@ fn load_line(q: &Params, problem: &Problem<'_>) -> Params {
     };
     let cost = |ln_m: f64| problem.cost(&moved(ln_m), Part::Fit);
     let centre = q[LOAD].ln();
-    let (mut a, mut b) = (centre + 0.05f64.ln(), centre + 10f64.ln());
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (cost(c), cost(d));
-    for _ in 0..24 {
-        if fc < fd {
-            (b, d, fd) = (d, c, fc);
-            c = b - g * (b - a);
-            fc = cost(c);
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + g * (b - a);
-            fd = cost(d);
-        }
-    }
-    let best = moved(0.5 * (a + b));
+    let (ln_m, _) = golden_section(cost, centre + 0.05f64.ln(), centre + 10f64.ln(), 24);
+    let best = moved(ln_m);
     if problem.cost(&best, Part::Fit) < problem.cost(q, Part::Fit) {
         best
     } else {
         *q
     }
+}
+
+/// Golden-section search for the minimum of `f` on `[a, b]` (unimodal there) in
+/// `iterations` steps: the middle of the last bracket and `f` there.
+fn golden_section(f: impl Fn(f64) -> f64, mut a: f64, mut b: f64, iterations: usize) -> (f64, f64) {
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..iterations {
+        if fc < fd {
+            (b, d, fd) = (d, c, fc);
+            c = b - g * (b - a);
+            fc = f(c);
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + g * (b - a);
+            fd = f(d);
+        }
+    }
+    let u = 0.5 * (a + b);
+    (u, f(u))
 }
 
 /// The loads a fit without a weighed one starts from (kg).
@@ -917,28 +909,8 @@ fn fit_valve(logs: &[IdLog]) -> Option<(f64, f64, f64)> {
     };
     let golden = |theta: f64| -> (f64, f64) {
         // ln tau in [ln 0.2 ms, ln 300 ms].
-        let (mut a, mut b) = (2e-4f64.ln(), 0.3f64.ln());
-        let g = 0.5 * (5f64.sqrt() - 1.0);
-        let f = |u: f64| cost(u.exp(), theta);
-        let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-        let (mut fc, mut fd) = (f(c), f(d));
-        for _ in 0..28 {
-            if fc < fd {
-                b = d;
-                d = c;
-                fd = fc;
-                c = b - g * (b - a);
-                fc = f(c);
-            } else {
-                a = c;
-                c = d;
-                fc = fd;
-                d = a + g * (b - a);
-                fd = f(d);
-            }
-        }
-        let u = 0.5 * (a + b);
-        (u.exp(), f(u))
+        let (u, c) = golden_section(|u| cost(u.exp(), theta), 2e-4f64.ln(), 0.3f64.ln(), 28);
+        (u.exp(), c)
     };
     let grid = |thetas: &mut dyn Iterator<Item = f64>| {
         thetas
