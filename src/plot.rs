@@ -664,7 +664,7 @@ fn shock_cell(
     let mut chart = ChartBuilder::on(area)
         .margin(4)
         .caption(&tr.label, caption)
-        .x_label_area_size(if bottom { 30 } else { 18 })
+        .x_label_area_size(if bottom { 40 } else { 32 })
         .y_label_area_size(44)
         .right_y_label_area_size(36)
         .build_cartesian_2d(x.clone(), y.clone())?
@@ -678,6 +678,7 @@ fn shock_cell(
         .y_labels(5)
         .x_label_formatter(&x_fmt)
         .y_label_formatter(&y_fmt)
+        .x_desc("t (s)")
         .y_desc("mm")
         .label_style((FONT, SMALL_TICK_PX))
         .axis_desc_style((FONT, SMALL_TICK_PX))

@@ -277,12 +277,35 @@ impl Recorder<pma_rig::Rig, MuscleStep> for VizRecorder {
             position_m: p.reading.position_m,
             measured_m: p.reading.position_m,
             pressure_cmd_pa: *p.written,
-            // A rig measures neither the muscle's pressure nor its force.
-            pressure_pa: f64::NAN,
+            // The valve's pressure channel if the rig has one (NaN otherwise); a rig does
+            // not measure the muscle's force.
+            pressure_pa: p.truth.pressure_pa,
             force_n: f64::NAN,
             diagnostics: p.output.control.diagnostics,
         };
         self.push_bench(&sample);
+    }
+
+    /// The end of a rig run in the text log: a fault (named, with its message) or an
+    /// interruption as an error, and the vent.
+    fn end(
+        &mut self,
+        end: &pma_loop::End<pma_control::supervisor::Fault<pma_rig::DaqError>>,
+        t_s: f64,
+    ) {
+        let (text, level) = match end {
+            pma_loop::End::Completed => ("run completed; valve vented".to_owned(), "INFO"),
+            pma_loop::End::Stopped => ("interrupted; valve vented".to_owned(), "WARN"),
+            pma_loop::End::Fault { error, .. } => (
+                format!("fault `{}`: {error}; valve vented", error.name()),
+                "ERROR",
+            ),
+        };
+        let r = self
+            .viz
+            .event(t_s, self.step, EVENTS_PATH, &text, level)
+            .map_err(anyhow::Error::from);
+        self.keep(r);
     }
 }
 

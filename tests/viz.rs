@@ -320,3 +320,31 @@ fn a_pendulum_recording_logs_what_the_test_has() {
     // A severe reflex acts during the swing.
     assert!(reflex.iter().any(|x| x.abs() > 0.1), "{:?}", &reflex[..10]);
 }
+
+/// A rig run's fault and vent are in the recording's text log at the fault's time (issue
+/// 18), as the leg's spasms are.
+#[test]
+fn a_rig_fault_and_its_vent_are_logged_as_an_event() {
+    let cfg = pma_rig::RigConfig::from_toml_str(pma_rig::config::EMBEDDED_VIRTUAL, "virtual.toml")
+        .unwrap();
+    let (mut v, storage) = Viz::memory("test", cfg.period_s, None).unwrap();
+    let channels = viz::bench_layout(&mut v, "# test").unwrap();
+    let rec = viz::VizRecorder::new(v, channels);
+    let dir = std::env::temp_dir().join(format!("pma-exo-viz-rig-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let options = pma_rig::RunOptions {
+        duration_s: Some(4.0),
+        log_path: Some(dir.join("log.csv")),
+        injections: vec!["sensor-nan@2".parse().unwrap()],
+        ..pma_rig::RunOptions::default()
+    };
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let mut rec = rec;
+    let report = pma_rig::run::run(&cfg, &dir, &options, &stop, &mut rec).unwrap();
+    rec.finish().unwrap();
+    assert_eq!(report.fault.as_deref(), Some("sensor-nan"));
+    let times = row_times(&storage.take(), "/events");
+    assert_eq!(times.len(), 1, "{times:?}");
+    assert!((times[0] - 2.0).abs() < 0.01, "{times:?}");
+    std::fs::remove_dir_all(dir).ok();
+}
