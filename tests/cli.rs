@@ -1113,4 +1113,15 @@ fn simulate_draws_the_run_when_asked() {
     let png = std::fs::read(dir.join("leg.png")).expect("leg.png");
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     assert!(png.len() > 50_000, "{} bytes", png.len());
+    pma_exo_ok(&[
+        "pendulum",
+        "--spasticity",
+        "severe",
+        "--duration",
+        "4",
+        "--plot",
+        dir.to_str().unwrap(),
+    ]);
+    let png = std::fs::read(dir.join("pendulum.png")).expect("pendulum.png");
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
 }

@@ -8,6 +8,7 @@ use pma_leg::patient::{SpasticityPreset, SpasticitySettings};
 use pma_leg::Scenario;
 use pma_loop::{LoopSettings, Period};
 use pma_studies::pendulum::{self, PendulumReport, PendulumSample, PendulumSetup};
+use std::path::PathBuf;
 
 /// A spasticity preset on the command line.
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -60,6 +61,10 @@ pub struct Args {
     /// Replace the scenario's spasticity at hip and knee by this preset.
     #[arg(long, value_enum)]
     spasticity: Option<Spasticity>,
+    /// Draw the test into this directory (`pendulum.png`: the knee with R2's construction,
+    /// the patient's knee torque).
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
     #[command(flatten)]
     output: RunOutput,
 }
@@ -129,9 +134,36 @@ pub fn run(a: Args) -> Result<i32> {
     let viz = viz::pendulum(&a.output.rerun, &sim, &meta, damping)?;
     let stop = output::stop_flag()?;
     let settings = settings.with_stop_flag(&stop);
-    let mut recorders = (csv, viz);
+    if let Some(dir) = &a.plot {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("cannot create `{}`: {e}", dir.display()))?;
+    }
+    let periods = (a.duration / loaded.scenario.period_s) as u64;
+    let trace = a
+        .plot
+        .as_ref()
+        .map(|_| super::simulate::Trace::with_capacity(periods));
+    let mut recorders = (csv, viz, trace);
     let report = pendulum::run(sim, setup, &settings, &mut recorders)?;
-    let (csv, viz) = recorders;
+    let (csv, viz, trace) = recorders;
+    if let (Some(dir), Some(trace)) = (&a.plot, trace) {
+        let marks = crate::plot::PendulumMarks {
+            start_deg: report.knee_start_deg,
+            first_peak_deg: report.first_peak_deg,
+            rest_deg: report.knee_rest_deg,
+            r2: report.r2,
+        };
+        crate::plot::register_font()?;
+        let path = dir.join("pendulum.png");
+        let title = format!(
+            "Pendulum test: {}",
+            provenance.patient.as_deref().unwrap_or("-")
+        );
+        output::write_via_temp(&path, |tmp| {
+            crate::plot::pendulum_run(tmp, &title, &provenance.command, &trace.0, &marks)
+        })?;
+        eprintln!("wrote {}", path.display());
+    }
     let non_finite =
         (!report.finite).then(|| format!("the pendulum test (scenario {})", report.scenario));
     super::conclude(

@@ -154,10 +154,11 @@ pub fn run(a: Args) -> Result<i32> {
 }
 
 /// Every 10th period of a leg run, for `--plot`.
-struct Trace(crate::plot::LegTrace);
+pub struct Trace(pub crate::plot::LegTrace);
 
 impl Trace {
-    fn with_capacity(periods: u64) -> Self {
+    /// Room for a run of `periods` periods.
+    pub fn with_capacity(periods: u64) -> Self {
         let n = (periods / 10 + 2) as usize;
         let v = || Vec::with_capacity(n);
         Self(crate::plot::LegTrace {
