@@ -925,6 +925,9 @@ fn compare_leg_writes_one_row_per_controller_and_scenario() {
         .starts_with("pma-exo compare-leg --out"));
     let rows = json["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 10);
+    // And the grouped bars (issue 18).
+    let png = std::fs::read(dir.join("compare-leg.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     assert_eq!(rows[0]["scenario"], "gait_spasms");
     assert_eq!(rows[0]["controller"], "aprc-ndo");
     assert_eq!(rows[9]["controller"], "pid");

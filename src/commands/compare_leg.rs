@@ -29,7 +29,7 @@ pub const SCENARIOS: [&str; 4] = [
 /// `compare-leg`'s arguments.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Output directory (compare-leg.json, compare-leg.md).
+    /// Output directory (compare-leg.json, compare-leg.md, compare-leg.png).
     #[arg(long, default_value = "compare-leg-out")]
     out: PathBuf,
     /// Scenarios, comma-separated (embedded names or .toml files).
@@ -106,15 +106,74 @@ pub fn run(a: Args) -> Result<i32> {
     let json = serde_json::json!({ "provenance": provenance, "rows": rows });
     json_file.finish_with(&serde_json::to_string_pretty(&json)?)?;
     md_file.finish_with(&md)?;
+    draw_bars(&a.out, &rows, &provenance.command)?;
     say!("{md}");
     say!(
-        "wrote {}/compare-leg.json and compare-leg.md",
+        "wrote {}/compare-leg.json, compare-leg.md and compare-leg.png",
         a.out.display()
     );
     if let Some(r) = rows.iter().find(|r| !r.finite) {
         anyhow::bail!("{} on {} went non-finite", r.controller, r.scenario);
     }
     Ok(0)
+}
+
+/// `compare-leg.png`: per scenario (x) and controller (bars), the tracking, the spasms'
+/// largest deviation and the valves' activity.
+fn draw_bars(dir: &std::path::Path, rows: &[CompareRow], command: &str) -> Result<()> {
+    let mut groups: Vec<String> = Vec::new();
+    let mut members: Vec<String> = Vec::new();
+    for r in rows {
+        if !groups.contains(&r.scenario) {
+            groups.push(r.scenario.clone());
+        }
+        if !members.contains(&r.controller) {
+            members.push(r.controller.clone());
+        }
+    }
+    let table = |f: &dyn Fn(&CompareRow) -> f64| -> Vec<Vec<f64>> {
+        groups
+            .iter()
+            .map(|g| {
+                members
+                    .iter()
+                    .map(|m| {
+                        rows.iter()
+                            .find(|r| &r.scenario == g && &r.controller == m)
+                            .map_or(f64::NAN, f)
+                    })
+                    .collect()
+            })
+            .collect()
+    };
+    let panels = [
+        ("hip RMS error (deg)", table(&|r| r.hip_rms_deg)),
+        ("knee RMS error (deg)", table(&|r| r.knee_rms_deg)),
+        (
+            "largest spasm deviation (deg)",
+            table(&|r| r.spasm_max_deviation_deg.unwrap_or(f64::NAN)),
+        ),
+        (
+            "command variation (bar/s)",
+            table(&|r| r.command_variation_bar_per_s),
+        ),
+    ]
+    .map(|(y, values)| crate::plot::BarPanel {
+        y_desc: y.to_owned(),
+        values,
+    });
+    crate::plot::register_font()?;
+    let path = dir.join("compare-leg.png");
+    crate::output::write_via_temp(&path, |tmp| {
+        crate::plot::grouped_bars(
+            tmp,
+            "Controllers on the leg with a patient",
+            command,
+            &groups,
+            &members,
+            &panels,
+        )
+    })
 }
 
 /// One Markdown table per scenario.
