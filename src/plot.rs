@@ -407,10 +407,43 @@ fn legend_column(area: &Area, title: &str, entries: &[LegendEntry]) -> DrawResul
     y += ROW / 3;
     for e in entries {
         legend_sample(area, (12, y), e)?;
-        area.draw_text(&e.label, &text, (58, y))?;
-        y += ROW;
+        for line in wrapped(&e.label, LEGEND_CHARS) {
+            area.draw_text(&line, &text, (58, y))?;
+            y += ROW;
+        }
     }
     Ok(())
+}
+
+/// Characters of a legend line that fit beside its sample in [`LEGEND_WIDTH`].
+const LEGEND_CHARS: usize = 19;
+
+/// `label` in lines of at most `width` characters, broken before ` (`, `+`, `@` or a space
+/// (a word longer than `width` stays whole): a legend never runs off the picture.
+fn wrapped(label: &str, width: usize) -> Vec<String> {
+    let mut pieces: Vec<String> = Vec::new();
+    let mut current = String::new();
+    for c in label.chars() {
+        if matches!(c, ' ' | '+' | '@' | '(') && !current.is_empty() {
+            pieces.push(std::mem::take(&mut current));
+        }
+        current.push(c);
+    }
+    pieces.push(current);
+    let mut lines: Vec<String> = Vec::new();
+    for piece in pieces {
+        match lines.last_mut() {
+            Some(last) if last.chars().count() + piece.chars().count() <= width => {
+                last.push_str(&piece)
+            }
+            _ => lines.push(piece.trim_start().to_owned()),
+        }
+    }
+    lines
+        .into_iter()
+        .map(|l| l.trim_end().to_owned())
+        .filter(|l| !l.is_empty())
+        .collect()
 }
 
 /// A 36 px line sample starting at `(x, y)`.
@@ -717,6 +750,24 @@ fn shock_cell(
         ))?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod wrap_tests {
+    use super::wrapped;
+
+    #[test]
+    fn long_legend_labels_wrap_at_their_separators() {
+        assert_eq!(
+            wrapped("pid (equal-activity/3)", 19),
+            ["pid", "(equal-activity/3)"]
+        );
+        assert_eq!(
+            wrapped("aprc-ndo (aprc-ndo@paper+proxy_mass=0.5)", 19),
+            ["aprc-ndo (aprc-ndo", "@paper", "+proxy_mass=0.5)"]
+        );
+        assert_eq!(wrapped("aprc-ndo (paper)", 19), ["aprc-ndo (paper)"]);
+    }
 }
 
 #[cfg(test)]
