@@ -374,6 +374,22 @@ impl Drop for FollowedBar {
     }
 }
 
+/// A spinner on stderr with `message` and the time elapsed, for work whose length is not
+/// known in advance (hidden when stderr is not a terminal); clear it with
+/// `finish_and_clear`.
+pub fn spinner(message: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::with_draw_target(
+        None,
+        indicatif::ProgressDrawTarget::stderr_with_hz(4),
+    );
+    if let Ok(style) = indicatif::ProgressStyle::with_template("{spinner} {msg} {elapsed}") {
+        bar.set_style(style);
+    }
+    bar.set_message(message.to_owned());
+    bar.enable_steady_tick(std::time::Duration::from_millis(250));
+    bar
+}
+
 /// A progress bar on stderr (hidden when stderr is not a terminal): position, ETA.
 pub fn progress_bar(len: u64, unit: &str) -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::with_draw_target(

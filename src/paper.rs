@@ -18,7 +18,10 @@ pub fn run(out: &Path) -> Result<()> {
     let json_file = OutFile::create(&out.join("results.json"))?;
     let report_file = OutFile::create(&out.join("report.md"))?;
     let stop = crate::output::stop_flag()?;
-    let (results, plots) = compute(&plant, &spec)?;
+    let spinner = crate::output::spinner("the paper's experiments (Table II, Figs. 4-8)");
+    let computed = compute(&plant, &spec);
+    spinner.finish_and_clear();
+    let (results, plots) = computed?;
     crate::plot::register_font()?;
     let studies = crate::studies::run_all(out, &stop)?;
     if stop.load(std::sync::atomic::Ordering::Relaxed) {

@@ -874,6 +874,9 @@ fn draw_line_panel(area: &Area, t: &[f64], panel: &LinePanel) -> DrawResult {
             .label(label.clone())
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], colour.stroke_width(3)));
     }
+    if panel.lines.iter().all(|(label, ..)| label.is_empty()) {
+        return Ok(());
+    }
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::UpperRight)
@@ -1148,6 +1151,64 @@ pub fn grouped_bars(
         legend.draw(&Rectangle::new([(10, y), (34, y + 16)], c.filled()))?;
         legend.draw(&Text::new(name.clone(), (42, y), style.clone()))?;
     }
+    root.present()?;
+    Ok(())
+}
+
+/// Tracking errors over time, one panel per `(caption, runs)` cell in `cols` columns, each
+/// run a line coloured by its place in the cell (the same controllers in every cell):
+/// the paper's Fig. 9 layout.
+pub fn error_grid(
+    path: &Path,
+    title: &str,
+    setting: &str,
+    cells: &[(String, Vec<pma_studies::sweep::Trace>)],
+    cols: usize,
+) -> DrawResult {
+    let cols = cols.max(1);
+    let rows = cells.len().div_ceil(cols).max(1);
+    let root = BitMapBackend::new(path, (1400, 120 + 300 * rows as u32)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (head, body) = root.split_vertically(TITLE_HEIGHT);
+    title_block(&head, title, setting)?;
+    let (grid, legend) = body.split_horizontally(1400 - LEGEND_WIDTH);
+    for (area, (caption, runs)) in grid.split_evenly((rows, cols)).iter().zip(cells) {
+        let area = area.titled(caption, (FONT, AXIS_DESC_PX))?;
+        let errors: Vec<Vec<f64>> = runs
+            .iter()
+            .map(|r| {
+                r.reference_m
+                    .iter()
+                    .zip(&r.position_m)
+                    .map(|(d, x)| (d - x) * 1e3)
+                    .collect()
+            })
+            .collect();
+        let t = runs.first().map_or(&[][..], |r| &r.t_s[..]);
+        let panel = LinePanel {
+            y_desc: "e = x_d - x (mm)",
+            lines: errors
+                .iter()
+                .enumerate()
+                .map(|(k, e)| (String::new(), &e[..], colour(k), false))
+                .collect(),
+            marks: Vec::new(),
+            spasms: Vec::new(),
+        };
+        draw_line_panel(&area, t, &panel)?;
+    }
+    let entries: Vec<LegendEntry> = cells
+        .first()
+        .map(|(_, runs)| &runs[..])
+        .unwrap_or_default()
+        .iter()
+        .enumerate()
+        .map(|(k, r)| LegendEntry {
+            label: r.label.clone(),
+            style: colour(k).stroke_width(3),
+        })
+        .collect();
+    legend_column(&legend, "controller", &entries)?;
     root.present()?;
     Ok(())
 }

@@ -25,7 +25,11 @@ pub struct Studies {
 fn run_sweep(name: &str, out: &Path, stop: &AtomicBool) -> Result<(Sweep, Summary, sweep::Runs)> {
     let s = sweep::load(name)?;
     let dir = out.join("sweeps").join(name);
-    sweep::execute(&s, &dir, Shard::default(), &|_, _| {}, stop)?;
+    let bar = crate::output::progress_bar(s.jobs.len() as u64, &format!("runs of `{name}`"));
+    let progress = |done: usize, _total: usize| bar.set_position(done as u64);
+    let executed = sweep::execute(&s, &dir, Shard::default(), &progress, stop);
+    bar.finish_and_clear();
+    executed?;
     if stop.load(Ordering::Relaxed) {
         bail!(Interrupted);
     }
@@ -110,11 +114,51 @@ fn shock_plots(s: &Sweep, out: &Path) -> Result<usize> {
     Ok(n)
 }
 
+/// Fig. 9: the tracking error of every controller on the chirp, one panel per added load
+/// (rows) and gain set (columns).
+fn fig9_plot(s: &Sweep, out: &Path) -> Result<usize> {
+    let mut cells: Vec<(String, Vec<sweep::Trace>)> = Vec::new();
+    for p in s.bench_points() {
+        let (_, plant, _) = p.resolve_plant()?;
+        let caption = format!("{plant}, {} gains", p.gains);
+        let mut trace = p.trace(
+            s.file.duration_s,
+            s.file.period_s,
+            (0.0, s.file.duration_s),
+            10,
+        )?;
+        trace.label = p.controller.to_string();
+        match cells.iter_mut().find(|(c, _)| *c == caption) {
+            Some((_, runs)) => runs.push(trace),
+            None => cells.push((caption, vec![trace])),
+        }
+    }
+    let (default, equal): (Vec<_>, Vec<_>) =
+        cells.into_iter().partition(|(c, _)| c.contains("default"));
+    let cells: Vec<_> = default
+        .into_iter()
+        .zip(equal)
+        .flat_map(|(a, b)| [a, b])
+        .collect();
+    let path = out.join("fig9.png");
+    crate::output::write_via_temp(&path, |tmp| {
+        crate::plot::error_grid(
+            tmp,
+            "Fig. 9: the chirp (0.1 -> 0.5 Hz) with loads added, gains unchanged",
+            "mismatch plant (2.5 kg; the controllers assume 2 kg) + 0, 2.5, 5 kg; left: default gains (the paper's for APRC(-NDO)), right: equal activity (3 bar/s)",
+            &cells,
+            2,
+        )
+    })?;
+    Ok(1)
+}
+
 /// Runs the three studies, writes their plots, and returns their summaries and sections.
 pub fn run_all(out: &Path, stop: &AtomicBool) -> Result<Studies> {
     let (shocks, shock_summary, _) = run_sweep("shocks", out, stop)?;
     let mut plots = shock_plots(&shocks, out)?;
-    let (_, fig9, _) = run_sweep("fig9", out, stop)?;
+    let (fig9_sweep, fig9, _) = run_sweep("fig9", out, stop)?;
+    plots += fig9_plot(&fig9_sweep, out)?;
     let (_, mc, mc_runs) = run_sweep("monte_carlo", out, stop)?;
     let png = out.join("robustness.png");
     crate::output::write_via_temp(&png, |tmp| {
@@ -129,7 +173,7 @@ pub fn run_all(out: &Path, stop: &AtomicBool) -> Result<Studies> {
     ));
     report.push_str(&section(
         "Fig. 9: the chirp with added loads",
-        "`crates/pma-studies/models/sweeps/fig9.toml`: 0, 2.5 and 5 kg added to the `mismatch` load (2.5 kg), gains unchanged (the controllers assume 2 kg).",
+        "`crates/pma-studies/models/sweeps/fig9.toml`: 0, 2.5 and 5 kg added to the `mismatch` load (2.5 kg), gains unchanged (the controllers assume 2 kg). Plot: `fig9.png` (tracking errors over time, per load and gain set).",
         &fig9,
     ));
     report.push_str(&section(

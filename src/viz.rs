@@ -170,6 +170,8 @@ pub struct VizRecorder {
     previous_t_s: f64,
     /// Which series a leg run logs.
     leg_series: LegSeries,
+    /// The rig's last finite position reading (m): where its end is marked on the position plot.
+    last_position_m: f64,
 }
 
 /// The series of a leg run.
@@ -191,6 +193,7 @@ impl VizRecorder {
             error: None,
             previous_t_s: f64::NEG_INFINITY,
             leg_series: LegSeries::Gait,
+            last_position_m: f64::NAN,
         }
     }
 
@@ -271,6 +274,9 @@ impl Recorder<MuscleBench, MuscleStep> for VizRecorder {
 impl Recorder<pma_rig::Rig, MuscleStep> for VizRecorder {
     fn record(&mut self, p: &Period<'_, pma_rig::Rig, MuscleStep>) {
         self.step += 1;
+        if p.reading.position_m.is_finite() {
+            self.last_position_m = p.reading.position_m;
+        }
         let sample = Sample {
             t_s: p.t_s,
             reference_m: p.output.reference.position_m,
@@ -301,9 +307,22 @@ impl Recorder<pma_rig::Rig, MuscleStep> for VizRecorder {
                 "ERROR",
             ),
         };
+        let marker = match end {
+            pma_loop::End::Fault { error, .. } => format!("fault `{}`, vent", error.name()),
+            _ => "vent".to_owned(),
+        };
         let r = self
             .viz
             .event(t_s, self.step, EVENTS_PATH, &text, level)
+            .and_then(|()| {
+                self.viz.series_marker(
+                    t_s,
+                    self.step,
+                    RIG_END_MARKER_PATH,
+                    &marker,
+                    self.last_position_m,
+                )
+            })
             .map_err(anyhow::Error::from);
         self.keep(r);
     }
@@ -341,6 +360,10 @@ impl Recorder<SupervisedLeg, LegOutput> for VizRecorder {
         }
     }
 }
+
+/// The rig's end (fault or vent) as a cross beside the position series, at the last
+/// reading.
+pub const RIG_END_MARKER_PATH: &str = "muscles/muscle/end";
 
 /// The entity marking a spasm on `joint`: a child of the link the joint moves, so that it
 /// sits on the joint and moves with the leg.

@@ -252,6 +252,7 @@ fn paper_writes_results_report_and_plots() {
     }
     let pngs = [
         "robustness",
+        "fig9",
         "shock_jump_mismatch",
         "shock_block_mismatch",
         "shock_impact-up_mismatch",

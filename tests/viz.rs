@@ -343,8 +343,11 @@ fn a_rig_fault_and_its_vent_are_logged_as_an_event() {
     let report = pma_rig::run::run(&cfg, &dir, &options, &stop, &mut rec).unwrap();
     rec.finish().unwrap();
     assert_eq!(report.fault.as_deref(), Some("sensor-nan"));
-    let times = row_times(&storage.take(), "/events");
+    let msgs = storage.take();
+    let times = row_times(&msgs, "/events");
     assert_eq!(times.len(), 1, "{times:?}");
     assert!((times[0] - 2.0).abs() < 0.01, "{times:?}");
+    let marks = row_times(&msgs, &format!("/{}", viz::RIG_END_MARKER_PATH));
+    assert_eq!(marks, times, "the fault is marked on the position plot too");
     std::fs::remove_dir_all(dir).ok();
 }

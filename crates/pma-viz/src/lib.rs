@@ -530,6 +530,32 @@ impl Viz {
             .map_err(rr)
     }
 
+    /// A red cross named `name` at `(t_s, value)` in the time-series plot of `path`'s
+    /// parent: an instant (a fault, a vent) marked on the curves it interrupts.
+    pub fn series_marker(
+        &self,
+        t_s: f64,
+        step: i64,
+        path: &str,
+        name: &str,
+        value: f64,
+    ) -> Result<(), VizError> {
+        self.at(t_s, step);
+        self.rec
+            .log(
+                path,
+                &[
+                    &rerun::SeriesPoints::new()
+                        .with_names([name])
+                        .with_colors([rerun::Color::from_rgb(214, 39, 40)])
+                        .with_markers([rerun::components::MarkerShape::Cross])
+                        .with_marker_sizes([8.0]) as &dyn rerun::AsComponents,
+                    &rerun::Scalars::single(value),
+                ],
+            )
+            .map_err(rr)
+    }
+
     /// Removes what `path` shows from `t_s` on.
     pub fn clear(&self, t_s: f64, step: i64, path: &str) -> Result<(), VizError> {
         self.at(t_s, step);
