@@ -29,6 +29,38 @@ fn leg(c: &mut Criterion) {
             black_box(bare.angles())
         })
     });
+    // The treadmill leg (pelvis on its slide, foot on a 0.6 m/s belt, 30 % BWS) with its
+    // two substeps, the contacts computed every substep: the physics cost of issue 19.
+    let treadmill = pma_leg::ground::TreadmillSettings {
+        speed_m_per_s: 0.6,
+        bws_fraction: 0.3,
+        body_mass_kg: 75.0,
+        bws: pma_leg::ground::BwsKind::ConstantForce,
+        bws_spring_n_per_m: 0.0,
+        contact: pma_leg::ground::ContactParams::default(),
+    };
+    let mut on_belt = Leg::on_treadmill(
+        pma_leg::config::EMBEDDED_FOOT_URDF,
+        "exo_leg_foot.urdf",
+        [sc.joints.hip, sc.joints.knee],
+        sc.period_s,
+        2,
+        &treadmill,
+    )
+    .expect("treadmill leg");
+    on_belt.set_state([0.05, 0.10], [0.0, 0.0]);
+    group.bench_function("rapier_treadmill_bare", |b| {
+        b.iter(|| {
+            on_belt.step(|l, _| {
+                let (q, qd) = (l.angles(), l.velocities());
+                [
+                    -3000.0 * (q[0] - 0.05) - 60.0 * qd[0],
+                    -3000.0 * (q[1] - 0.10) - 60.0 * qd[1],
+                ]
+            });
+            black_box(on_belt.ground_reaction())
+        })
+    });
     // The closed loop is timed over runs of 100 periods (0.1 s) on one simulation that
     // keeps walking; criterion's figure divided by 100 is the cost of one period.
     let mut sim = LegSim::new(&loaded).expect("sim");

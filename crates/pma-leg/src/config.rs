@@ -12,6 +12,9 @@ use std::path::{Path, PathBuf};
 
 /// The embedded leg model (`crates/pma-leg/models/exo_leg.urdf`).
 pub const EMBEDDED_URDF: &str = include_str!("../models/exo_leg.urdf");
+/// The embedded treadmill leg (`crates/pma-leg/models/exo_leg_foot.urdf`): pelvis on a
+/// vertical slide, foot with contact spheres.
+pub const EMBEDDED_FOOT_URDF: &str = include_str!("../models/exo_leg_foot.urdf");
 /// The embedded muscle geometry (`crates/pma-leg/models/muscles.toml`).
 pub const EMBEDDED_MUSCLES: &str = include_str!("../models/muscles.toml");
 /// The embedded default scenario (`crates/pma-leg/models/scenarios/gait_training.toml`).

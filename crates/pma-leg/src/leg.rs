@@ -1,6 +1,7 @@
 //! The exoskeleton leg as a rapier multibody loaded from URDF.
 use crate::config::JointSettings;
 use crate::error::{one_line, LegError};
+use crate::ground::{FootSphere, Ground, GroundReaction, TreadmillSettings};
 use rapier3d::prelude::*;
 use rapier3d_urdf::{urdf_rs, UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
 use std::path::Path;
@@ -169,6 +170,8 @@ pub struct Leg {
     inertia: LegInertia,
     substeps: u32,
     limits_rad: [[f64; 2]; 2],
+    /// The treadmill, when the leg stands on one.
+    ground: Option<Ground>,
 }
 
 fn urdf_err(file: &str, message: impl Into<String>) -> LegError {
@@ -190,6 +193,73 @@ fn link_inertia(robot: &urdf_rs::Robot, name: &str, file: &str) -> Result<LinkIn
         com_below_joint_m: -i.origin.xyz[2],
         inertia_kg_m2: i.inertia.iyy,
     })
+}
+
+fn parse_urdf(text: &str, file: &str) -> Result<urdf_rs::Robot, LegError> {
+    UrdfRobot::from_str(text, UrdfLoaderOptions::default(), Path::new("."))
+        .map(|(_, raw)| raw)
+        .map_err(|e| urdf_err(file, one_line(&format!("{e:#}"))))
+}
+
+/// The `foot` link's `<collision>` spheres: the treadmill's contact geometry.
+fn foot_spheres(raw: &urdf_rs::Robot, file: &str) -> Result<Vec<FootSphere>, LegError> {
+    let foot = raw.links.iter().find(|l| l.name == "foot").ok_or_else(|| {
+        urdf_err(
+            file,
+            "no link named `foot`: a treadmill needs a foot (see models/exo_leg_foot.urdf)",
+        )
+    })?;
+    let spheres: Vec<FootSphere> = foot
+        .collision
+        .iter()
+        .filter_map(|c| match c.geometry {
+            urdf_rs::Geometry::Sphere { radius } => Some(FootSphere {
+                center_m: [c.origin.xyz[0], c.origin.xyz[1], c.origin.xyz[2]],
+                radius_m: radius,
+            }),
+            _ => None,
+        })
+        .collect();
+    if spheres.is_empty()
+        || spheres
+            .iter()
+            .any(|s| s.radius_m.is_nan() || s.radius_m <= 0.0)
+    {
+        return Err(urdf_err(
+            file,
+            "the `foot` link needs <collision> spheres of positive radius (its contact points)",
+        ));
+    }
+    Ok(spheres)
+}
+
+/// Adds the patient's trunk and other leg (the body mass less this leg's human segments,
+/// Winter's fractions thigh 0.100, leg 0.0465, foot 0.0145) to the pelvis link; returns the
+/// mass added (kg). The pelvis only slides vertically, so where that mass sits does not
+/// matter.
+fn patient_on_pelvis(
+    raw: &mut urdf_rs::Robot,
+    file: &str,
+    body_mass_kg: f64,
+) -> Result<f64, LegError> {
+    if !raw
+        .joints
+        .iter()
+        .any(|j| j.name == "pelvis_z" && j.joint_type == urdf_rs::JointType::Prismatic)
+    {
+        return Err(urdf_err(
+            file,
+            "no prismatic joint `pelvis_z`: a treadmill needs the pelvis on a vertical slide",
+        ));
+    }
+    let pelvis = raw
+        .links
+        .iter_mut()
+        .find(|l| l.name == "pelvis")
+        .ok_or_else(|| urdf_err(file, "no link named `pelvis`"))?;
+    let carried = body_mass_kg * (1.0 - 0.100 - 0.0465 - 0.0145);
+    pelvis.inertial.mass.value += carried;
+    Ok(carried)
 }
 
 /// How the leg is mounted: the treadmill's upright pelvis, or the seat of a pendulum test.
@@ -225,6 +295,72 @@ impl Leg {
         substeps: u32,
         mount: Mount,
     ) -> Result<Self, LegError> {
+        Self::build(
+            &parse_urdf(text, file)?,
+            file,
+            settings,
+            period_s,
+            substeps,
+            mount,
+        )
+    }
+
+    /// As [`Leg::from_urdf_str`] for a URDF with the pelvis on a vertical slide
+    /// (`pelvis_z`) and a `foot` link whose `<collision>` spheres touch a belt at `z = 0`:
+    /// the patient's mass rides on the pelvis, the harness carries `bws_fraction` of the
+    /// weight, and the foot's compliant contacts act every substep (see [`crate::ground`]).
+    pub fn on_treadmill(
+        text: &str,
+        file: &str,
+        settings: [JointSettings; 2],
+        period_s: f64,
+        substeps: u32,
+        treadmill: &TreadmillSettings,
+    ) -> Result<Self, LegError> {
+        treadmill.validate()?;
+        let mut raw = parse_urdf(text, file)?;
+        let spheres = foot_spheres(&raw, file)?;
+        let carried = patient_on_pelvis(&mut raw, file, treadmill.body_mass_kg)?;
+        let mut leg = Self::build(&raw, file, settings, period_s, substeps, Mount::default())?;
+        let handle = |name: &str| {
+            leg.bodies
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, h)| *h)
+                .ok_or_else(|| urdf_err(file, format!("no link named `{name}`")))
+        };
+        let (foot, pelvis) = (handle("foot")?, handle("pelvis")?);
+        let total_mass_kg: f64 = raw
+            .links
+            .iter()
+            .filter(|l| l.name != "world")
+            .map(|l| l.inertial.mass.value)
+            .sum();
+        let standing_z_m = leg
+            .world
+            .bodies
+            .get(pelvis)
+            .map_or(0.0, |rb| f64::from(rb.translation().z));
+        leg.ground = Some(Ground::new(
+            *treadmill,
+            spheres,
+            foot,
+            pelvis,
+            total_mass_kg,
+            carried,
+            standing_z_m,
+        ));
+        Ok(leg)
+    }
+
+    fn build(
+        raw: &urdf_rs::Robot,
+        file: &str,
+        settings: [JointSettings; 2],
+        period_s: f64,
+        substeps: u32,
+        mount: Mount,
+    ) -> Result<Self, LegError> {
         let options = UrdfLoaderOptions {
             // Pitching the fixed root pitches the whole leg about the hip axis (the URDF's
             // hip lies on the pelvis frame's Y axis), flexion-wise for a positive angle.
@@ -241,11 +377,10 @@ impl Leg {
             rigid_body_blueprint: RigidBodyBuilder::dynamic().can_sleep(false),
             ..Default::default()
         };
-        let (robot, raw) = UrdfRobot::from_str(text, options, Path::new("."))
-            .map_err(|e| urdf_err(file, one_line(&format!("{e:#}"))))?;
+        let robot = UrdfRobot::from_robot(raw, options, Path::new("."));
         let inertia = LegInertia {
-            thigh: link_inertia(&raw, "thigh", file)?,
-            shank: link_inertia(&raw, "shank", file)?,
+            thigh: link_inertia(raw, "thigh", file)?,
+            shank: link_inertia(raw, "shank", file)?,
             thigh_length_m: {
                 let knee = raw
                     .joints
@@ -340,6 +475,7 @@ impl Leg {
             inertia,
             substeps,
             limits_rad: [[f64::NEG_INFINITY, f64::INFINITY]; 2],
+            ground: None,
         };
         if let Some([lo, hi]) = mount.knee_limits_rad {
             if !(lo.is_finite() && hi.is_finite() && lo < hi) {
@@ -483,8 +619,52 @@ impl Leg {
                     rb.add_torque(-t, true);
                 }
             }
+            if let Some(ground) = &mut self.ground {
+                ground.apply(&mut self.world.bodies);
+            }
             self.world.step();
         }
+        if let Some(ground) = &mut self.ground {
+            ground.end_period();
+        }
+    }
+
+    /// What the belt did to the foot over the last period, on a treadmill.
+    pub fn ground_reaction(&self) -> Option<GroundReaction> {
+        self.ground.as_ref().map(Ground::reaction)
+    }
+
+    /// The treadmill's settings and the masses it put on the pelvis, on a treadmill.
+    pub fn ground(&self) -> Option<&Ground> {
+        self.ground.as_ref()
+    }
+
+    /// Raises the pelvis by `dz_m` on its slide (a drop test starts above the belt), at rest.
+    /// Does nothing without a treadmill.
+    pub fn lift_pelvis(&mut self, dz_m: f64) {
+        let Some(pelvis) = self.ground.as_ref().map(Ground::pelvis) else {
+            return;
+        };
+        let Some(id) = self.world.multibody_joints.rigid_body_link(pelvis).copied() else {
+            return;
+        };
+        if let Some(mb) = self.world.multibody_joints.get_multibody_mut(id.multibody) {
+            let Some(dof) = mb.link(id.id).map(|l| l.assembly_id()) else {
+                return;
+            };
+            let mut disp: Vec<Real> = vec![0.0; mb.ndofs()];
+            disp[dof] = dz_m as Real;
+            mb.apply_displacements(&disp);
+            mb.forward_kinematics(&self.world.bodies, false);
+            mb.update_rigid_bodies(&mut self.world.bodies, true);
+        }
+    }
+
+    /// Height of the pelvis frame above the belt (m), on a treadmill.
+    pub fn pelvis_height_m(&self) -> Option<f64> {
+        let g = self.ground.as_ref()?;
+        let rb = self.world.bodies.get(g.pelvis())?;
+        Some(f64::from(rb.translation().z))
     }
 
     /// Physics substeps per period.

@@ -9,6 +9,7 @@ pub mod control;
 mod error;
 pub mod gains;
 pub mod gait;
+pub mod ground;
 pub mod leg;
 pub mod metrics;
 pub mod patient;
