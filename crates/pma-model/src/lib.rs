@@ -17,6 +17,7 @@
 #![warn(missing_docs)]
 
 pub mod error;
+pub mod festo;
 mod load;
 mod muscle;
 mod rng;
