@@ -209,17 +209,26 @@ pub fn sphere_contact(
     Some(([fx, fy, normal], point, depth, speed))
 }
 
+/// What a treadmill is made of, fixed when the leg is built.
+#[derive(Debug, Clone)]
+pub(crate) struct GroundSetup {
+    pub settings: TreadmillSettings,
+    pub spheres: Vec<FootSphere>,
+    pub foot: RigidBodyHandle,
+    pub pelvis: RigidBodyHandle,
+    /// Everything the belt and harness carry (kg).
+    pub total_mass_kg: f64,
+    /// The patient's mass on the pelvis (kg).
+    pub carried_kg: f64,
+    /// The pelvis's height standing (m): a spring harness's rest.
+    pub standing_z_m: f64,
+}
+
 /// The treadmill acting on a leg: the belt's contacts on the foot and the harness on the
 /// pelvis, applied every physics substep.
 #[derive(Debug, Clone)]
 pub struct Ground {
-    settings: TreadmillSettings,
-    spheres: Vec<FootSphere>,
-    foot: RigidBodyHandle,
-    pelvis: RigidBodyHandle,
-    total_mass_kg: f64,
-    carried_kg: f64,
-    standing_z_m: f64,
+    setup: GroundSetup,
     /// This period's sums over substeps: vertical and fore-aft force (N).
     sum: [f64; 2],
     substeps: u32,
@@ -230,26 +239,9 @@ pub struct Ground {
 }
 
 impl Ground {
-    /// The treadmill of `settings` acting on `foot` (its `spheres`) and `pelvis` (standing
-    /// at `standing_z_m`), for a leg of `total_mass_kg` of which `carried_kg` is the
-    /// patient's on the pelvis.
-    pub(crate) fn new(
-        settings: TreadmillSettings,
-        spheres: Vec<FootSphere>,
-        foot: RigidBodyHandle,
-        pelvis: RigidBodyHandle,
-        total_mass_kg: f64,
-        carried_kg: f64,
-        standing_z_m: f64,
-    ) -> Self {
+    pub(crate) fn new(setup: GroundSetup) -> Self {
         Self {
-            settings,
-            spheres,
-            foot,
-            pelvis,
-            total_mass_kg,
-            carried_kg,
-            standing_z_m,
+            setup,
             sum: [0.0; 2],
             substeps: 0,
             deepest_m: 0.0,
@@ -261,42 +253,45 @@ impl Ground {
 
     /// The settings.
     pub fn settings(&self) -> &TreadmillSettings {
-        &self.settings
+        &self.setup.settings
     }
 
     /// Mass of everything the belt and harness carry: exoskeleton, leg and the patient's
     /// mass on the pelvis (kg).
     pub fn total_mass_kg(&self) -> f64 {
-        self.total_mass_kg
+        self.setup.total_mass_kg
     }
 
     /// The patient's mass put on the pelvis (kg).
     pub fn carried_kg(&self) -> f64 {
-        self.carried_kg
+        self.setup.carried_kg
     }
 
     /// The weight the belt carries at rest: `(1 - bws_fraction) m g` (N).
     pub fn unsupported_weight_n(&self) -> f64 {
-        (1.0 - self.settings.bws_fraction) * self.total_mass_kg * pma_model::GRAVITY_M_S2
+        (1.0 - self.setup.settings.bws_fraction)
+            * self.setup.total_mass_kg
+            * pma_model::GRAVITY_M_S2
     }
 
     /// The contact spheres.
     pub fn spheres(&self) -> &[FootSphere] {
-        &self.spheres
+        &self.setup.spheres
     }
 
     pub(crate) fn pelvis(&self) -> RigidBodyHandle {
-        self.pelvis
+        self.setup.pelvis
     }
 
     /// The harness's upward force (N) with the pelvis at height `z_m`.
     pub fn support_force_n(&self, z_m: f64) -> f64 {
-        let weight = self.settings.bws_fraction * self.total_mass_kg * pma_model::GRAVITY_M_S2;
-        match self.settings.bws {
+        let weight =
+            self.setup.settings.bws_fraction * self.setup.total_mass_kg * pma_model::GRAVITY_M_S2;
+        match self.setup.settings.bws {
             BwsKind::ConstantForce => weight,
-            BwsKind::Spring => {
-                (weight + self.settings.bws_spring_n_per_m * (self.standing_z_m - z_m)).max(0.0)
-            }
+            BwsKind::Spring => (weight
+                + self.setup.settings.bws_spring_n_per_m * (self.setup.standing_z_m - z_m))
+                .max(0.0),
         }
     }
 
@@ -304,27 +299,27 @@ impl Ground {
     /// (rapier keeps user forces until reset, so both are reset first).
     pub(crate) fn apply(&mut self, bodies: &mut RigidBodySet) {
         self.substeps += 1;
-        if let Some(rb) = bodies.get_mut(self.pelvis) {
+        if let Some(rb) = bodies.get_mut(self.setup.pelvis) {
             rb.reset_forces(false);
             let up = self.support_force_n(f64::from(rb.translation().z));
             rb.add_force(Vector::new(0.0, 0.0, up as Real), true);
         }
-        let Some(rb) = bodies.get_mut(self.foot) else {
+        let Some(rb) = bodies.get_mut(self.setup.foot) else {
             return;
         };
         rb.reset_forces(false);
         let pose = *rb.position();
         self.contacts = 0;
-        for s in &self.spheres {
+        for s in &self.setup.spheres {
             let c = pose.transform_point(vector(s.center_m));
             let contact_point = c - Vector::new(0.0, 0.0, s.radius_m as Real);
             let v = rb.velocity_at_point(contact_point);
             let Some((f, point, depth, slip)) = sphere_contact(
-                &self.settings.contact,
+                &self.setup.settings.contact,
                 s.radius_m,
                 [c.x, c.y, c.z].map(f64::from),
                 [v.x, v.y, v.z].map(f64::from),
-                self.settings.speed_m_per_s,
+                self.setup.settings.speed_m_per_s,
             ) else {
                 continue;
             };

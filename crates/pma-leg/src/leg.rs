@@ -1,7 +1,7 @@
 //! The exoskeleton leg as a rapier multibody loaded from URDF.
 use crate::config::JointSettings;
 use crate::error::{one_line, LegError};
-use crate::ground::{FootSphere, Ground, GroundReaction, TreadmillSettings};
+use crate::ground::{FootSphere, Ground, GroundReaction, GroundSetup, TreadmillSettings};
 use rapier3d::prelude::*;
 use rapier3d_urdf::{urdf_rs, UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
 use std::path::Path;
@@ -341,15 +341,15 @@ impl Leg {
             .bodies
             .get(pelvis)
             .map_or(0.0, |rb| f64::from(rb.translation().z));
-        leg.ground = Some(Ground::new(
-            *treadmill,
+        leg.ground = Some(Ground::new(GroundSetup {
+            settings: *treadmill,
             spheres,
             foot,
             pelvis,
             total_mass_kg,
-            carried,
+            carried_kg: carried,
             standing_z_m,
-        ));
+        }));
         Ok(leg)
     }
 

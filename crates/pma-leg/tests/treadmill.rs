@@ -222,48 +222,28 @@ fn a_running_belt_drags_a_planted_foot_backwards_with_coulomb_plus_viscous_frict
     );
 }
 
-#[test]
-fn a_treadmill_without_a_foot_or_slide_is_a_one_line_error() {
+/// The error of building a treadmill leg from `urdf` with `t`.
+fn treadmill_error(urdf: &str, t: &TreadmillSettings) -> String {
     let j = JointSettings {
         damping_nm_s_per_rad: 0.5,
         friction_nm: 0.0,
     };
-    let in_air = pma_leg::config::EMBEDDED_URDF;
-    let e = Leg::on_treadmill(
-        in_air,
-        "exo_leg.urdf",
-        [j, j],
-        PERIOD_S,
-        2,
-        &settings(0.6, 0.3),
-    )
-    .err()
-    .unwrap()
-    .to_string();
+    match Leg::on_treadmill(urdf, "x.urdf", [j, j], PERIOD_S, 2, t) {
+        Ok(_) => panic!("built"),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn a_treadmill_without_a_foot_or_slide_is_a_one_line_error() {
+    let ok = settings(0.6, 0.3);
+    let e = treadmill_error(pma_leg::config::EMBEDDED_URDF, &ok);
     assert!(e.contains("foot") && !e.contains('\n'), "{e}");
     let no_slide = EMBEDDED_FOOT_URDF.replace("type=\"prismatic\"", "type=\"fixed\"");
-    let e = Leg::on_treadmill(
-        &no_slide,
-        "x.urdf",
-        [j, j],
-        PERIOD_S,
-        2,
-        &settings(0.6, 0.3),
-    )
-    .err()
-    .unwrap()
-    .to_string();
+    let e = treadmill_error(&no_slide, &ok);
     assert!(e.contains("pelvis_z") && !e.contains('\n'), "{e}");
-    let mut bad = settings(-1.0, 0.3);
-    let e = Leg::on_treadmill(EMBEDDED_FOOT_URDF, "x.urdf", [j, j], PERIOD_S, 2, &bad)
-        .err()
-        .unwrap()
-        .to_string();
+    let e = treadmill_error(EMBEDDED_FOOT_URDF, &settings(-1.0, 0.3));
     assert!(e.contains("treadmill.speed_m_per_s"), "{e}");
-    bad = settings(0.6, 1.5);
-    let e = Leg::on_treadmill(EMBEDDED_FOOT_URDF, "x.urdf", [j, j], PERIOD_S, 2, &bad)
-        .err()
-        .unwrap()
-        .to_string();
+    let e = treadmill_error(EMBEDDED_FOOT_URDF, &settings(0.6, 1.5));
     assert!(e.contains("treadmill.bws_fraction"), "{e}");
 }
