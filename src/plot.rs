@@ -887,6 +887,21 @@ fn draw_line_panel(area: &Area, t: &[f64], panel: &LinePanel) -> DrawResult {
     Ok(())
 }
 
+/// One line per muscle of `values` (its name, colours after the joints').
+fn muscle_lines<'a>(
+    tr: &LegTrace,
+    values: &'a [Vec<f64>; 4],
+) -> Vec<(String, &'a [f64], RGBColor, bool)> {
+    values
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let name = tr.muscles.get(i).cloned().unwrap_or_default();
+            (name, &v[..], colour(i + 2), false)
+        })
+        .collect()
+}
+
 /// `simulate --plot`: joint angles over their references, tracking errors, the four
 /// pressures against the valve's limit, the forces against the rating, and the patient's
 /// torques, spasms shaded.
@@ -958,16 +973,7 @@ pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawRe
         },
         LinePanel {
             y_desc: "pressure (bar)",
-            lines: (0..4)
-                .map(|i| {
-                    (
-                        tr.muscles.get(i).cloned().unwrap_or_default(),
-                        &tr.pressure_bar[i][..],
-                        colour(i + 2),
-                        false,
-                    )
-                })
-                .collect(),
+            lines: muscle_lines(tr, &tr.pressure_bar),
             marks: vec![
                 (tr.pressure_max_bar, "valve limit".into()),
                 (0.0, "vented".into()),
@@ -976,16 +982,7 @@ pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawRe
         },
         LinePanel {
             y_desc: "force (N)",
-            lines: (0..4)
-                .map(|i| {
-                    (
-                        tr.muscles.get(i).cloned().unwrap_or_default(),
-                        &tr.force_n[i][..],
-                        colour(i + 2),
-                        false,
-                    )
-                })
-                .collect(),
+            lines: muscle_lines(tr, &tr.force_n),
             marks: vec![(tr.rated_force_n, "rated force".into())],
             spasms: spasms(None),
         },

@@ -15,6 +15,17 @@ fn pma_exo(args: &[&str]) -> std::process::Output {
         .expect("run pma-exo")
 }
 
+/// `pma_exo` that must succeed (its stderr in the failure).
+fn pma_exo_ok(args: &[&str]) -> std::process::Output {
+    let out = pma_exo(args);
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
 fn dir() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
@@ -61,12 +72,7 @@ fn excite(config: &Path, name: &str, extra: &[&str]) -> PathBuf {
     ];
     args.extend(extra.iter().map(|a| (*a).to_owned()));
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    let out = pma_exo(&args);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    pma_exo_ok(&args);
     log
 }
 
@@ -87,12 +93,7 @@ fn identify_json(logs: &[&Path], extra: &[&str], out: &str) -> serde_json::Value
         "--json".into(),
     ]);
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    let run = pma_exo(&args);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let run = pma_exo_ok(&args);
     serde_json::from_slice(&run.stdout).expect("json")
 }
 
@@ -148,7 +149,7 @@ fn s(p: &Path) -> String {
 #[test]
 fn identification_gives_the_realistic_rig_back() {
     let plant = dir().join("identified.toml");
-    let out = pma_exo(&[
+    let out = pma_exo_ok(&[
         "identify",
         &s(excite_log()),
         "--load-kg",
@@ -157,11 +158,6 @@ fn identification_gives_the_realistic_rig_back() {
         &s(&plant),
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
     let lag = v["valve_lag_s"].as_f64().expect("lag");
     assert!(
@@ -204,12 +200,7 @@ fn identification_gives_the_realistic_rig_back() {
     let cfg = pma_bench::PlantConfig::from_toml_str(&text, "identified").expect("plant file");
     assert!((cfg.nominal.valve_time_constant_s - lag).abs() < 1e-12);
     assert_eq!(cfg.nominal.mass_kg, 2.5);
-    let run = pma_exo(&["single", "--plant", &s(&plant), "--duration", "2"]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    pma_exo_ok(&["single", "--plant", &s(&plant), "--duration", "2"]);
 }
 
 fn one_line_error(args: &[&str], needle: &str) {
@@ -343,12 +334,7 @@ fn commissioning_the_realistic_rig_improves_its_tracking() {
         "1",
         "--json",
     ];
-    let run = pma_exo(&args);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let run = pma_exo_ok(&args);
     let v: serde_json::Value = serde_json::from_slice(&run.stdout).expect("json");
     let before = v["rte_before_percent"].as_f64().expect("before");
     let after = v["rte_after_percent"].as_f64().expect("after");

@@ -182,16 +182,29 @@ pub struct GroundReaction {
     pub contacts: usize,
 }
 
-/// One sphere's contact force (N, world frame) and its application point, from the sphere
-/// centre `c` (m) and the velocity `v` (m/s) of the foot's material point at the contact:
-/// the belt is the plane `z = 0` moving at `-speed` along X.
+/// One sphere's contact with the belt.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SphereContact {
+    /// Force on the foot (N, world frame).
+    pub force_n: [f64; 3],
+    /// Where it acts: the sphere's lowest point (m).
+    pub point_m: [f64; 3],
+    /// Penetration into the belt (m).
+    pub depth_m: f64,
+    /// Slip speed against the belt (m/s).
+    pub slip_m_s: f64,
+}
+
+/// One sphere's contact, from the sphere centre `c` (m) and the velocity `v` (m/s) of the
+/// foot's material point at the contact: the belt is the plane `z = 0` moving at `-speed`
+/// along X. `None` out of contact.
 pub fn sphere_contact(
     params: &ContactParams,
     radius_m: f64,
     c: [f64; 3],
     v: [f64; 3],
     belt_speed_m_s: f64,
-) -> Option<([f64; 3], [f64; 3], f64, f64)> {
+) -> Option<SphereContact> {
     let depth = radius_m - c[2];
     if depth <= 0.0 {
         return None;
@@ -206,7 +219,12 @@ pub fn sphere_contact(
     } else {
         (0.0, 0.0)
     };
-    Some(([fx, fy, normal], point, depth, speed))
+    Some(SphereContact {
+        force_n: [fx, fy, normal],
+        point_m: point,
+        depth_m: depth,
+        slip_m_s: speed,
+    })
 }
 
 /// What a treadmill is made of, fixed when the leg is built.
@@ -314,7 +332,7 @@ impl Ground {
             let c = pose.transform_point(vector(s.center_m));
             let contact_point = c - Vector::new(0.0, 0.0, s.radius_m as Real);
             let v = rb.velocity_at_point(contact_point);
-            let Some((f, point, depth, slip)) = sphere_contact(
+            let Some(contact) = sphere_contact(
                 &self.setup.settings.contact,
                 s.radius_m,
                 [c.x, c.y, c.z].map(f64::from),
@@ -323,12 +341,13 @@ impl Ground {
             ) else {
                 continue;
             };
-            rb.add_force_at_point(vector(f), vector(point), true);
+            let f = contact.force_n;
+            rb.add_force_at_point(vector(f), vector(contact.point_m), true);
             self.sum[0] += f[2];
             self.sum[1] += f[0];
-            self.deepest_m = self.deepest_m.max(depth);
+            self.deepest_m = self.deepest_m.max(contact.depth_m);
             if f[2] > 0.0 {
-                self.fastest_slip_m_s = self.fastest_slip_m_s.max(slip);
+                self.fastest_slip_m_s = self.fastest_slip_m_s.max(contact.slip_m_s);
             }
             self.contacts += 1;
         }
@@ -385,12 +404,13 @@ mod tests {
         let p = ContactParams::default();
         // A foot at rest on a belt moving backwards slips forwards relative to it: the belt
         // drags it backwards.
-        let (f, _, _, slip) = sphere_contact(&p, 0.03, [0.0, 0.0, 0.02], [0.0; 3], 1.0).unwrap();
-        assert!(f[0] < 0.0 && (slip - 1.0).abs() < 1e-12, "{f:?}");
-        assert!((-f[0] - f[2] * (0.8 + 0.5)).abs() < 1e-9, "{f:?}");
+        let c = sphere_contact(&p, 0.03, [0.0, 0.0, 0.02], [0.0; 3], 1.0).unwrap();
+        let f = c.force_n;
+        assert!(f[0] < 0.0 && (c.slip_m_s - 1.0).abs() < 1e-12, "{c:?}");
+        assert!((-f[0] - f[2] * (0.8 + 0.5)).abs() < 1e-9, "{c:?}");
         // Moving with the belt: no friction.
-        let (f, ..) = sphere_contact(&p, 0.03, [0.0, 0.0, 0.02], [-1.0, 0.0, 0.0], 1.0).unwrap();
-        assert_eq!(f[0], 0.0);
+        let c = sphere_contact(&p, 0.03, [0.0, 0.0, 0.02], [-1.0, 0.0, 0.0], 1.0).unwrap();
+        assert_eq!(c.force_n[0], 0.0);
         assert!(sphere_contact(&p, 0.03, [0.0, 0.0, 0.031], [0.0; 3], 1.0).is_none());
     }
 

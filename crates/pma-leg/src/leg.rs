@@ -575,17 +575,23 @@ impl Leg {
     /// Puts the leg at `angles` (rad) with `velocities` (rad/s).
     pub fn set_state(&mut self, angles: [f64; 2], velocities: [f64; 2]) {
         let current = self.angles();
-        let handle = self.joints[0].handle;
         let dofs = self.joints.map(|j| j.dof);
-        if let Some((mb, _)) = self.world.multibody_joints.get_mut(handle) {
-            let mut disp: Vec<Real> = vec![0.0; mb.ndofs()];
+        self.edit_multibody(|mb, disp| {
             for k in 0..2 {
                 disp[dofs[k]] = (angles[k] - current[k]) as Real;
-            }
-            mb.apply_displacements(&disp);
-            for k in 0..2 {
                 mb.generalized_velocity_mut()[dofs[k]] = velocities[k] as Real;
             }
+        });
+    }
+
+    /// Moves the leg's multibody by the displacements `edit` writes (one per DOF; it may
+    /// also set velocities), then puts its bodies where the new coordinates say.
+    fn edit_multibody(&mut self, edit: impl FnOnce(&mut Multibody, &mut [Real])) {
+        let handle = self.joints[0].handle;
+        if let Some((mb, _)) = self.world.multibody_joints.get_mut(handle) {
+            let mut disp: Vec<Real> = vec![0.0; mb.ndofs()];
+            edit(mb, &mut disp);
+            mb.apply_displacements(&disp);
             mb.forward_kinematics(&self.world.bodies, false);
             mb.update_rigid_bodies(&mut self.world.bodies, true);
         }
@@ -645,19 +651,19 @@ impl Leg {
         let Some(pelvis) = self.ground.as_ref().map(Ground::pelvis) else {
             return;
         };
-        let Some(id) = self.world.multibody_joints.rigid_body_link(pelvis).copied() else {
+        let Some(link) = self
+            .world
+            .multibody_joints
+            .rigid_body_link(pelvis)
+            .map(|l| l.id)
+        else {
             return;
         };
-        if let Some(mb) = self.world.multibody_joints.get_multibody_mut(id.multibody) {
-            let Some(dof) = mb.link(id.id).map(|l| l.assembly_id()) else {
-                return;
-            };
-            let mut disp: Vec<Real> = vec![0.0; mb.ndofs()];
-            disp[dof] = dz_m as Real;
-            mb.apply_displacements(&disp);
-            mb.forward_kinematics(&self.world.bodies, false);
-            mb.update_rigid_bodies(&mut self.world.bodies, true);
-        }
+        self.edit_multibody(|mb, disp| {
+            if let Some(dof) = mb.link(link).map(|l| l.assembly_id()) {
+                disp[dof] = dz_m as Real;
+            }
+        });
     }
 
     /// Height of the pelvis frame above the belt (m), on a treadmill.
