@@ -29,26 +29,24 @@ fn leg(c: &mut Criterion) {
             black_box(bare.angles())
         })
     });
-    // The treadmill leg (pelvis on its slide, foot on a 0.6 m/s belt, 30 % BWS) with its
-    // two substeps, the contacts computed every substep: the physics cost of issue 19.
+    // The treadmill leg (pelvis on its slides, foot on a 0.6 m/s belt, 30 % BWS) with the
+    // treadmill scenarios' one substep, the contacts computed every substep.
     let treadmill = pma_leg::ground::TreadmillSettings {
-        speed_m_per_s: 0.6,
-        bws_fraction: 0.3,
-        body_mass_kg: 75.0,
-        bws: pma_leg::ground::BwsKind::ConstantForce,
-        bws_spring_n_per_m: 0.0,
-        contact: pma_leg::ground::ContactParams::default(),
+        speed_m_per_s: Some(0.6),
+        contralateral: pma_leg::ground::Contralateral::None,
+        ..pma_leg::ground::TreadmillSettings::new(0.3, 75.0)
     };
     let mut on_belt = Leg::on_treadmill(
         pma_leg::config::EMBEDDED_FOOT_URDF,
         "exo_leg_foot.urdf",
         [sc.joints.hip, sc.joints.knee],
         sc.period_s,
-        2,
+        1,
         &treadmill,
     )
     .expect("treadmill leg");
     on_belt.set_state([0.05, 0.10], [0.0, 0.0]);
+    on_belt.rest_on_belt();
     group.bench_function("rapier_treadmill_bare", |b| {
         b.iter(|| {
             on_belt.step(|l, _| {
@@ -65,6 +63,13 @@ fn leg(c: &mut Criterion) {
     // keeps walking; criterion's figure divided by 100 is the cost of one period.
     let mut sim = LegSim::new(&loaded).expect("sim");
     group.bench_function("closed_loop_x100", |b| {
+        b.iter(|| black_box(sim.run(0.1, &mut ()).expect("run")))
+    });
+    // The same on the treadmill (gait_treadmill: belt, harness, the other leg, the gait
+    // phases' figures).
+    let treadmill = Scenario::load("gait_treadmill").expect("gait_treadmill");
+    let mut sim = LegSim::new(&treadmill).expect("sim");
+    group.bench_function("closed_loop_treadmill_x100", |b| {
         b.iter(|| black_box(sim.run(0.1, &mut ()).expect("run")))
     });
     for (label, rate) in [

@@ -11,7 +11,7 @@ mod plot;
 mod provenance;
 mod studies;
 
-use commands::{compare_leg, identify, pendulum, rig, simulate, single, sweep, tune};
+use commands::{compare_leg, identify, pendulum, rig, simulate, single, size, sweep, tune};
 
 #[derive(Parser)]
 #[command(
@@ -45,6 +45,10 @@ enum Command {
     /// APRC-NDO, PSMC, NDO-SMC, STA and PID (leg gains tuned with one budget) on the
     /// patient scenarios: tracking, spasm deviation and recovery, pressure rates, safety.
     CompareLeg(compare_leg::Args),
+    /// The Festo muscles and pulleys a scenario's gait needs: the joints' torques and
+    /// speeds over a stride (inverse dynamics with the belt's forces), every DMSP size,
+    /// length and pulley that supplies them, a recommendation and its muscles.toml.
+    Size(size::Args),
     /// The Wartenberg pendulum test: thigh horizontal, knee released, muscles vented;
     /// R2, first swing, oscillations of the scenario's patient.
     Pendulum(pendulum::Args),
@@ -135,6 +139,7 @@ fn run(cli: Cli) -> Result<i32> {
         Command::Tune(a) => tune::run(a),
         Command::TuneLeg(a) => tune::run_leg(a),
         Command::CompareLeg(a) => compare_leg::run(a),
+        Command::Size(a) => size::run(a),
         Command::Sweep(a) => sweep::run(a),
         Command::Identify(a) => identify::run(a),
         Command::Rig { command } => rig::run(command),

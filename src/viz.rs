@@ -70,7 +70,7 @@ fn shape(v: &VisualShape) -> Shape {
 /// [`LegSample::schema`]; returns their number.
 pub fn leg_layout(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<usize> {
     leg_scene(viz, sim, meta)?;
-    let schema = LegSample::schema(&muscle_names(sim));
+    let schema = LegSample::schema_of(&muscle_names(sim), sim.leg().ground().is_some());
     viz.schema(&schema)?;
     Ok(schema.len())
 }
@@ -102,12 +102,55 @@ fn leg_scene(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<()> {
             },
         )?;
     }
+    if leg.ground().is_some() {
+        treadmill_scene(viz)?;
+    }
     let p_max = sim.scenario().plant.valve.pressure_max_pa;
     for m in sim.muscles() {
         viz.muscle(&m.geometry.name, p_max)?;
     }
     Ok(())
 }
+
+/// Spacing of the belt's stripes (m): they move with the belt.
+const STRIPE_SPACING_M: f64 = 0.2;
+/// The belt's length and width (m), centred under the hip.
+const BELT_SIZE_M: [f64; 2] = [2.0, 0.4];
+
+/// The treadmill: the belt (a slab whose top is the contact plane), its stripes (a link
+/// that moves backwards with the belt, by one spacing and back), and the foot's ground
+/// reaction (contact points and the force as an arrow at the centre of pressure).
+fn treadmill_scene(viz: &mut Viz) -> Result<()> {
+    let [length, width] = BELT_SIZE_M.map(|v| v as f32);
+    viz.fixture(
+        "belt",
+        &Shape::Box {
+            center: [0.0, 0.0, -0.02],
+            half_size: [0.5 * length, 0.5 * width, 0.02],
+        },
+        [60, 60, 70],
+    )?;
+    let n = (BELT_SIZE_M[0] / STRIPE_SPACING_M) as i32;
+    let stripes: Vec<Shape> = (0..n)
+        .map(|k| Shape::Box {
+            center: [
+                (-0.5 * BELT_SIZE_M[0] + (f64::from(k) + 0.5) * STRIPE_SPACING_M) as f32,
+                0.0,
+                0.001,
+            ],
+            half_size: [0.01, 0.5 * width, 0.001],
+        })
+        .collect();
+    viz.link(BELT_STRIPES, &stripes, [200, 200, 90])?;
+    viz.ground("foot_on_belt")?;
+    Ok(())
+}
+
+/// The belt's stripes as a link of the scene.
+const BELT_STRIPES: &str = "belt_stripes";
+
+/// Most links a leg's frame carries (the treadmill leg has five and the belt's stripes).
+const MAX_LINKS: usize = 8;
 
 /// The muscles' names, in the geometry file's order.
 pub fn muscle_names(sim: &LegSim) -> Vec<String> {
@@ -141,11 +184,45 @@ fn push_leg_frame(
     pressure_pa: [f64; 4],
     scalars: &[f64],
 ) -> Result<()> {
-    let poses = [
-        plant.leg().link_pose(0),
-        plant.leg().link_pose(1),
-        plant.leg().link_pose(2),
-    ];
+    let leg = plant.leg();
+    let mut poses = [([0.0; 3], [0.0, 0.0, 0.0, 1.0]); MAX_LINKS];
+    let links = leg.link_count().min(MAX_LINKS - 1);
+    for (i, pose) in poses.iter_mut().enumerate().take(links) {
+        *pose = leg.link_pose(i);
+    }
+    let mut n = links;
+    let mut contacts = [[0.0; 3]; 4];
+    let mut ground_frame = None;
+    if let Some(g) = leg.ground() {
+        // The stripes travel backwards with the belt, wrapping every spacing.
+        let travelled = g.settings().belt_speed_m_s() * t_s;
+        poses[n] = (
+            [-travelled.rem_euclid(STRIPE_SPACING_M), 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+        );
+        n += 1;
+        let (mut k, mut force, mut moment) = (0, [0.0; 3], 0.0);
+        for c in g.sphere_contacts().iter().flatten() {
+            if k < contacts.len() {
+                contacts[k] = c.point_m;
+                k += 1;
+            }
+            for (f, v) in force.iter_mut().zip(c.force_n) {
+                *f += v;
+            }
+            moment += c.point_m[0] * c.force_n[2];
+        }
+        let at = if force[2] > 0.0 {
+            [moment / force[2], contacts[0][1], 0.0]
+        } else {
+            [f64::NAN; 3]
+        };
+        ground_frame = Some(pma_viz::GroundFrame {
+            contacts_m: &contacts[..k],
+            at_m: at,
+            force_n: force,
+        });
+    }
     let seg = plant.muscle_segments();
     let lines: [([f64; 3], [f64; 3], f64); 4] =
         std::array::from_fn(|i| (seg[i].0, seg[i].1, pressure_pa[i]));
@@ -153,8 +230,9 @@ fn push_leg_frame(
         t_s,
         step,
         scalars,
-        link_poses: &poses,
+        link_poses: &poses[..n],
         muscle_lines: &lines,
+        ground: ground_frame,
     })?;
     Ok(())
 }
@@ -260,6 +338,7 @@ pub fn push_bench(viz: &mut Viz, s: &Sample, step: i64, scalars: &mut [f64]) -> 
         scalars,
         link_poses: &[],
         muscle_lines: &[],
+        ground: None,
     })?;
     Ok(())
 }

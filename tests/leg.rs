@@ -109,7 +109,7 @@ fn hand_pressures(
 ) -> (f64, f64) {
     let coeff = |m: &pma_leg::MuscleActuator| {
         let x = m.geometry.contraction(q);
-        let p = &m.params;
+        let p = &m.model.as_three_element();
         (
             p.f0_n - p.k0_n_per_m * x,
             p.f1_n_per_pa - p.k1_n_per_m_pa * x,

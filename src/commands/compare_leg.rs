@@ -176,43 +176,84 @@ fn draw_bars(dir: &std::path::Path, rows: &[CompareRow], command: &str) -> Resul
     })
 }
 
-/// One Markdown table per scenario.
+/// One Markdown table per scenario, and on a treadmill a second one of its gait phases.
 pub fn report(rows: &[CompareRow], duration_s: f64) -> String {
     let mut md = format!(
         "# Controllers on the leg with a patient ({duration_s} s per run, gains tuned on gait_training with the same budget)\n"
     );
-    let mut scenario = "";
+    let mut scenarios: Vec<&str> = Vec::new();
     for r in rows {
-        if r.scenario != scenario {
-            scenario = &r.scenario;
+        if !scenarios.contains(&r.scenario.as_str()) {
+            scenarios.push(&r.scenario);
+        }
+    }
+    for scenario in scenarios {
+        let of_it: Vec<&CompareRow> = rows.iter().filter(|r| r.scenario == scenario).collect();
+        let _ = write!(
+            md,
+            "\n## {scenario}\n\n| controller | hip RMS (deg) | knee RMS (deg) | spasms | spasm deviation mean / max (deg) | worst recovery (s) | not recovered / overlapped | peak dp/dt in spasms (bar/s) | peak dp/dt (bar/s) | command variation (bar/s) | peak force / rating | above rating (s) | valve at a limit (s) | beyond limits (s) | beyond normal range (s) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+        );
+        for r in &of_it {
+            let _ = writeln!(md, "{}", patient_row(r));
+        }
+        if of_it.iter().any(|r| r.treadmill.is_some()) {
             let _ = write!(
                 md,
-                "\n## {scenario}\n\n| controller | hip RMS (deg) | knee RMS (deg) | spasms | spasm deviation mean / max (deg) | worst recovery (s) | not recovered / overlapped | peak dp/dt in spasms (bar/s) | peak dp/dt (bar/s) | command variation (bar/s) | peak force / rating | valve at a limit (s) | beyond limits (s) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+                "\nOn the treadmill:\n\n| controller | hip RMS stance / swing (deg) | knee RMS stance / swing (deg) | GRF loading peak (BW) | loading rate (BW/s) | stance (reference) | slip per stride (mm) | heel-strike deviation hip / knee, max (deg) | recovery hip / knee, max (s) | not recovered hip / knee |\n|---|---|---|---|---|---|---|---|---|---|\n"
             );
+            for r in &of_it {
+                if let Some(t) = &r.treadmill {
+                    let _ = writeln!(md, "{}", treadmill_row(&r.controller, t));
+                }
+            }
         }
-        // `-` where there is nothing to show (no spasm, none recovered), never a 0.
-        let or_dash = |v: Option<f64>, digits: usize| {
-            v.map_or_else(|| "-".to_owned(), |x| format!("{x:.digits$}"))
-        };
-        let _ = writeln!(
-            md,
-            "| {} | {:.3} | {:.3} | {} | {} / {} | {} | {} / {} | {} | {:.0} | {:.1} | {:.2} | {:.2} | {:.3} |",
-            r.controller,
-            r.hip_rms_deg,
-            r.knee_rms_deg,
-            r.spasms,
-            or_dash(r.spasm_mean_deviation_deg, 2),
-            or_dash(r.spasm_max_deviation_deg, 2),
-            or_dash(r.spasm_max_recovery_s, 2),
-            r.spasms_unrecovered,
-            r.spasms_overlapped,
-            or_dash(r.spasm_peak_pressure_rate_bar_s, 0),
-            r.peak_pressure_rate_bar_s,
-            r.command_variation_bar_per_s,
-            r.peak_force_over_rated,
-            r.valve_saturated_s,
-            r.time_outside_limits_s
-        );
     }
     md
+}
+
+/// A run's row of tracking, spasms and safety.
+fn patient_row(r: &CompareRow) -> String {
+    // `-` where there is nothing to show (no spasm, none recovered), never a 0.
+    let or_dash = |v: Option<f64>, digits: usize| {
+        v.map_or_else(|| "-".to_owned(), |x| format!("{x:.digits$}"))
+    };
+    format!(
+        "| {} | {:.3} | {:.3} | {} | {} / {} | {} | {} / {} | {} | {:.0} | {:.1} | {:.2} | {:.3} | {:.2} | {:.3} | {:.3} |",
+        r.controller,
+        r.hip_rms_deg,
+        r.knee_rms_deg,
+        r.spasms,
+        or_dash(r.spasm_mean_deviation_deg, 2),
+        or_dash(r.spasm_max_deviation_deg, 2),
+        or_dash(r.spasm_max_recovery_s, 2),
+        r.spasms_unrecovered,
+        r.spasms_overlapped,
+        or_dash(r.spasm_peak_pressure_rate_bar_s, 0),
+        r.peak_pressure_rate_bar_s,
+        r.command_variation_bar_per_s,
+        r.peak_force_over_rated,
+        r.time_over_rated_s,
+        r.valve_saturated_s,
+        r.time_outside_limits_s,
+        r.time_beyond_normal_range_s
+    )
+}
+
+/// A run's row of gait phases on the treadmill.
+fn treadmill_row(controller: &str, t: &pma_studies::compare::TreadmillRow) -> String {
+    let pair = |v: [f64; 2], digits: usize| format!("{:.digits$} / {:.digits$}", v[0], v[1]);
+    format!(
+        "| {controller} | {} | {} | {:.2} | {:.1} | {:.3} ({:.3}) | {:.1} | {} | {} | {} / {} |",
+        pair(t.hip_stance_swing_rms_deg, 3),
+        pair(t.knee_stance_swing_rms_deg, 3),
+        t.peak_grf_bw,
+        t.loading_rate_bw_s,
+        t.stance_fraction[0],
+        t.stance_fraction[1],
+        1e3 * t.slip_per_stride_m,
+        pair(t.heel_strike_max_deviation_deg, 2),
+        pair(t.heel_strike_max_recovery_s, 3),
+        t.heel_strikes_unrecovered[0],
+        t.heel_strikes_unrecovered[1]
+    )
 }

@@ -10,6 +10,7 @@ pub mod pendulum;
 pub mod rig;
 pub mod simulate;
 pub mod single;
+pub mod size;
 pub mod sweep;
 pub mod tune;
 

@@ -15,7 +15,7 @@ pub const LEG_PERIOD_S: f64 = 20e-6;
 #[derive(clap::Args)]
 pub struct Args {
     /// An embedded scenario (gait_training, gait_realistic, gait_spastic, gait_spasms,
-    /// gait_resistive) or a scenario .toml file.
+    /// gait_resistive, gait_treadmill, gait_treadmill_spastic) or a scenario .toml file.
     #[arg(default_value = "gait_training")]
     scenario: String,
     /// Controller on every muscle (default: APRC-NDO with the scenario's gains).
@@ -88,7 +88,10 @@ pub fn run(a: Args) -> Result<i32> {
         .output
         .csv
         .as_deref()
-        .map(|p| SampleCsv::create(p, &LegSample::schema(&names), LegSample::of, &provenance))
+        .map(|p| {
+            let schema = LegSample::schema_of(&names, sim.leg().ground().is_some());
+            SampleCsv::create(p, &schema, LegSample::of, &provenance)
+        })
         .transpose()?;
     let meta = format!(
         "# {}\n\n{}\n\n{}\n\ngait `{}` at a {} s stride; co-contraction {} bar; {} gains:\n\n```\n{:#?}\n```\n",
@@ -119,7 +122,12 @@ pub fn run(a: Args) -> Result<i32> {
     if let (Some(dir), Some(mut trace)) = (&a.plot, trace) {
         trace.0.muscles = names.clone();
         trace.0.pressure_max_bar = sc.plant.valve.pressure_max_pa / 1e5;
-        trace.0.rated_force_n = sc.plant.muscle_rated_force_n;
+        // One mark for the four: the lowest rating, which every force is held against.
+        trace.0.rated_force_n = sim
+            .muscles()
+            .iter()
+            .map(|m| m.rated_force_n)
+            .fold(f64::INFINITY, f64::min);
         trace.0.spasms = report
             .spasms
             .iter()
@@ -281,7 +289,63 @@ fn print_summary(r: &LegReport) -> Result<()> {
         r.command_variation_bar_per_s
     );
     print_patient(r)?;
+    if let Some(t) = &r.treadmill {
+        print_treadmill(t)?;
+    }
     print_safety(&r.safety)
+}
+
+/// The treadmill's figures: phases, ground reaction, slip, heel strikes.
+fn print_treadmill(t: &pma_leg::TreadmillReport) -> Result<()> {
+    say!(
+        "  treadmill: belt {:.3} m/s, body-weight support {:.0} %, {} strides counted (body weight BW = {:.0} N; the system weighs {:.2} BW)",
+        t.belt_speed_m_s,
+        100.0 * t.bws_fraction,
+        t.strides,
+        t.body_weight_n,
+        t.system_weight_bw
+    );
+    say!(
+        "    vertical GRF loading peak {:.2} BW ({:.2}..{:.2}), loading rate {:.1} BW/s ({:.1}..{:.1}); mean over the strides {:.3} BW under this foot + {:.3} BW the other leg = {:.3} BW (impulse balance: {:.3})",
+        t.peak_grf_bw.mean,
+        t.peak_grf_bw.min,
+        t.peak_grf_bw.max,
+        t.loading_rate_bw_s.mean,
+        t.loading_rate_bw_s.min,
+        t.loading_rate_bw_s.max,
+        t.mean_grf_bw,
+        t.mean_other_leg_bw,
+        t.mean_belt_load_bw,
+        t.expected_belt_load_bw
+    );
+    say!(
+        "    stance {:.1} % of the stride ({:.1}..{:.1}) against the reference's {:.1} %; slip {:.1} mm per stride, {:.3} m/s in stance; deepest penetration {:.1} mm; pelvis excursion {:.1} mm",
+        100.0 * t.stance_fraction.mean,
+        100.0 * t.stance_fraction.min,
+        100.0 * t.stance_fraction.max,
+        100.0 * t.reference_stance_fraction,
+        1e3 * t.slip_per_stride_m.mean,
+        t.mean_stance_slip_m_s,
+        t.max_penetration_mm,
+        1e3 * t.pelvis_excursion_m
+    );
+    for (joint, p) in &t.tracking {
+        let h = &t.heel_strikes[joint];
+        say!(
+            "    {joint:5} RMS error in stance {:.3} deg, in swing {:.3} deg; {} heel strikes: deviation {:.2} deg (max {:.2}), back within 1 deg after {:.3} s (max {:.3}; {} not within {} s), pressure rate up to {:.0} bar/s",
+            p.stance_rms_deg,
+            p.swing_rms_deg,
+            h.count,
+            h.deviation_deg.mean,
+            h.deviation_deg.max,
+            h.recovery_s.mean,
+            h.recovery_s.max,
+            h.not_recovered,
+            pma_leg::stance::HEEL_STRIKE_FOLLOW_S,
+            h.peak_pressure_rate_bar_s
+        );
+    }
+    Ok(())
 }
 
 /// The patient's torques and one line per spasm (nothing for a passive limb).
@@ -344,12 +408,28 @@ fn print_safety(s: &pma_leg::SafetyReport) -> Result<()> {
         })
         .collect();
     say!("  beyond the URDF limits: {}", limits.join(", "));
+    let normal: Vec<String> = s
+        .joints
+        .iter()
+        .map(|(j, l)| {
+            format!(
+                "{j} {:.3} s ({:+.1} deg)",
+                l.time_beyond_normal_range_s, l.beyond_normal_range_deg
+            )
+        })
+        .collect();
+    say!(
+        "  beyond the normal range of motion (AAOS; negative: the margin left): {}",
+        normal.join(", ")
+    );
     for (name, m) in &s.muscles {
         say!(
-            "  {name:13} peak force {:.0} N = {:.2}x its {:.0} N rating, valve at a limit {:.2} s, peak pressure rate {:.0} bar/s",
+            "  {name:13} peak force {:.0} N = {:.2}x its {:.0} N rating ({:.3} s above it, margin {:.0} N), valve at a limit {:.2} s, peak pressure rate {:.0} bar/s",
             m.peak_force_n,
             m.peak_over_rated,
             m.rated_force_n,
+            m.time_over_rated_s,
+            m.margin_n,
             m.valve_saturated_s,
             m.peak_pressure_rate_bar_s
         );

@@ -1,9 +1,11 @@
 //! Scenario and muscle-geometry files (TOML, `deny_unknown_fields`, units in the names).
 use crate::error::{invalid, LegError};
 use crate::gait::GaitSpeed;
+use crate::ground::TreadmillSettings;
 use crate::patient::PatientSettings;
 use pma_control::AprcGains;
 use pma_model::error::{non_negative, positive, within};
+use pma_model::festo::{DmspSize, FestoMuscle};
 use pma_model::MuscleScale;
 use pma_model::{SensorParams, ValveParams};
 use serde::Deserialize;
@@ -17,13 +19,16 @@ pub const EMBEDDED_URDF: &str = include_str!("../models/exo_leg.urdf");
 pub const EMBEDDED_FOOT_URDF: &str = include_str!("../models/exo_leg_foot.urdf");
 /// The embedded muscle geometry (`crates/pma-leg/models/muscles.toml`).
 pub const EMBEDDED_MUSCLES: &str = include_str!("../models/muscles.toml");
+/// The embedded treadmill muscles (`crates/pma-leg/models/muscles_treadmill.toml`): Festo
+/// sizes and pulleys from `pma-exo size gait_treadmill_spastic`.
+pub const EMBEDDED_TREADMILL_MUSCLES: &str = include_str!("../models/muscles_treadmill.toml");
 /// The embedded default scenario (`crates/pma-leg/models/scenarios/gait_training.toml`).
 pub const EMBEDDED_GAIT_TRAINING: &str = include_str!("../models/scenarios/gait_training.toml");
 /// The embedded realistic scenario (`crates/pma-leg/models/scenarios/gait_realistic.toml`).
 pub const EMBEDDED_GAIT_REALISTIC: &str = include_str!("../models/scenarios/gait_realistic.toml");
 
 /// Every embedded scenario: name and text (`crates/pma-leg/models/scenarios/<name>.toml`).
-pub const EMBEDDED_SCENARIOS: [(&str, &str); 5] = [
+pub const EMBEDDED_SCENARIOS: [(&str, &str); 7] = [
     ("gait_training", EMBEDDED_GAIT_TRAINING),
     ("gait_realistic", EMBEDDED_GAIT_REALISTIC),
     (
@@ -38,11 +43,18 @@ pub const EMBEDDED_SCENARIOS: [(&str, &str); 5] = [
         "gait_resistive",
         include_str!("../models/scenarios/gait_resistive.toml"),
     ),
+    (
+        "gait_treadmill",
+        include_str!("../models/scenarios/gait_treadmill.toml"),
+    ),
+    (
+        "gait_treadmill_spastic",
+        include_str!("../models/scenarios/gait_treadmill_spastic.toml"),
+    ),
 ];
 
 /// The embedded scenarios' names, for help texts and messages.
-pub const EMBEDDED_SCENARIO_NAMES: &str =
-    "gait_training, gait_realistic, gait_spastic, gait_spasms, gait_resistive";
+pub const EMBEDDED_SCENARIO_NAMES: &str = "gait_training, gait_realistic, gait_spastic, gait_spasms, gait_resistive, gait_treadmill, gait_treadmill_spastic";
 
 fn embedded_text(name: &str) -> Option<&'static str> {
     EMBEDDED_SCENARIOS
@@ -89,9 +101,34 @@ pub struct MuscleGeometry {
     pub pulley_radius_m: f64,
     /// Contraction at zero joint angle (m).
     pub contraction_at_zero_m: f64,
+    /// A Festo size (`dmsp-10`, `dmsp-20`, `dmsp-40`): the muscle's force is that size's
+    /// measured map ([`pma_model::festo`]); absent: Table I (eq. 1).
+    #[serde(default)]
+    pub size: Option<DmspSize>,
+    /// Nominal length of a Festo muscle (m), with `size`.
+    #[serde(default)]
+    pub rest_length_m: Option<f64>,
 }
 
 impl MuscleGeometry {
+    /// The Festo muscle this geometry names, if it names one.
+    pub fn festo(&self) -> Result<Option<FestoMuscle>, LegError> {
+        let err = |message: &str| LegError::Muscle {
+            muscle: self.name.clone(),
+            message: message.into(),
+        };
+        match (self.size, self.rest_length_m) {
+            (None, None) => Ok(None),
+            (Some(size), Some(length)) => FestoMuscle::new(size, length)
+                .map(Some)
+                .map_err(|e| LegError::from(e.within_section(&self.name))),
+            (Some(_), None) => Err(err("has a `size` but no `rest_length_m`")),
+            (None, Some(_)) => Err(err(
+                "has a `rest_length_m` but no `size` (dmsp-10, dmsp-20 or dmsp-40)",
+            )),
+        }
+    }
+
     /// Contraction (m) at joint angle `theta_rad`.
     pub fn contraction(&self, theta_rad: f64) -> f64 {
         self.contraction_at_zero_m + self.moment_arm_m() * theta_rad
@@ -144,6 +181,7 @@ fn check_muscles(f: &MuscleFile) -> Result<(), LegError> {
                 message: "contraction_at_zero_m and anchor_m must be finite".into(),
             });
         }
+        m.festo()?;
     }
     Ok(())
 }
@@ -318,6 +356,12 @@ pub struct Scenario {
     /// The patient in the exoskeleton (absent: the URDF's passive limb).
     #[serde(default)]
     pub patient: PatientSettings,
+    /// The foot on a treadmill belt and the pelvis on body-weight support (absent: the leg
+    /// swings in the air from a fixed pelvis). Its URDF needs a `foot` link and a
+    /// `pelvis_z` slide; absent `urdf` and `muscle_geometry` are then the embedded
+    /// `exo_leg_foot.urdf` and `muscles_treadmill.toml`.
+    #[serde(default)]
+    pub treadmill: Option<TreadmillSettings>,
 }
 
 /// Parses TOML text into `T`; an error names the line and the field's path
@@ -475,7 +519,32 @@ impl Scenario {
         )?;
         pma_control::ControllerConfig::AprcNdo(self.control.gains).validate()?;
         self.patient.validate()?;
+        if let Some(t) = &self.treadmill {
+            t.validate()?;
+        }
         Ok(())
+    }
+
+    /// The URDF and muscle geometry a scenario uses when it names none: the embedded
+    /// in-air leg, or the treadmill's. Text and source of each.
+    fn default_models(&self) -> [(&'static str, &'static str); 2] {
+        if self.treadmill.is_some() {
+            [
+                (
+                    EMBEDDED_FOOT_URDF,
+                    "crates/pma-leg/models/exo_leg_foot.urdf",
+                ),
+                (
+                    EMBEDDED_TREADMILL_MUSCLES,
+                    "crates/pma-leg/models/muscles_treadmill.toml",
+                ),
+            ]
+        } else {
+            [
+                (EMBEDDED_URDF, "crates/pma-leg/models/exo_leg.urdf"),
+                (EMBEDDED_MUSCLES, "crates/pma-leg/models/muscles.toml"),
+            ]
+        }
     }
 
     /// An embedded scenario by name (see [`EMBEDDED_SCENARIOS`]).
@@ -485,12 +554,13 @@ impl Scenario {
 
     fn load_embedded(text: &str, name: &str) -> Result<LoadedScenario, LegError> {
         let scenario = Scenario::from_toml_str(text, &format!("{name}.toml"))?;
+        let [(urdf, urdf_source), (muscles, muscles_source)] = scenario.default_models();
         Ok(LoadedScenario {
             scenario,
-            urdf_text: EMBEDDED_URDF.to_owned(),
-            urdf_source: "crates/pma-leg/models/exo_leg.urdf".into(),
-            muscles: parse_muscles(EMBEDDED_MUSCLES, "crates/pma-leg/models/muscles.toml")?,
-            muscles_source: "crates/pma-leg/models/muscles.toml".into(),
+            urdf_text: urdf.to_owned(),
+            urdf_source: urdf_source.into(),
+            muscles: parse_muscles(muscles, muscles_source)?,
+            muscles_source: muscles_source.into(),
         })
     }
 
@@ -511,15 +581,13 @@ impl Scenario {
         let path = Path::new(name_or_path);
         let scenario = Scenario::from_toml_str(&read(path)?, name_or_path)?;
         let dir = path.parent().unwrap_or_else(|| Path::new("."));
+        let [(urdf, urdf_default), (muscles, muscles_default)] = scenario.default_models();
         let (urdf_text, urdf_source) = match &scenario.urdf {
             Some(p) => {
                 let full = dir.join(p);
                 (read(&full)?, full.display().to_string())
             }
-            None => (
-                EMBEDDED_URDF.to_owned(),
-                "crates/pma-leg/models/exo_leg.urdf".into(),
-            ),
+            None => (urdf.to_owned(), urdf_default.into()),
         };
         let (muscles, muscles_source) = match &scenario.muscle_geometry {
             Some(p) => {
@@ -527,8 +595,8 @@ impl Scenario {
                 (parse_muscles(&read(Path::new(&full))?, &full)?, full)
             }
             None => (
-                parse_muscles(EMBEDDED_MUSCLES, "crates/pma-leg/models/muscles.toml")?,
-                "crates/pma-leg/models/muscles.toml".into(),
+                parse_muscles(muscles, muscles_default)?,
+                muscles_default.into(),
             ),
         };
         Ok(LoadedScenario {

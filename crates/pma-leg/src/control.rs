@@ -10,7 +10,7 @@ use pma_control::{
     NominalModel, RefSample,
 };
 use pma_loop::Task;
-use pma_model::{DampingMode, MuscleParams};
+use pma_model::DampingMode;
 
 /// Co-contraction regulation of one joint.
 ///
@@ -83,6 +83,8 @@ pub struct LegOutput {
     pub pressure_cmd_pa: [f64; 4],
     /// Controller states.
     pub diagnostics: [Diagnostics; 4],
+    /// Whether the reference's foot is in stance (the normative cycle's timing).
+    pub reference_in_stance: bool,
 }
 
 /// The four muscle controllers, two co-contraction regulators and the gait reference.
@@ -105,7 +107,8 @@ fn joint(g: &GaitSample, joint: usize) -> &JointSample {
 }
 
 impl LegControllers {
-    /// One controller of `config` per muscle. Nominal model of each muscle: Table I, a
+    /// One controller of `config` per muscle. Nominal model of each muscle: what it
+    /// assumes ([`MuscleActuator::assumed`]: Table I, or its Festo map's fit), a
     /// fraction of the standing leg's joint inertia seen through the pulley (see
     /// `ControlSettings::nominal_inertia_fraction`), and the antagonist's pull at the
     /// co-contraction target as its static load.
@@ -131,13 +134,14 @@ impl LegControllers {
                     muscle: m.geometry.name.clone(),
                     message: "has no antagonist on its joint".into(),
                 })?;
-            let load = MuscleParams::TABLE_I.force(
+            let load = antagonist.assumed().force(
                 sc.control.cocontraction_pa,
                 antagonist.geometry.contraction_at_zero_m,
                 0.0,
                 DampingMode::Inflation,
             );
             let model = NominalModel {
+                muscle: m.assumed(),
                 mass_kg: sc.control.nominal_inertia_fraction * joint_inertia[m.joint] / (r * r),
                 load_force_n: load,
                 valve_time_constant_s: sc.control.nominal_valve_time_constant_s,
@@ -169,6 +173,11 @@ impl LegControllers {
             hold: None,
             commands: [0.0; 4],
         })
+    }
+
+    /// The gait reference (also while a pose is held).
+    pub fn gait(&self) -> &GaitReference {
+        &self.gait
     }
 
     /// Replaces the gait by a constant pose (rad): the reference for a static hold.
@@ -243,6 +252,7 @@ impl Task for LegControllers {
             length_ref_m: [0.0; 4],
             pressure_cmd_pa: [0.0; 4],
             diagnostics: [Diagnostics::NONE; 4],
+            reference_in_stance: self.hold.is_some() || self.gait.in_stance(t_s),
         };
         for (i, (lever, c)) in self
             .levers
@@ -297,15 +307,16 @@ impl Vented {
     }
 
     fn output(&self, t_s: f64) -> LegOutput {
-        let (reference_rad, reference_velocity_rad_s) = match &self.gait {
+        let (reference_rad, reference_velocity_rad_s, reference_in_stance) = match &self.gait {
             Some(g) => {
                 let s = g.sample(t_s);
                 (
                     [s.hip.angle_rad, s.knee.angle_rad],
                     [s.hip.velocity_rad_s, s.knee.velocity_rad_s],
+                    g.in_stance(t_s),
                 )
             }
-            None => (self.pose, [0.0; 2]),
+            None => (self.pose, [0.0; 2], true),
         };
         LegOutput {
             reference_rad,
@@ -313,6 +324,7 @@ impl Vented {
             length_ref_m: [f64::NAN; 4],
             pressure_cmd_pa: [0.0; 4],
             diagnostics: [Diagnostics::NONE; 4],
+            reference_in_stance,
         }
     }
 }

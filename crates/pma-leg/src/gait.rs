@@ -110,6 +110,8 @@ impl FourierSeries {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct JointCurves {
+    /// Phase of toe-off (0-1): stance is `0..toe_off`.
+    toe_off: f64,
     hip: FourierSeries,
     knee: FourierSeries,
 }
@@ -152,6 +154,7 @@ pub struct GaitSample {
 pub struct GaitReference {
     hip: FourierSeries,
     knee: FourierSeries,
+    toe_off: f64,
     stride_period_s: f64,
     ramp_s: f64,
 }
@@ -188,9 +191,44 @@ impl GaitReference {
         Ok(Self {
             hip: curves.hip,
             knee: curves.knee,
+            toe_off: curves.toe_off,
             stride_period_s,
             ramp_s,
         })
+    }
+
+    /// Phase of toe-off in the normative cycle (0-1; phase 0 is initial contact): where
+    /// Schwartz et al.'s mean ankle moment falls to zero after push-off
+    /// (`tools/fit_gait.py`): 0.639 for `slow`.
+    pub fn toe_off_phase(&self) -> f64 {
+        self.toe_off
+    }
+
+    /// Phase of the cycle at `t_s` (0-1, 0 at each initial contact).
+    pub fn phase(&self, t_s: f64) -> f64 {
+        (t_s / self.stride_period_s).rem_euclid(1.0)
+    }
+
+    /// Whether the reference's foot is in stance at `t_s` (after the start-up ramp: while
+    /// it lasts the leg stands).
+    pub fn in_stance(&self, t_s: f64) -> bool {
+        t_s < self.ramp_s || self.phase(t_s) < self.toe_off
+    }
+
+    /// Start-up ramp (s).
+    pub fn ramp_s(&self) -> f64 {
+        self.ramp_s
+    }
+
+    /// The other leg's references at `t_s`: the same cycle half a stride later, started by
+    /// the same ramp (both legs leave standing together).
+    pub fn sample_half_stride_later(&self, t_s: f64) -> GaitSample {
+        let ramp = self.ramp(t_s);
+        let harmonics = FourierSeries::harmonics(t_s / self.stride_period_s + 0.5);
+        GaitSample {
+            hip: self.joint(&self.hip, &harmonics, ramp),
+            knee: self.joint(&self.knee, &harmonics, ramp),
+        }
     }
 
     /// Stride period (s).
@@ -318,6 +356,28 @@ mod tests {
                 "{speed}: knee peak {kmax} at {kpeak_phase}"
             );
         }
+    }
+
+    #[test]
+    fn toe_off_comes_later_the_slower_the_gait() {
+        // Stance lengthens as walking slows (Perry and Burnfield 2010: about 60 % of the
+        // cycle at free speed); Schwartz et al.'s ankle moment gives 71 % very slow, 61 %
+        // free, 59 % very fast.
+        let phases: Vec<f64> = GaitSpeed::ALL
+            .iter()
+            .map(|&s| {
+                GaitReference::normative(s, 1.6, 0.0)
+                    .unwrap()
+                    .toe_off_phase()
+            })
+            .collect();
+        assert!(phases.windows(2).all(|w| w[0] > w[1]), "{phases:?}");
+        assert!((0.60..0.63).contains(&phases[2]), "{phases:?}");
+        let g = GaitReference::normative(GaitSpeed::Slow, 1.6, 1.6).unwrap();
+        assert!(g.in_stance(0.5) && g.in_stance(1.6 + 0.9) && !g.in_stance(1.6 + 1.1));
+        // The other leg is the same cycle half a stride on.
+        let (a, b) = (g.sample(4.0 + 0.8), g.sample_half_stride_later(4.0));
+        assert!((a.knee.angle_rad - b.knee.angle_rad).abs() < 1e-12);
     }
 
     #[test]

@@ -2,14 +2,23 @@
 //!
 //! rapier's contacts are rigid and inelastic (a heel strike is a one-step impulse, and
 //! contact softness is global), so the foot's contacts are computed here instead, as
-//! Hunt-Crossley spheres against the belt plane with a smooth Coulomb friction, the model
-//! of OpenSim's `SmoothSphereHalfSpaceForce` (Serrancoli, Falisse et al. 2019, IEEE TNSRE
-//! 27(1); used by Falisse et al. 2019, J R Soc Interface 16:20190402, for predictive gait):
-//! normal force `F_n = K d^{3/2} (1 + 3/2 c d')` with `K = (4/3) k^{3/2} sqrt(r)`,
-//! `k = E^{2/3} / 2`, and friction `mu F_n min(v/v_t, 1)` plus `mu_v F_n v` against the slip
-//! `v`. A belt moving backwards at `speed` is the plane's velocity in the slip: no moving
-//! body is needed. The forces go on the foot at the contact points, so the loading rate at
-//! heel strike comes from the model, not from the solver's regularisation.
+//! Hunt-Crossley spheres against the belt plane, the normal force of OpenSim's
+//! `SmoothSphereHalfSpaceForce` (Serrancoli, Falisse et al. 2019, IEEE TNSRE 27(1); used by
+//! Falisse et al. 2019, J R Soc Interface 16:20190402, for predictive gait):
+//! `F_n = K d^{3/2} (1 + 3/2 c d')` with `K = (4/3) k^{3/2} sqrt(r)`, `k = E^{2/3} / 2`.
+//!
+//! Friction is elasto-plastic: while a sphere sticks, the belt shears it like a spring of
+//! Mindlin's tangential stiffness of a Hertzian contact, `k_t = 2 (1 - nu) / (2 - nu) dF_n/dd`
+//! (Mindlin 1949, J Appl Mech 16:259; Johnson 1985, Contact Mechanics, Sec. 7.2; `nu = 0.5`
+//! for a rubber sole gives `k_t = K sqrt(d)`), damped as the normal direction is; once that
+//! force would exceed `(mu + mu_v |v|) F_n` the sphere slides at that force against the slip
+//! `v`. OpenSim's smooth Coulomb law `mu F_n min(v/v_t, 1)` was tried first: at the leg's
+//! 0.5 ms substeps its slope `mu F_n / v_t` chattered on a loaded heel (the friction
+//! alternating between about +800 and -800 N from one substep to the next, the slip at
+//! 0.15 m/s where the foot was not moving), and a wider `v_t` lets a stance foot creep.
+//! A belt moving backwards at `speed` is the plane's velocity in the slip: no moving body
+//! is needed. The forces go on the foot at the contact points, so the loading rate at heel
+//! strike comes from the model, not from the solver's regularisation.
 use crate::error::{invalid, LegError};
 use pma_model::error::{non_negative, positive, within};
 use rapier3d::prelude::{Real, RigidBodyHandle, RigidBodySet, Vector};
@@ -29,13 +38,8 @@ pub struct ContactParams {
     /// found; gait models use 0.7-0.9 (Falisse et al. 2019: 0.8), and level walking needs
     /// only about 0.2 (Redfern et al. 2001, Ergonomics 44:1138).
     pub friction: f64,
-    /// Viscous friction `mu_v` (s/m). Default 0.5 (Falisse et al. 2019).
+    /// Viscous friction `mu_v` (s/m) while sliding. Default 0.5 (Falisse et al. 2019).
     pub viscous_friction_s_per_m: f64,
-    /// Slip speed below which friction grows linearly (m/s). Default 0.05: Falisse et al.
-    /// use 0.2 m/s for smooth optimisation, which lets a stance foot creep at a few cm/s;
-    /// 0.05 m/s keeps the creep under 1 cm/s at walking's friction demand and is stable at
-    /// the leg's substeps.
-    pub transition_velocity_m_s: f64,
 }
 
 impl Default for ContactParams {
@@ -45,7 +49,6 @@ impl Default for ContactParams {
             dissipation_s_per_m: 1.0,
             friction: 0.8,
             viscous_friction_s_per_m: 0.5,
-            transition_velocity_m_s: 0.05,
         }
     }
 }
@@ -64,10 +67,6 @@ impl ContactParams {
         non_negative(
             "treadmill.contact.viscous_friction_s_per_m",
             self.viscous_friction_s_per_m,
-        )?;
-        positive(
-            "treadmill.contact.transition_velocity_m_s",
-            self.transition_velocity_m_s,
         )?;
         Ok(())
     }
@@ -88,12 +87,15 @@ impl ContactParams {
         (hertz * (1.0 + 1.5 * self.dissipation_s_per_m * depth_rate_m_s)).max(0.0)
     }
 
-    /// Friction force magnitude (N) opposing a slip of `slip_m_s` under `normal_n`.
-    pub fn friction_force(&self, normal_n: f64, slip_m_s: f64) -> f64 {
-        let v = slip_m_s.abs();
-        normal_n
-            * (self.friction * (v / self.transition_velocity_m_s).min(1.0)
-                + self.viscous_friction_s_per_m * v)
+    /// Largest friction (N) under `normal_n` at a slip of `slip_m_s`: a sliding sphere's.
+    pub fn friction_limit(&self, normal_n: f64, slip_m_s: f64) -> f64 {
+        normal_n * (self.friction + self.viscous_friction_s_per_m * slip_m_s.abs())
+    }
+
+    /// Tangential stiffness (N/m) of a sphere of `radius_m` at penetration `depth_m`:
+    /// Mindlin's `2 (1 - nu) / (2 - nu)` of the normal stiffness `3/2 K d^{1/2}`, `nu = 0.5`.
+    pub fn tangential_stiffness(&self, radius_m: f64, depth_m: f64) -> f64 {
+        self.hertz_coefficient(radius_m) * depth_m.max(0.0).sqrt()
     }
 }
 
@@ -110,12 +112,30 @@ pub enum BwsKind {
     Spring,
 }
 
+/// What holds the pelvis up besides the harness while this leg swings: the simulation has
+/// one leg, and the other is represented here.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Contralateral {
+    /// A virtual other leg: the reference half a stride later, rigid, with this foot's
+    /// spheres and contact, pushing the pelvis up wherever its foot reaches the belt
+    /// (so it carries the pelvis through this leg's swing and shares it in double
+    /// support, as the real leg would).
+    #[default]
+    Reference,
+    /// Nothing: the harness and this foot alone (physics checks of one leg).
+    None,
+}
+
 /// The `[treadmill]` section of a scenario.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TreadmillSettings {
-    /// Belt speed (m/s, the belt's surface moves backwards).
-    pub speed_m_per_s: f64,
+    /// Belt speed (m/s, the belt's surface moves backwards); absent: the reference's own,
+    /// the mean backward speed of its foot's contact point over its stance (see
+    /// [`crate::gait::GaitReference::toe_off_phase`]).
+    #[serde(default)]
+    pub speed_m_per_s: Option<f64>,
     /// Fraction of the body weight (patient and exoskeleton) the harness carries, 0-1.
     pub bws_fraction: f64,
     /// The patient's body mass (kg): everything above the hips and the other leg rides on
@@ -130,12 +150,64 @@ pub struct TreadmillSettings {
     /// The foot's contact.
     #[serde(default)]
     pub contact: ContactParams,
+    /// The other leg.
+    #[serde(default)]
+    pub contralateral: Contralateral,
+    /// Stiffness of the harness's hold on the pelvis fore-aft (N/m), if the URDF lets the
+    /// pelvis slide fore-aft (`pelvis_x`). Default 2000: it keeps the pelvis within a few
+    /// centimetres of its place over a stride (docs/treadmill.md) while the stance foot
+    /// carries the body over itself.
+    #[serde(default = "default_fore_aft_stiffness")]
+    pub pelvis_fore_aft_n_per_m: f64,
+    /// Damping of that hold (N s/m). Default 600: about 0.7 of critical for the 88 kg the
+    /// default patient and exoskeleton weigh.
+    #[serde(default = "default_fore_aft_damping")]
+    pub pelvis_fore_aft_damping_n_s_per_m: f64,
+}
+
+fn default_fore_aft_stiffness() -> f64 {
+    2000.0
+}
+
+fn default_fore_aft_damping() -> f64 {
+    600.0
 }
 
 impl TreadmillSettings {
+    /// A treadmill carrying `bws_fraction` of a patient of `body_mass_kg`, every other
+    /// field at its default: the belt at the reference's speed, a constant-force harness,
+    /// the other leg the reference's.
+    pub fn new(bws_fraction: f64, body_mass_kg: f64) -> Self {
+        Self {
+            speed_m_per_s: None,
+            bws_fraction,
+            body_mass_kg,
+            bws: BwsKind::default(),
+            bws_spring_n_per_m: 0.0,
+            contact: ContactParams::default(),
+            contralateral: Contralateral::default(),
+            pelvis_fore_aft_n_per_m: default_fore_aft_stiffness(),
+            pelvis_fore_aft_damping_n_s_per_m: default_fore_aft_damping(),
+        }
+    }
+
+    /// The belt speed (m/s; 0 if not resolved yet).
+    pub fn belt_speed_m_s(&self) -> f64 {
+        self.speed_m_per_s.unwrap_or(0.0)
+    }
+
     /// Checks every field; the error names it.
     pub fn validate(&self) -> Result<(), LegError> {
-        non_negative("treadmill.speed_m_per_s", self.speed_m_per_s)?;
+        if let Some(v) = self.speed_m_per_s {
+            non_negative("treadmill.speed_m_per_s", v)?;
+            if v > 3.0 {
+                return Err(invalid(
+                    "treadmill.speed_m_per_s",
+                    v,
+                    "a gait trainer's belt, at most 3 m/s",
+                ));
+            }
+        }
         within(
             "treadmill.bws_fraction",
             self.bws_fraction,
@@ -147,6 +219,14 @@ impl TreadmillSettings {
         if self.bws == BwsKind::Spring {
             positive("treadmill.bws_spring_n_per_m", self.bws_spring_n_per_m)?;
         }
+        non_negative(
+            "treadmill.pelvis_fore_aft_n_per_m",
+            self.pelvis_fore_aft_n_per_m,
+        )?;
+        non_negative(
+            "treadmill.pelvis_fore_aft_damping_n_s_per_m",
+            self.pelvis_fore_aft_damping_n_s_per_m,
+        )?;
         if self.body_mass_kg > 500.0 {
             return Err(invalid(
                 "treadmill.body_mass_kg",
@@ -180,6 +260,13 @@ pub struct GroundReaction {
     pub slip_m_s: f64,
     /// Spheres in contact at the end of the period.
     pub contacts: usize,
+    /// Vertical force of the virtual other leg on the pelvis (N).
+    pub contralateral_n: f64,
+    /// The harness's upward force on the pelvis (N).
+    pub support_n: f64,
+    /// Fore-aft position of the centre of pressure under this foot at the end of the
+    /// period (m, world X; NaN out of contact).
+    pub cop_x_m: f64,
 }
 
 /// One sphere's contact with the belt.
@@ -195,36 +282,189 @@ pub struct SphereContact {
     pub slip_m_s: f64,
 }
 
-/// One sphere's contact, from the sphere centre `c` (m) and the velocity `v` (m/s) of the
-/// foot's material point at the contact: the belt is the plane `z = 0` moving at `-speed`
-/// along X. `None` out of contact.
+/// One sphere's contact over a substep of `h_s`, from the sphere centre `c` (m) and the
+/// velocity `v` (m/s) of the foot's material point at the contact: the belt is the plane
+/// `z = 0` moving at `-belt_speed_m_s` along X. `stick_m` is how far the belt has sheared
+/// the sphere while it sticks (m, X and Y; updated, zero out of contact). `None` out of
+/// contact.
 pub fn sphere_contact(
     params: &ContactParams,
     radius_m: f64,
     c: [f64; 3],
     v: [f64; 3],
     belt_speed_m_s: f64,
+    (stick_m, h_s): (&mut [f64; 2], f64),
 ) -> Option<SphereContact> {
     let depth = radius_m - c[2];
     if depth <= 0.0 {
+        *stick_m = [0.0; 2];
         return None;
     }
     let point = [c[0], c[1], c[2] - radius_m];
     let normal = params.normal_force(radius_m, depth, -v[2]);
     let slip = [v[0] + belt_speed_m_s, v[1]];
     let speed = slip[0].hypot(slip[1]);
-    let (fx, fy) = if speed > 1e-12 {
-        let f = params.friction_force(normal, speed);
-        (-f * slip[0] / speed, -f * slip[1] / speed)
+    // Sticking: a spring sheared by the slip, damped as Hunt-Crossley damps the normal
+    // direction (3/2 c times the elastic force per unit of rate).
+    let k_t = params.tangential_stiffness(radius_m, depth);
+    let c_t =
+        1.5 * params.dissipation_s_per_m * params.hertz_coefficient(radius_m) * depth.powf(1.5);
+    let sheared = [stick_m[0] + slip[0] * h_s, stick_m[1] + slip[1] * h_s];
+    let mut f = [
+        -k_t * sheared[0] - c_t * slip[0],
+        -k_t * sheared[1] - c_t * slip[1],
+    ];
+    let limit = params.friction_limit(normal, speed);
+    let magnitude = f[0].hypot(f[1]);
+    if magnitude > limit {
+        // Sliding: the limit against the shear, and the spring no further than it holds.
+        f = [f[0] * limit / magnitude, f[1] * limit / magnitude];
+        *stick_m = if k_t > 0.0 {
+            [-f[0] / k_t, -f[1] / k_t]
+        } else {
+            [0.0; 2]
+        };
     } else {
-        (0.0, 0.0)
-    };
+        *stick_m = sheared;
+    }
     Some(SphereContact {
-        force_n: [fx, fy, normal],
+        force_n: [f[0], f[1], normal],
         point_m: point,
         depth_m: depth,
         slip_m_s: speed,
     })
+}
+
+/// The leg's sagittal geometry as the URDF gives it, for the virtual other leg: joint
+/// origins `[x, z]` (m) and pitch (rad, about -Y) of hip (in the pelvis frame), knee
+/// (thigh) and ankle (shank), each joint's flexion as a rotation about -Y (`+1`) or +Y
+/// (`-1`), and the foot's spheres.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SagittalChain {
+    /// Hip, knee and ankle origins in their parents' frames (m), `[x, z]`.
+    pub origins_m: [[f64; 2]; 3],
+    /// Hip, knee and ankle origins' rotations about -Y (rad): an anteriorly tilted pelvis
+    /// turns the thigh back by its tilt.
+    pub pitch_rad: [f64; 3],
+    /// Sign of each joint's flexion as a rotation about -Y (hip, knee).
+    pub flexion_sign: [f64; 2],
+    /// The foot's contact spheres (foot frame).
+    pub spheres: Vec<FootSphere>,
+}
+
+impl SagittalChain {
+    /// Centre of sphere `i` in the pelvis frame (m, `[x, z]`) at hip and knee flexion `q`.
+    pub fn sphere_centre(&self, i: usize, q: [f64; 2]) -> [f64; 2] {
+        // A rotation about -Y by `a` takes (x, z) to (x cos a - z sin a, x sin a + z cos a).
+        let rot = |p: [f64; 2], a: f64| {
+            let (s, c) = a.sin_cos();
+            [p[0] * c - p[1] * s, p[0] * s + p[1] * c]
+        };
+        let add = |a: [f64; 2], b: [f64; 2]| [a[0] + b[0], a[1] + b[1]];
+        let c = self.spheres[i].center_m;
+        let in_shank = add(self.origins_m[2], rot([c[0], c[2]], self.pitch_rad[2]));
+        let knee = self.pitch_rad[1] + self.flexion_sign[1] * q[1];
+        let in_thigh = add(self.origins_m[1], rot(in_shank, knee));
+        let hip = self.pitch_rad[0] + self.flexion_sign[0] * q[0];
+        add(self.origins_m[0], rot(in_thigh, hip))
+    }
+
+    /// The foot's rotation about -Y relative to the pelvis at `q` (rad).
+    pub fn foot_angle_rad(&self, q: [f64; 2]) -> f64 {
+        self.pitch_rad.iter().sum::<f64>()
+            + self.flexion_sign[0] * q[0]
+            + self.flexion_sign[1] * q[1]
+    }
+
+    /// The lowest point of any sphere below the pelvis frame at `q` (m, negative below).
+    pub fn sole_z_m(&self, q: [f64; 2]) -> f64 {
+        (0..self.spheres.len())
+            .map(|i| self.sphere_centre(i, q)[1] - self.spheres[i].radius_m)
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// The belt speed at which `gait`'s foot does not slip: the mean backward speed, over the
+/// reference's stance (initial contact to toe-off), of the material point of the foot at
+/// its lowest sphere's lowest point, the leg at the reference's angles (by central
+/// differences, 400 samples of one stride after the start-up ramp).
+pub fn reference_belt_speed(gait: &crate::gait::GaitReference, chain: &SagittalChain) -> f64 {
+    let period = gait.stride_period_s();
+    let start = (gait.ramp_s() / period).ceil() * period;
+    let n = 400;
+    let h = 1e-5 * period;
+    let pose = |t: f64| {
+        let g = gait.sample(t);
+        [g.hip.angle_rad, g.knee.angle_rad]
+    };
+    let mut sum = 0.0;
+    for k in 0..n {
+        let t = start + (k as f64 + 0.5) / n as f64 * gait.toe_off_phase() * period;
+        let (q, q0, q1) = (pose(t), pose(t - h), pose(t + h));
+        let lowest = (0..chain.spheres.len())
+            .min_by(|&a, &b| {
+                let z = |i: usize| chain.sphere_centre(i, q)[1] - chain.spheres[i].radius_m;
+                z(a).total_cmp(&z(b))
+            })
+            .unwrap_or(0);
+        let vx =
+            (chain.sphere_centre(lowest, q1)[0] - chain.sphere_centre(lowest, q0)[0]) / (2.0 * h);
+        // The lowest point of the sphere turns with the foot: it moves forward at r times
+        // the foot's rate of rotation about -Y relative to the centre.
+        let spin = (chain.foot_angle_rad(q1) - chain.foot_angle_rad(q0)) / (2.0 * h);
+        sum += vx + chain.spheres[lowest].radius_m * spin;
+    }
+    -sum / n as f64
+}
+
+/// The virtual other leg: the reference half a stride later, rigid, on the belt.
+#[derive(Debug, Clone)]
+pub(crate) struct OtherLeg {
+    pub gait: crate::gait::GaitReference,
+    /// A pose held instead of the gait (rad), when this leg holds one too.
+    pub hold: Option<[f64; 2]>,
+    pub chain: SagittalChain,
+    /// Each sphere's height in the pelvis frame at the last substep (m), for its rate.
+    previous_z: Vec<f64>,
+}
+
+impl OtherLeg {
+    pub(crate) fn new(gait: crate::gait::GaitReference, chain: SagittalChain) -> Self {
+        let n = chain.spheres.len();
+        Self {
+            gait,
+            hold: None,
+            chain,
+            previous_z: vec![f64::NAN; n],
+        }
+    }
+
+    /// Its joint angles at `t_s` (rad).
+    fn pose(&self, t_s: f64) -> [f64; 2] {
+        self.hold.unwrap_or_else(|| {
+            let g = self.gait.sample_half_stride_later(t_s);
+            [g.hip.angle_rad, g.knee.angle_rad]
+        })
+    }
+
+    /// Upward force (N) on a pelvis whose frame is at height `z_m` above the belt, rising at
+    /// `vz_m_s`, at time `t_s` after a substep of `h_s`.
+    fn force(&mut self, params: &ContactParams, t_s: f64, h_s: f64, z_m: f64, vz_m_s: f64) -> f64 {
+        let q = self.pose(t_s);
+        let mut total = 0.0;
+        for (i, s) in self.chain.spheres.iter().enumerate() {
+            let cz = self.chain.sphere_centre(i, q)[1];
+            let rate = if self.previous_z[i].is_finite() {
+                (cz - self.previous_z[i]) / h_s
+            } else {
+                0.0
+            };
+            self.previous_z[i] = cz;
+            let depth = s.radius_m - (z_m + cz);
+            total += params.normal_force(s.radius_m, depth, -(vz_m_s + rate));
+        }
+        total
+    }
 }
 
 /// What a treadmill is made of, fixed when the leg is built.
@@ -232,7 +472,11 @@ pub fn sphere_contact(
 pub(crate) struct GroundSetup {
     pub settings: TreadmillSettings,
     pub spheres: Vec<FootSphere>,
+    /// The leg's sagittal geometry (the other leg is this one's copy).
+    pub chain: SagittalChain,
     pub foot: RigidBodyHandle,
+    /// The link the spheres are on: `foot`, or `shank` with the foot folded into it.
+    pub foot_link: &'static str,
     pub pelvis: RigidBodyHandle,
     /// Everything the belt and harness carry (kg).
     pub total_mass_kg: f64,
@@ -240,33 +484,89 @@ pub(crate) struct GroundSetup {
     pub carried_kg: f64,
     /// The pelvis's height standing (m): a spring harness's rest.
     pub standing_z_m: f64,
+    /// Whether the pelvis slides fore-aft (`pelvis_x`), held by the harness's spring at
+    /// its place when built (m, world X).
+    pub fore_aft_at_m: Option<f64>,
 }
 
-/// The treadmill acting on a leg: the belt's contacts on the foot and the harness on the
-/// pelvis, applied every physics substep.
+/// The treadmill acting on a leg: the belt's contacts on the foot, the harness and the
+/// virtual other leg on the pelvis, applied every physics substep.
 #[derive(Debug, Clone)]
 pub struct Ground {
     setup: GroundSetup,
-    /// This period's sums over substeps: vertical and fore-aft force (N).
-    sum: [f64; 2],
+    other: Option<OtherLeg>,
+    /// Time since the leg was built (s), advanced every substep.
+    clock_s: f64,
+    /// The belt comes up to speed over this long from the start (s), with the gait.
+    belt_ramp_s: f64,
+    /// This period's sums over substeps: vertical and fore-aft force on the foot, the
+    /// other leg's and the harness's (N).
+    sum: [f64; 4],
     substeps: u32,
     deepest_m: f64,
     fastest_slip_m_s: f64,
     contacts: usize,
+    /// This substep's contacts, sphere by sphere (the foot's spheres' count, sized once).
+    current: Vec<Option<SphereContact>>,
+    /// How far the belt has sheared each sphere while it sticks (m, X and Y).
+    stick_m: Vec<[f64; 2]>,
     last: GroundReaction,
 }
 
 impl Ground {
     pub(crate) fn new(setup: GroundSetup) -> Self {
+        let n = setup.spheres.len();
         Self {
             setup,
-            sum: [0.0; 2],
+            other: None,
+            clock_s: 0.0,
+            belt_ramp_s: 0.0,
+            sum: [0.0; 4],
             substeps: 0,
             deepest_m: 0.0,
             fastest_slip_m_s: 0.0,
             contacts: 0,
+            current: vec![None; n],
+            stick_m: vec![[0.0; 2]; n],
             last: GroundReaction::default(),
         }
+    }
+
+    /// Sets the belt's speed (m/s).
+    pub(crate) fn set_belt_speed(&mut self, v_m_s: f64) {
+        self.setup.settings.speed_m_per_s = Some(v_m_s);
+    }
+
+    /// Brings the belt up to speed over `ramp_s` from the start, with the gait's own
+    /// start-up (the same quintic): a belt at full speed under a standing leg would drag
+    /// its foot away.
+    pub(crate) fn set_belt_ramp(&mut self, ramp_s: f64) {
+        self.belt_ramp_s = ramp_s;
+    }
+
+    /// The belt's speed at the leg's clock (m/s).
+    pub fn belt_speed_now_m_s(&self) -> f64 {
+        let v = self.setup.settings.belt_speed_m_s();
+        if self.belt_ramp_s <= 0.0 || self.clock_s >= self.belt_ramp_s {
+            return v;
+        }
+        let s = (self.clock_s / self.belt_ramp_s).max(0.0);
+        v * s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+    }
+
+    /// Puts the virtual other leg under the pelvis.
+    pub(crate) fn set_other_leg(&mut self, other: OtherLeg) {
+        self.other = Some(other);
+    }
+
+    /// Whether a virtual other leg shares the load.
+    pub fn has_other_leg(&self) -> bool {
+        self.other.is_some()
+    }
+
+    /// The foot's contacts at the last substep, sphere by sphere (`None` out of contact).
+    pub fn sphere_contacts(&self) -> &[Option<SphereContact>] {
+        &self.current
     }
 
     /// The settings.
@@ -292,13 +592,35 @@ impl Ground {
             * pma_model::GRAVITY_M_S2
     }
 
-    /// The contact spheres.
+    /// The contact spheres, in the frame of [`Self::foot_link_name`].
     pub fn spheres(&self) -> &[FootSphere] {
         &self.setup.spheres
     }
 
     pub(crate) fn pelvis(&self) -> RigidBodyHandle {
         self.setup.pelvis
+    }
+
+    /// The link the contact spheres are on (`shank` once the foot is folded into it).
+    pub fn foot_link_name(&self) -> &'static str {
+        self.setup.foot_link
+    }
+
+    /// The leg's sagittal geometry.
+    pub fn chain(&self) -> &SagittalChain {
+        &self.setup.chain
+    }
+
+    /// The other leg's joint angles (rad) now, if there is one.
+    pub fn other_leg_pose(&self) -> Option<[f64; 2]> {
+        Some(self.other.as_ref()?.pose(self.clock_s))
+    }
+
+    /// Makes the other leg hold `pose` (rad) instead of walking (`None`: walk again).
+    pub(crate) fn hold_other_leg(&mut self, pose: Option<[f64; 2]>) {
+        if let Some(o) = &mut self.other {
+            o.hold = pose;
+        }
     }
 
     /// The harness's upward force (N) with the pelvis at height `z_m`.
@@ -313,22 +635,50 @@ impl Ground {
         }
     }
 
-    /// Puts this substep's contact forces on the foot and the harness's on the pelvis
-    /// (rapier keeps user forces until reset, so both are reset first).
-    pub(crate) fn apply(&mut self, bodies: &mut RigidBodySet) {
+    /// Adds this substep's contact forces to the foot, and the harness's and the other
+    /// leg's to the pelvis (their user forces reset by the leg at the substep's start);
+    /// `h_s` is the substep's length.
+    pub(crate) fn apply(&mut self, bodies: &mut RigidBodySet, h_s: f64) {
         self.substeps += 1;
         if let Some(rb) = bodies.get_mut(self.setup.pelvis) {
-            rb.reset_forces(false);
-            let up = self.support_force_n(f64::from(rb.translation().z));
-            rb.add_force(Vector::new(0.0, 0.0, up as Real), true);
+            let z = f64::from(rb.translation().z);
+            let up = self.support_force_n(z);
+            let other = match &mut self.other {
+                Some(o) => o.force(
+                    &self.setup.settings.contact,
+                    self.clock_s,
+                    h_s,
+                    z,
+                    f64::from(rb.linvel().z),
+                ),
+                None => 0.0,
+            };
+            self.sum[2] += other;
+            self.sum[3] += up;
+            let held = match self.setup.fore_aft_at_m {
+                Some(x0) => {
+                    let t = &self.setup.settings;
+                    -t.pelvis_fore_aft_n_per_m * (f64::from(rb.translation().x) - x0)
+                        - t.pelvis_fore_aft_damping_n_s_per_m * f64::from(rb.linvel().x)
+                }
+                None => 0.0,
+            };
+            rb.add_force(Vector::new(held as Real, 0.0, (up + other) as Real), true);
         }
+        self.foot_contacts(bodies, h_s);
+        self.clock_s += h_s;
+    }
+
+    /// The belt's contacts on the foot's spheres over a substep of `h_s`.
+    fn foot_contacts(&mut self, bodies: &mut RigidBodySet, h_s: f64) {
         let Some(rb) = bodies.get_mut(self.setup.foot) else {
             return;
         };
-        rb.reset_forces(false);
         let pose = *rb.position();
+        let belt = self.belt_speed_now_m_s();
         self.contacts = 0;
-        for s in &self.setup.spheres {
+        for (k, s) in self.setup.spheres.iter().enumerate() {
+            self.current[k] = None;
             let c = pose.transform_point(vector(s.center_m));
             let contact_point = c - Vector::new(0.0, 0.0, s.radius_m as Real);
             let v = rb.velocity_at_point(contact_point);
@@ -337,10 +687,12 @@ impl Ground {
                 s.radius_m,
                 [c.x, c.y, c.z].map(f64::from),
                 [v.x, v.y, v.z].map(f64::from),
-                self.setup.settings.speed_m_per_s,
+                belt,
+                (&mut self.stick_m[k], h_s),
             ) else {
                 continue;
             };
+            self.current[k] = Some(contact);
             let f = contact.force_n;
             rb.add_force_at_point(vector(f), vector(contact.point_m), true);
             self.sum[0] += f[2];
@@ -362,8 +714,11 @@ impl Ground {
             penetration_m: self.deepest_m,
             slip_m_s: self.fastest_slip_m_s,
             contacts: self.contacts,
+            contralateral_n: self.sum[2] / n,
+            support_n: self.sum[3] / n,
+            cop_x_m: self.centre_of_pressure_x(),
         };
-        self.sum = [0.0; 2];
+        self.sum = [0.0; 4];
         self.substeps = 0;
         self.deepest_m = 0.0;
         self.fastest_slip_m_s = 0.0;
@@ -372,6 +727,23 @@ impl Ground {
     /// The last period's ground reaction.
     pub fn reaction(&self) -> GroundReaction {
         self.last
+    }
+
+    /// Fore-aft centre of pressure of the last substep's contacts (m; NaN without one).
+    fn centre_of_pressure_x(&self) -> f64 {
+        let (moment, force) = self.current.iter().flatten().fold((0.0, 0.0), |(m, f), c| {
+            (m + c.point_m[0] * c.force_n[2], f + c.force_n[2])
+        });
+        if force > 0.0 {
+            moment / force
+        } else {
+            f64::NAN
+        }
+    }
+
+    /// Time since the leg was built, as the other leg's reference sees it (s).
+    pub fn clock_s(&self) -> f64 {
+        self.clock_s
     }
 }
 
@@ -402,33 +774,73 @@ mod tests {
     #[test]
     fn friction_opposes_slip_against_the_moving_belt() {
         let p = ContactParams::default();
+        let h = 5e-4;
         // A foot at rest on a belt moving backwards slips forwards relative to it: the belt
-        // drags it backwards.
-        let c = sphere_contact(&p, 0.03, [0.0, 0.0, 0.02], [0.0; 3], 1.0).unwrap();
+        // drags it backwards, at the sliding limit.
+        let mut stick = [0.0; 2];
+        let c = sphere_contact(&p, 0.03, [0.0, 0.0, 0.02], [0.0; 3], 1.0, (&mut stick, h)).unwrap();
         let f = c.force_n;
         assert!(f[0] < 0.0 && (c.slip_m_s - 1.0).abs() < 1e-12, "{c:?}");
         assert!((-f[0] - f[2] * (0.8 + 0.5)).abs() < 1e-9, "{c:?}");
-        // Moving with the belt: no friction.
-        let c = sphere_contact(&p, 0.03, [0.0, 0.0, 0.02], [-1.0, 0.0, 0.0], 1.0).unwrap();
+        // Sliding leaves the spring at what it holds.
+        let k_t = p.tangential_stiffness(0.03, 0.01);
+        assert!((stick[0] * k_t + f[0]).abs() < 1e-9, "{stick:?}");
+        // Moving with the belt and unsheared: no friction.
+        let mut stick = [0.0; 2];
+        let c = sphere_contact(
+            &p,
+            0.03,
+            [0.0, 0.0, 0.02],
+            [-1.0, 0.0, 0.0],
+            1.0,
+            (&mut stick, h),
+        )
+        .unwrap();
         assert_eq!(c.force_n[0], 0.0);
-        assert!(sphere_contact(&p, 0.03, [0.0, 0.0, 0.031], [0.0; 3], 1.0).is_none());
+        let mut stick = [0.001, 0.0];
+        assert!(
+            sphere_contact(&p, 0.03, [0.0, 0.0, 0.031], [0.0; 3], 1.0, (&mut stick, h)).is_none()
+        );
+        assert_eq!(stick, [0.0; 2], "lifting off releases the shear");
+    }
+
+    #[test]
+    fn a_sticking_sphere_is_a_spring_of_mindlins_stiffness() {
+        // Sheared by 1 mm at rest, below the sliding limit: the force is k_t x 1 mm, and
+        // k_t is 2/3 of the normal stiffness (nu = 0.5).
+        let p = ContactParams::default();
+        let (r, d): (f64, f64) = (0.03, 0.01);
+        let k_n = 1.5 * p.hertz_coefficient(r) * d.sqrt();
+        assert!((p.tangential_stiffness(r, d) - 2.0 / 3.0 * k_n).abs() < 1e-9);
+        let mut stick = [1e-3, 0.0];
+        let c = sphere_contact(
+            &p,
+            r,
+            [0.0, 0.0, r - d],
+            [-0.5, 0.0, 0.0],
+            0.5,
+            (&mut stick, 5e-4),
+        )
+        .unwrap();
+        assert!(
+            (c.force_n[0] + p.tangential_stiffness(r, d) * 1e-3).abs() < 1e-9,
+            "{c:?}"
+        );
+        assert!(c.force_n[0].abs() < 0.8 * c.force_n[2]);
+        assert_eq!(stick, [1e-3, 0.0]);
     }
 
     #[test]
     fn bad_treadmill_input_names_the_field() {
         let ok = TreadmillSettings {
-            speed_m_per_s: 0.6,
-            bws_fraction: 0.3,
-            body_mass_kg: 75.0,
-            bws: BwsKind::ConstantForce,
-            bws_spring_n_per_m: 0.0,
-            contact: ContactParams::default(),
+            speed_m_per_s: Some(0.6),
+            ..TreadmillSettings::new(0.3, 75.0)
         };
         ok.validate().unwrap();
         for (bad, field) in [
             (
                 TreadmillSettings {
-                    speed_m_per_s: -0.5,
+                    speed_m_per_s: Some(-0.5),
                     ..ok
                 },
                 "speed_m_per_s",

@@ -1,7 +1,10 @@
 //! The exoskeleton leg as a rapier multibody loaded from URDF.
 use crate::config::JointSettings;
 use crate::error::{one_line, LegError};
-use crate::ground::{FootSphere, Ground, GroundReaction, GroundSetup, TreadmillSettings};
+use crate::gait::GaitReference;
+use crate::ground::{
+    FootSphere, Ground, GroundReaction, GroundSetup, OtherLeg, SagittalChain, TreadmillSettings,
+};
 use rapier3d::prelude::*;
 use rapier3d_urdf::{urdf_rs, UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
 use std::path::Path;
@@ -233,6 +236,163 @@ fn foot_spheres(raw: &urdf_rs::Robot, file: &str) -> Result<Vec<FootSphere>, Leg
     Ok(spheres)
 }
 
+/// The sagittal chain pelvis -> hip -> knee -> ankle of the URDF, for the virtual other
+/// leg: each joint's origin `[x, z]` and the hip's and knee's flexion sense.
+fn sagittal_chain(
+    raw: &urdf_rs::Robot,
+    file: &str,
+    spheres: Vec<FootSphere>,
+) -> Result<SagittalChain, LegError> {
+    let joint = |name: &str| {
+        raw.joints
+            .iter()
+            .find(|j| j.name == name)
+            .ok_or_else(|| urdf_err(file, format!("no joint named `{name}`")))
+    };
+    let (hip, knee, ankle) = (joint("hip")?, joint("knee")?, joint("ankle")?);
+    if ankle.joint_type != urdf_rs::JointType::Fixed {
+        return Err(urdf_err(
+            file,
+            "joint `ankle` must be fixed (the treadmill leg has no ankle actuator)",
+        ));
+    }
+    let origin = |j: &urdf_rs::Joint| [j.origin.xyz[0], j.origin.xyz[2]];
+    let sense = |j: &urdf_rs::Joint| {
+        let y = j.axis.xyz[1];
+        if (y.abs() - 1.0).abs() > 1e-9 {
+            Err(urdf_err(
+                file,
+                format!(
+                    "joint `{}` must turn about the Y axis (sagittal plane)",
+                    j.name
+                ),
+            ))
+        } else {
+            Ok(-y)
+        }
+    };
+    // An origin's pitch about +Y is a rotation about -Y by its negative.
+    let pitch = |j: &urdf_rs::Joint| -j.origin.rpy[1];
+    if [hip, knee, ankle]
+        .iter()
+        .any(|j| j.origin.rpy[0].abs() > 1e-12 || j.origin.rpy[2].abs() > 1e-12)
+    {
+        return Err(urdf_err(
+            file,
+            "the hip, knee and ankle origins may pitch (about Y) but not roll or yaw",
+        ));
+    }
+    Ok(SagittalChain {
+        origins_m: [origin(hip), origin(knee), origin(ankle)],
+        pitch_rad: [pitch(hip), pitch(knee), pitch(ankle)],
+        flexion_sign: [sense(hip)?, sense(knee)?],
+        spheres,
+    })
+}
+
+/// Folds the `foot` link into the shank it is fixed to (an unrotated fixed `ankle`): one
+/// rigid body with both masses, the inertia about their common centre (parallel axes),
+/// and the foot's shapes moved into the shank's frame. A fixed joint still costs rapier a
+/// multibody link (mass matrix, kinematics) every substep; the folded leg moves the same.
+/// Returns the ankle's offset in the shank frame (m), or `None` (nothing folded) when the
+/// ankle or either inertial frame is rotated.
+fn fold_foot_into_shank(raw: &mut urdf_rs::Robot) -> Option<[f64; 3]> {
+    let ankle = raw.joints.iter().position(|j| {
+        j.name == "ankle"
+            && j.joint_type == urdf_rs::JointType::Fixed
+            && j.parent.link == "shank"
+            && j.child.link == "foot"
+    })?;
+    let unrotated = |p: &urdf_rs::Pose| p.rpy.iter().all(|a| *a == 0.0);
+    let foot_at = raw.links.iter().position(|l| l.name == "foot")?;
+    let shank_at = raw.links.iter().position(|l| l.name == "shank")?;
+    let (foot, shank) = (&raw.links[foot_at], &raw.links[shank_at]);
+    if !unrotated(&raw.joints[ankle].origin)
+        || !unrotated(&foot.inertial.origin)
+        || !unrotated(&shank.inertial.origin)
+    {
+        return None;
+    }
+    let o = *raw.joints[ankle].origin.xyz;
+    let body = |l: &urdf_rs::Link, offset: [f64; 3]| {
+        let c = l.inertial.origin.xyz;
+        let i = &l.inertial.inertia;
+        (
+            l.inertial.mass.value,
+            [c[0] + offset[0], c[1] + offset[1], c[2] + offset[2]],
+            [
+                [i.ixx, i.ixy, i.ixz],
+                [i.ixy, i.iyy, i.iyz],
+                [i.ixz, i.iyz, i.izz],
+            ],
+        )
+    };
+    let parts = [body(shank, [0.0; 3]), body(foot, o)];
+    let mass: f64 = parts.iter().map(|p| p.0).sum();
+    let com: [f64; 3] =
+        std::array::from_fn(|k| parts.iter().map(|p| p.0 * p.1[k]).sum::<f64>() / mass);
+    let mut inertia = [[0.0; 3]; 3];
+    for (m, c, i) in parts {
+        let d = [c[0] - com[0], c[1] - com[1], c[2] - com[2]];
+        let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        for a in 0..3 {
+            for b in 0..3 {
+                let delta = if a == b { dd } else { 0.0 };
+                inertia[a][b] += i[a][b] + m * (delta - d[a] * d[b]);
+            }
+        }
+    }
+    let moved = |p: &urdf_rs::Pose| {
+        let mut p = p.clone();
+        p.xyz = urdf_rs::Vec3([p.xyz[0] + o[0], p.xyz[1] + o[1], p.xyz[2] + o[2]]);
+        p
+    };
+    let foot = raw.links.remove(foot_at);
+    let shank = raw.links.iter_mut().find(|l| l.name == "shank")?;
+    shank.inertial.mass.value = mass;
+    shank.inertial.origin.xyz = urdf_rs::Vec3(com);
+    let t = &mut shank.inertial.inertia;
+    (t.ixx, t.ixy, t.ixz) = (inertia[0][0], inertia[0][1], inertia[0][2]);
+    (t.iyy, t.iyz, t.izz) = (inertia[1][1], inertia[1][2], inertia[2][2]);
+    shank.visual.extend(foot.visual.into_iter().map(|mut v| {
+        v.origin = moved(&v.origin);
+        v
+    }));
+    shank
+        .collision
+        .extend(foot.collision.into_iter().map(|mut c| {
+            c.origin = moved(&c.origin);
+            c
+        }));
+    raw.joints.remove(ankle);
+    Some(o)
+}
+
+/// `root` and every link below it, by name.
+fn carried_links(raw: &urdf_rs::Robot, root: &str) -> Vec<String> {
+    let mut out = vec![root.to_owned()];
+    let mut k = 0;
+    while k < out.len() {
+        let parent = out[k].clone();
+        out.extend(
+            raw.joints
+                .iter()
+                .filter(|j| j.parent.link == parent)
+                .map(|j| j.child.link.clone()),
+        );
+        k += 1;
+    }
+    out
+}
+
+/// The hip origin's pitch about +Y (rad; 0 without a `hip` joint).
+fn hip_origin_pitch(raw: &urdf_rs::Robot) -> f64 {
+    raw.joints
+        .iter()
+        .find(|j| j.name == "hip")
+        .map_or(0.0, |j| j.origin.rpy[1])
+}
+
 /// Adds the patient's trunk and other leg (the body mass less this leg's human segments,
 /// Winter's fractions thigh 0.100, leg 0.0465, foot 0.0145) to the pelvis link; returns the
 /// mass added (kg). The pelvis only slides vertically, so where that mass sits does not
@@ -309,6 +469,8 @@ impl Leg {
     /// (`pelvis_z`) and a `foot` link whose `<collision>` spheres touch a belt at `z = 0`:
     /// the patient's mass rides on the pelvis, the harness carries `bws_fraction` of the
     /// weight, and the foot's compliant contacts act every substep (see [`crate::ground`]).
+    /// The belt runs at `treadmill.speed_m_per_s` (absent: stopped); the other leg is
+    /// added by [`Leg::add_other_leg`].
     pub fn on_treadmill(
         text: &str,
         file: &str,
@@ -319,8 +481,18 @@ impl Leg {
     ) -> Result<Self, LegError> {
         treadmill.validate()?;
         let mut raw = parse_urdf(text, file)?;
-        let spheres = foot_spheres(&raw, file)?;
+        let mut spheres = foot_spheres(&raw, file)?;
+        let chain = sagittal_chain(&raw, file, spheres.clone())?;
         let carried = patient_on_pelvis(&mut raw, file, treadmill.body_mass_kg)?;
+        let foot_link = match fold_foot_into_shank(&mut raw) {
+            Some(o) => {
+                for s in &mut spheres {
+                    s.center_m = std::array::from_fn(|k| s.center_m[k] + o[k]);
+                }
+                "shank"
+            }
+            None => "foot",
+        };
         let mut leg = Self::build(&raw, file, settings, period_s, substeps, Mount::default())?;
         let handle = |name: &str| {
             leg.bodies
@@ -329,13 +501,24 @@ impl Leg {
                 .map(|(_, h)| *h)
                 .ok_or_else(|| urdf_err(file, format!("no link named `{name}`")))
         };
-        let (foot, pelvis) = (handle("foot")?, handle("pelvis")?);
-        let total_mass_kg: f64 = raw
-            .links
+        let (foot, pelvis) = (handle(foot_link)?, handle("pelvis")?);
+        // What the belt and harness carry: the pelvis and everything below it (not the
+        // fore-aft trolley above it, which the frame carries).
+        let total_mass_kg: f64 = carried_links(&raw, "pelvis")
             .iter()
-            .filter(|l| l.name != "world")
+            .filter_map(|n| raw.links.iter().find(|l| &l.name == n))
             .map(|l| l.inertial.mass.value)
             .sum();
+        let fore_aft_at_m = raw
+            .joints
+            .iter()
+            .any(|j| j.name == "pelvis_x" && j.joint_type == urdf_rs::JointType::Prismatic)
+            .then(|| {
+                leg.world
+                    .bodies
+                    .get(pelvis)
+                    .map_or(0.0, |rb| f64::from(rb.translation().x))
+            });
         let standing_z_m = leg
             .world
             .bodies
@@ -344,13 +527,98 @@ impl Leg {
         leg.ground = Some(Ground::new(GroundSetup {
             settings: *treadmill,
             spheres,
+            chain,
             foot,
+            foot_link,
             pelvis,
             total_mass_kg,
             carried_kg: carried,
             standing_z_m,
+            fore_aft_at_m,
         }));
         Ok(leg)
+    }
+
+    /// Makes the virtual other leg hold `pose` (rad; `None`: walk its reference again), as
+    /// this leg holds one for a static check. Does nothing without one.
+    pub fn hold_other_leg(&mut self, pose: Option<[f64; 2]>) {
+        if let Some(g) = &mut self.ground {
+            g.hold_other_leg(pose);
+        }
+    }
+
+    /// Brings the belt up to speed over `ramp_s` (the gait's start-up). Does nothing
+    /// without a treadmill.
+    pub fn ramp_belt(&mut self, ramp_s: f64) {
+        if let Some(g) = &mut self.ground {
+            g.set_belt_ramp(ramp_s);
+        }
+    }
+
+    /// Runs the belt at `gait`'s own speed (see [`crate::ground::reference_belt_speed`]).
+    /// Does nothing without a treadmill.
+    pub fn belt_at_reference_speed(&mut self, gait: &GaitReference) {
+        if let Some(g) = &mut self.ground {
+            let v = crate::ground::reference_belt_speed(gait, g.chain());
+            g.set_belt_speed(v);
+        }
+    }
+
+    /// Puts the virtual other leg under the pelvis, walking `gait` half a stride later
+    /// (see [`crate::ground::Contralateral::Reference`]). Does nothing without a treadmill.
+    pub fn add_other_leg(&mut self, gait: GaitReference) {
+        if let Some(g) = &mut self.ground {
+            let other = OtherLeg::new(gait, g.chain().clone());
+            g.set_other_leg(other);
+        }
+    }
+
+    /// Lowers (or raises) the pelvis, at rest, to where the belt carries the unsupported
+    /// weight: the foot's spheres (and the other leg's, standing where its reference
+    /// starts) pressed into the belt by their static Hunt-Crossley penetration. A run then
+    /// starts from a standing equilibrium instead of a drop. Does nothing without a
+    /// treadmill.
+    pub fn rest_on_belt(&mut self) {
+        let Some(g) = &self.ground else {
+            return;
+        };
+        let params = g.settings().contact;
+        let weight = g.unsupported_weight_n();
+        let mut gaps: Vec<(f64, f64)> = Vec::new();
+        let foot = g.foot_link_name();
+        for s in g.spheres() {
+            if let Some(c) = self.point_in_world(foot, s.center_m) {
+                gaps.push((s.radius_m, c[2] - s.radius_m));
+            }
+        }
+        if let (Some(other), Some(z)) = (g.other_leg_pose(), self.pelvis_height_m()) {
+            let chain = g.chain();
+            for (i, s) in chain.spheres.iter().enumerate() {
+                gaps.push((
+                    s.radius_m,
+                    z + chain.sphere_centre(i, other)[1] - s.radius_m,
+                ));
+            }
+        }
+        let load = |dz: f64| -> f64 {
+            gaps.iter()
+                .map(|&(r, gap)| params.normal_force(r, -(gap + dz), 0.0))
+                .sum()
+        };
+        // The load grows as the pelvis sinks: bisect on the drop.
+        let (mut lo, mut hi) = (-0.2, 0.2);
+        if load(lo) < weight {
+            return;
+        }
+        for _ in 0..100 {
+            let mid = 0.5 * (lo + hi);
+            if load(mid) > weight {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        self.lift_pelvis(0.5 * (lo + hi));
     }
 
     fn build(
@@ -389,7 +657,9 @@ impl Leg {
                     .ok_or_else(|| urdf_err(file, "no joint named `knee`"))?;
                 -knee.origin.xyz[2]
             },
-            pelvis_pitch_rad: mount.pelvis_pitch_rad,
+            // The mount's pitch, and the hip origin's (an anteriorly tilted pelvis frame
+            // turns the thigh back: a pitch about +Y is one about -Y by its negative).
+            pelvis_pitch_rad: mount.pelvis_pitch_rad - hip_origin_pitch(raw),
         };
         // Which URDF joint and link each rapier element came from, before `robot` moves.
         let joint_names: Vec<String> = robot
@@ -603,12 +873,11 @@ impl Leg {
     pub fn step(&mut self, mut torques_at: impl FnMut(&Self, usize) -> [f64; 2]) {
         for sub in 0..self.substeps as usize {
             let torques = torques_at(self, sub);
-            for b in [
-                self.joints[0].parent,
-                self.joints[0].child,
-                self.joints[1].child,
-            ] {
-                if let Some(rb) = self.world.bodies.get_mut(b) {
+            // rapier keeps user forces and torques until they are reset: every body starts
+            // the substep with none, then takes the joints' and the ground's.
+            for (_, b) in &self.bodies {
+                if let Some(rb) = self.world.bodies.get_mut(*b) {
+                    rb.reset_forces(false);
                     rb.reset_torques(false);
                 }
             }
@@ -626,7 +895,8 @@ impl Leg {
                 }
             }
             if let Some(ground) = &mut self.ground {
-                ground.apply(&mut self.world.bodies);
+                let h = f64::from(self.world.integration_parameters.dt);
+                ground.apply(&mut self.world.bodies, h);
             }
             self.world.step();
         }
@@ -692,6 +962,11 @@ impl Leg {
     /// Names of the links, in the order of [`Leg::link_pose`] and [`Leg::visuals`].
     pub fn link_names(&self) -> impl Iterator<Item = &str> {
         self.bodies.iter().map(|(n, _)| n.as_str())
+    }
+
+    /// Number of links (of [`Leg::link_pose`]).
+    pub fn link_count(&self) -> usize {
+        self.bodies.len()
     }
 
     /// The URDF's visual shapes of link `i`.

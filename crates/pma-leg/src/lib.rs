@@ -1,11 +1,14 @@
-//! The exoskeleton leg: a URDF loaded into rapier3d as a multibody with a fixed pelvis,
-//! a flexor and an extensor pneumatic muscle on the hip and on the knee, each muscle the
-//! three-element model of `pma-model` driven by its own APRC-NDO from `pma-control`,
-//! tracking length references derived from normative gait.
+//! The exoskeleton leg: a URDF loaded into rapier3d as a multibody, a flexor and an
+//! extensor pneumatic muscle on the hip and on the knee, each muscle the three-element
+//! model of `pma-model` (or a Festo size as measured) driven by its own APRC-NDO from
+//! `pma-control`, tracking length references derived from normative gait; the pelvis
+//! fixed (the leg swings in the air) or on body-weight support with the foot on a
+//! treadmill belt ([`ground`], [`stance`]).
 #![warn(missing_docs)]
 
 pub mod config;
 pub mod control;
+pub mod demand;
 mod error;
 pub mod gains;
 pub mod gait;
@@ -16,6 +19,8 @@ pub mod patient;
 pub mod plant;
 pub mod safety;
 pub mod sim;
+pub mod sizing;
+pub mod stance;
 
 pub use config::{LoadedScenario, MuscleGeometry, Scenario, Side};
 pub use control::{LegControllers, LegOutput, Vented};
@@ -26,3 +31,4 @@ pub use patient::{Patient, PatientSettings, PatientTorques, SpasmEvent};
 pub use plant::{LegPlant, LegState, MuscleActuator, SupervisedLeg};
 pub use safety::{PatientMetrics, PatientReport, SafetyReport, SpasmReport};
 pub use sim::{balanced_pressures, LegFault, LegSample, LegSim};
+pub use stance::{TreadmillMetrics, TreadmillReport};

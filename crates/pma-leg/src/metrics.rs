@@ -64,6 +64,8 @@ pub struct LegReport {
     pub spasms: Vec<SpasmReport>,
     /// Joint limits, muscle forces, valve saturation.
     pub safety: SafetyReport,
+    /// Stance and swing, ground reaction forces, slip and heel strikes, on a treadmill.
+    pub treadmill: Option<crate::stance::TreadmillReport>,
 }
 
 /// Accumulates the [`LegReport`] figures period by period.
@@ -203,6 +205,7 @@ impl LegMetrics {
             patient: PatientReport::default(),
             spasms: Vec::new(),
             safety: SafetyReport::default(),
+            treadmill: None,
         }
     }
 }

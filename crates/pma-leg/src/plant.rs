@@ -2,10 +2,11 @@
 //! valves, two joint encoders.
 use crate::config::{MuscleGeometry, Scenario};
 use crate::error::LegError;
+use crate::ground::GroundReaction;
 use crate::leg::{Leg, JOINT_NAMES};
 use crate::patient::{Patient, PatientTorques};
 use pma_loop::{Backend, Started};
-use pma_model::{MuscleParams, PositionSensor, Valve};
+use pma_model::{MuscleModel, PositionSensor, Valve};
 
 /// A muscle on the leg: geometry, the true three-element model and its valve.
 #[derive(Debug, Clone)]
@@ -14,12 +15,25 @@ pub struct MuscleActuator {
     pub geometry: MuscleGeometry,
     /// Joint index (0 hip, 1 knee).
     pub joint: usize,
-    /// True muscle.
-    pub params: MuscleParams,
+    /// True muscle: eq. (1), or a Festo size as measured.
+    pub model: MuscleModel,
+    /// Rated pulling force (N): the Festo size's, or the scenario's
+    /// `plant.muscle_rated_force_n` for an eq. (1) muscle.
+    pub rated_force_n: f64,
     pub(crate) valve: Valve,
 }
 
 impl MuscleActuator {
+    /// The eq. (1) muscle its controller assumes: Table I for an eq. (1) muscle (its
+    /// deviations from Table I are the plant's, unknown to the controller), the map's fit
+    /// for a Festo muscle (its size is known).
+    pub fn assumed(&self) -> pma_model::MuscleParams {
+        match self.model {
+            MuscleModel::ThreeElement(_) => pma_model::MuscleParams::TABLE_I,
+            MuscleModel::Festo(f) => f.three_element_fit(),
+        }
+    }
+
     /// Contraction (m) at joint angles `q`.
     pub fn contraction(&self, q: [f64; 2]) -> f64 {
         self.geometry.contraction(q[self.joint])
@@ -32,7 +46,7 @@ impl MuscleActuator {
 
     /// Eq. (1) force without the slack clamp (N): negative means slack.
     pub fn force_unclamped(&self, q: [f64; 2], qd: [f64; 2]) -> f64 {
-        self.params.force_unclamped(
+        self.model.force_unclamped(
             self.valve.pressure(),
             self.contraction(q),
             self.contraction_rate(qd),
@@ -83,6 +97,10 @@ pub struct LegState {
     pub slack_s: [f64; 4],
     /// The patient's torques at the last substep (N m, flexion positive).
     pub patient: PatientTorques,
+    /// What the belt did to the foot over the last period, on a treadmill.
+    pub ground: Option<GroundReaction>,
+    /// Height of the pelvis frame above the belt (m), on a treadmill.
+    pub pelvis_height_m: Option<f64>,
 }
 
 /// The leg in the closed loop: reads two encoder angles, takes four pressure commands.
@@ -245,6 +263,8 @@ impl LegPlant {
                 .patient
                 .as_ref()
                 .map_or_else(PatientTorques::default, Patient::last),
+            ground: self.leg.ground_reaction(),
+            pelvis_height_m: self.leg.pelvis_height_m(),
         }
     }
 

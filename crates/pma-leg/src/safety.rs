@@ -16,6 +16,13 @@ pub const FOLLOW_S: f64 = 3.0;
 /// constraints that a hard push can enter by a hair.
 pub const LIMIT_TOLERANCE_DEG: f64 = 0.1;
 
+/// The normal range of motion of hip and knee (deg, flexion positive): hip 30 deg of
+/// extension to 120 of flexion, knee 0 (full extension) to 135 of flexion, the American
+/// Academy of Orthopaedic Surgeons' averages (Greene and Heckman 1994, The Clinical
+/// Measurement of Joint Motion; as tabulated by Soucie et al. 2011, Haemophilia 17:500).
+/// A patient moved beyond it is hurt whatever the exoskeleton's own stops allow.
+pub const NORMAL_RANGE_DEG: [[f64; 2]; 2] = [[-30.0, 120.0], [0.0, 135.0]];
+
 /// The patient's torque at one joint over the run.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct PatientJointStats {
@@ -71,13 +78,19 @@ pub struct SpasmReport {
     pub against_baseline: bool,
 }
 
-/// A joint against its URDF limits.
+/// A joint against its URDF limits and the normal range of motion.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct LimitStats {
-    /// Time beyond a limit by more than [`LIMIT_TOLERANCE_DEG`] (s).
+    /// Time beyond a URDF limit by more than [`LIMIT_TOLERANCE_DEG`] (s).
     pub time_outside_s: f64,
-    /// Largest angle beyond a limit (deg; 0 if never).
+    /// Largest angle beyond a URDF limit (deg; 0 if never).
     pub max_beyond_deg: f64,
+    /// Time beyond the normal range of motion ([`NORMAL_RANGE_DEG`]) by more than
+    /// [`LIMIT_TOLERANCE_DEG`] (s).
+    pub time_beyond_normal_range_s: f64,
+    /// Largest angle beyond the normal range of motion (deg; negative: the smallest margin
+    /// to it).
+    pub beyond_normal_range_deg: f64,
 }
 
 /// A muscle against its rating and its valve's range.
@@ -89,6 +102,10 @@ pub struct MuscleSafety {
     pub rated_force_n: f64,
     /// `peak_force_n / rated_force_n`.
     pub peak_over_rated: f64,
+    /// Time the force was above the rating (s).
+    pub time_over_rated_s: f64,
+    /// `rated_force_n - peak_force_n` (N): negative when the rating was exceeded.
+    pub margin_n: f64,
     /// Time the controller's command sat at 0 or at the valve's maximum (s).
     pub valve_saturated_s: f64,
     /// Largest |dp/dt| of the muscle's pressure over the run (bar/s).
@@ -122,7 +139,7 @@ pub struct PatientMetrics {
     joint_of: [usize; 4],
     limits_rad: [[f64; 2]; 2],
     pressure_max_pa: f64,
-    rated_force_n: f64,
+    rated_force_n: [f64; 4],
     n: usize,
     torque_sq: [f64; 2],
     torque_peak: [f64; 2],
@@ -130,7 +147,10 @@ pub struct PatientMetrics {
     first_open: usize,
     outside_s: [f64; 2],
     beyond: [f64; 2],
+    outside_normal_s: [f64; 2],
+    beyond_normal: [f64; 2],
     peak_force: [f64; 4],
+    over_rated_s: [f64; 4],
     saturated_s: [f64; 4],
     peak_rate: [f64; 4],
     previous_p: [f64; 4],
@@ -156,16 +176,17 @@ impl Recorder<SupervisedLeg, LegOutput> for BaselineTrace {
 
 impl PatientMetrics {
     /// Figures for `plant`'s leg over a run ending at `end_s`, following `events` (the
-    /// spasms of the run).
+    /// spasms of the run); each muscle against its own rating.
     pub fn new(
         plant: &LegPlant,
         events: &[SpasmEvent],
         end_s: f64,
         pressure_max_pa: f64,
-        rated_force_n: f64,
         baseline: Option<Vec<[f64; 4]>>,
     ) -> Self {
         let joint_of = std::array::from_fn(|i| plant.muscles().get(i).map_or(0, |m| m.joint));
+        let rated_force_n =
+            std::array::from_fn(|i| plant.muscles().get(i).map_or(f64::NAN, |m| m.rated_force_n));
         let spasms = events
             .iter()
             .enumerate()
@@ -200,7 +221,10 @@ impl PatientMetrics {
             first_open: 0,
             outside_s: [0.0; 2],
             beyond: [0.0; 2],
+            outside_normal_s: [0.0; 2],
+            beyond_normal: [f64::NEG_INFINITY; 2],
             peak_force: [0.0; 4],
+            over_rated_s: [0.0; 4],
             saturated_s: [0.0; 4],
             peak_rate: [0.0; 4],
             previous_p: [f64::NAN; 4],
@@ -298,6 +322,8 @@ impl PatientMetrics {
                         LimitStats {
                             time_outside_s: self.outside_s[j],
                             max_beyond_deg: self.beyond[j],
+                            time_beyond_normal_range_s: self.outside_normal_s[j],
+                            beyond_normal_range_deg: self.beyond_normal[j],
                         },
                     )
                 })
@@ -310,8 +336,10 @@ impl PatientMetrics {
                         name.clone(),
                         MuscleSafety {
                             peak_force_n: self.peak_force[i],
-                            rated_force_n: self.rated_force_n,
-                            peak_over_rated: self.peak_force[i] / self.rated_force_n,
+                            rated_force_n: self.rated_force_n[i],
+                            peak_over_rated: self.peak_force[i] / self.rated_force_n[i],
+                            time_over_rated_s: self.over_rated_s[i],
+                            margin_n: self.rated_force_n[i] - self.peak_force[i],
                             valve_saturated_s: self.saturated_s[i],
                             peak_pressure_rate_bar_s: self.peak_rate[i] / 1e5,
                         },
@@ -341,10 +369,20 @@ impl Recorder<SupervisedLeg, LegOutput> for PatientMetrics {
                 self.outside_s[j] += dt;
             }
             self.beyond[j] = self.beyond[j].max(beyond);
+            let [lo, hi] = NORMAL_RANGE_DEG[j];
+            let angle = s.angle_rad[j].to_degrees();
+            let beyond_normal = (lo - angle).max(angle - hi);
+            if beyond_normal > LIMIT_TOLERANCE_DEG {
+                self.outside_normal_s[j] += dt;
+            }
+            self.beyond_normal[j] = self.beyond_normal[j].max(beyond_normal);
         }
         let rate: [f64; 4] = std::array::from_fn(|i| (s.pressure_pa[i] - self.previous_p[i]) / dt);
         for (i, r) in rate.iter().enumerate() {
             self.peak_force[i] = self.peak_force[i].max(s.force_n[i]);
+            if s.force_n[i] > self.rated_force_n[i] {
+                self.over_rated_s[i] += dt;
+            }
             if r.is_finite() {
                 self.peak_rate[i] = self.peak_rate[i].max(r.abs());
             }

@@ -4,15 +4,17 @@ use crate::config::{LoadedScenario, MuscleGeometry, Scenario};
 use crate::control::{LegControllers, LegOutput};
 use crate::error::{invalid, LegError};
 use crate::gait::GaitReference;
+use crate::ground::GroundReaction;
 use crate::leg::{Leg, Mount, JOINT_NAMES};
 use crate::metrics::{LegMetrics, LegReport};
 use crate::patient::{Patient, PatientTorques, SpasmEvent};
 use crate::plant::{LegPlant, LegState, MuscleActuator, SupervisedLeg, LIMIT_OVERSHOOT_MAX_RAD};
 use crate::safety::PatientMetrics;
+use crate::stance::TreadmillMetrics;
 use pma_control::supervisor::{ReadingWindow, Supervised, SupervisorLimits};
 use pma_control::{ControllerConfig, Diagnostics};
 use pma_loop::{LoopSettings, Period, Recorder, Schema, Signals};
-use pma_model::{MuscleParams, Valve};
+use pma_model::{DampingMode, MuscleModel, MuscleParams, Valve};
 
 /// One period of the leg as logs show it: the state at the reading and what the
 /// controllers made of it.
@@ -45,6 +47,9 @@ pub struct LegSample {
     /// Its parts (N m): reflex, spasm (non-zero while a spasm acts on the joint), voluntary
     /// effort, passive stiffness.
     pub patient_parts_nm: PatientTorques,
+    /// On a treadmill: the belt's reaction, the pelvis's height (m) and whether the
+    /// reference's foot is in stance.
+    pub ground: Option<(GroundReaction, f64, bool)>,
 }
 
 impl LegSample {
@@ -65,6 +70,13 @@ impl LegSample {
             diagnostics: o.diagnostics,
             patient_nm: s.patient.total(),
             patient_parts_nm: s.patient,
+            ground: s.ground.map(|g| {
+                (
+                    g,
+                    s.pelvis_height_m.unwrap_or(f64::NAN),
+                    o.reference_in_stance,
+                )
+            }),
         }
     }
 }
@@ -73,8 +85,67 @@ impl LegSample {
 const JOINTS: [&str; 2] = ["hip", "knee"];
 
 impl LegSample {
+    /// The treadmill's channels, after the leg's: what the belt, the harness and the
+    /// other leg do, and the phases.
+    fn push_ground_schema(s: &mut Schema) {
+        s.push_part(
+            "ground",
+            "foot",
+            "grf_vertical_n",
+            "vertical ground reaction force (N)",
+        )
+        .push_part(
+            "ground",
+            "foot",
+            "grf_fore_aft_n",
+            "fore-aft ground reaction force (N, forward +)",
+        )
+        .push_part(
+            "ground",
+            "foot",
+            "stance",
+            "stance from contact (1) or swing (0)",
+        )
+        .push_part(
+            "ground",
+            "foot",
+            "reference_stance",
+            "the reference's stance (1) or swing (0)",
+        )
+        .push_part("ground", "foot", "slip_m_s", "slip on the belt (m/s)")
+        .push_part(
+            "ground",
+            "foot",
+            "penetration_m",
+            "deepest sphere penetration (m)",
+        )
+        .push_part(
+            "ground",
+            "other_leg",
+            "force_n",
+            "virtual other leg's force on the pelvis (N)",
+        )
+        .push_part("ground", "harness", "force_n", "body-weight support (N)")
+        .push_part(
+            "ground",
+            "pelvis",
+            "height_m",
+            "pelvis height above the belt (m)",
+        );
+    }
+
+    /// The leg's channels (after the time) for muscles named `muscles`, on a treadmill or
+    /// not, as the CSV and Rerun show them.
+    pub fn schema_of(muscles: &[String], treadmill: bool) -> Schema {
+        let mut s = Self::schema(muscles);
+        if treadmill {
+            Self::push_ground_schema(&mut s);
+        }
+        s
+    }
+
     /// The leg's channels (after the time) for muscles named `muscles`, as the CSV and
-    /// Rerun show them.
+    /// Rerun show them (in the air; see [`Self::schema_of`]).
     pub fn schema(muscles: &[String]) -> Schema {
         let mut s = Schema::new();
         for j in JOINTS {
@@ -185,6 +256,22 @@ impl Signals for LegSample {
                 put(v);
             }
         }
+        if let Some((g, pelvis_m, reference_stance)) = self.ground {
+            let stance = g.vertical_n > crate::stance::CONTACT_THRESHOLD_N;
+            for v in [
+                g.vertical_n,
+                g.fore_aft_n,
+                f64::from(u8::from(stance)),
+                f64::from(u8::from(reference_stance)),
+                g.slip_m_s,
+                g.penetration_m,
+                g.contralateral_n,
+                g.support_n,
+                pelvis_m,
+            ] {
+                put(v);
+            }
+        }
     }
 }
 
@@ -201,21 +288,20 @@ pub struct LegSim {
 /// Pressures `(flexor, extensor)` with equal forces at the given contractions and mean
 /// `p_mean`: the pair holds a joint without gravity torque at that co-contraction.
 pub fn balanced_pressures(
-    f: &MuscleParams,
+    f: &MuscleModel,
     x_f: f64,
-    e: &MuscleParams,
+    e: &MuscleModel,
     x_e: f64,
     p_mean: f64,
 ) -> (f64, f64) {
-    // F(p, x) = (f0 - k0 x) + (f1 - k1 x) p for each muscle; solve F_f = F_e, p_f + p_e = 2 p_mean.
-    let (af, bf) = (
-        f.f0_n - f.k0_n_per_m * x_f,
-        f.f1_n_per_pa - f.k1_n_per_m_pa * x_f,
-    );
-    let (ae, be) = (
-        e.f0_n - e.k0_n_per_m * x_e,
-        e.f1_n_per_pa - e.k1_n_per_m_pa * x_e,
-    );
+    // Both models are affine in the pressure at rest, F(p, x) = a + b p: solve F_f = F_e
+    // with p_f + p_e = 2 p_mean.
+    let affine = |m: &MuscleModel, x: f64| {
+        let at = |p: f64| m.force_unclamped(p, x, 0.0, DampingMode::Inflation);
+        let a = at(0.0);
+        (a, (at(1e5) - a) / 1e5)
+    };
+    let ((af, bf), (ae, be)) = (affine(f, x_f), affine(e, x_e));
     let p_f = (ae - af + 2.0 * be * p_mean) / (bf + be);
     (p_f, 2.0 * p_mean - p_f)
 }
@@ -234,9 +320,9 @@ fn resting_pressures(muscles: &[MuscleActuator], p_cc: f64) -> [f64; 4] {
         };
         let (f, e) = (&muscles[fi], &muscles[ei]);
         let (pf, pe) = balanced_pressures(
-            &f.params,
+            &f.model,
             f.geometry.contraction_at_zero_m,
-            &e.params,
+            &e.model,
             e.geometry.contraction_at_zero_m,
             p_cc,
         );
@@ -270,30 +356,8 @@ impl LegSim {
     ) -> Result<Self, LegError> {
         let sc = loaded.scenario.clone();
         sc.validate()?;
-        let leg = Leg::mounted(
-            &loaded.urdf_text,
-            &loaded.urdf_source,
-            [sc.joints.hip, sc.joints.knee],
-            sc.period_s,
-            sc.physics_substeps,
-            mount,
-        )?;
-        let patient = if sc.patient.is_passive() {
-            None
-        } else {
-            let gait =
-                GaitReference::normative(sc.gait.speed, sc.gait.stride_period_s, sc.gait.ramp_s)?;
-            Some(Patient::new(
-                &sc.patient,
-                leg.substep_s(),
-                gait,
-                *leg.inertia(),
-                [
-                    sc.joints.hip.damping_nm_s_per_rad,
-                    sc.joints.knee.damping_nm_s_per_rad,
-                ],
-            )?)
-        };
+        let leg = build_leg(loaded, mount)?;
+        let patient = build_patient(&sc, &leg)?;
         let muscles =
             build_muscles(&sc, &loaded.muscles).map_err(|e| e.in_file(&loaded.muscles_source))?;
         let controllers = LegControllers::new(&sc, &muscles, leg.inertia(), config)?;
@@ -311,10 +375,15 @@ impl LegSim {
         })
     }
 
-    /// Replaces the gait by a constant pose (rad): the reference for a static hold.
+    /// Replaces the gait by a constant pose (rad): the reference for a static hold. On a
+    /// treadmill the virtual other leg holds it too.
     pub fn hold_pose(&mut self, angles: [f64; 2]) {
         self.origin = None;
         self.controllers.hold_pose(angles);
+        self.plant
+            .inner_mut()
+            .leg_mut()
+            .hold_other_leg(Some(angles));
     }
 
     /// Puts the leg at `angles` with `velocities` (the muscles' valves keep their pressure).
@@ -470,13 +539,20 @@ impl LegSim {
             &events,
             t_end,
             sc.plant.valve.pressure_max_pa,
-            sc.plant.muscle_rated_force_n,
             baseline,
+        );
+        let joint_of = std::array::from_fn(|i| self.plant.muscles().get(i).map_or(0, |m| m.joint));
+        let mut treadmill = TreadmillMetrics::new(
+            self.plant.leg(),
+            self.controllers.gait(),
+            joint_of,
+            settings.duration_s(),
+            sc.period_s,
         );
         let outcome = pma_loop::run(
             &mut self.plant,
             &mut self.controllers,
-            &mut (&mut metrics, &mut patient, recorder),
+            &mut (&mut metrics, &mut patient, &mut treadmill, recorder),
             settings,
         )?;
         let (interrupted, fault) = match outcome.end {
@@ -507,8 +583,69 @@ impl LegSim {
         report.patient = patient.patient();
         report.spasms = patient.spasms(t0 + ran_s);
         report.safety = patient.safety(&names);
+        report.treadmill = treadmill.map(|t| t.report());
         Ok((report, fault))
     }
+}
+
+/// The scenario's patient in `leg` (`None`: the passive limb).
+pub(crate) fn build_patient(sc: &Scenario, leg: &Leg) -> Result<Option<Patient>, LegError> {
+    if sc.patient.is_passive() {
+        return Ok(None);
+    }
+    let gait = GaitReference::normative(sc.gait.speed, sc.gait.stride_period_s, sc.gait.ramp_s)?;
+    Ok(Some(Patient::new(
+        &sc.patient,
+        leg.substep_s(),
+        gait,
+        *leg.inertia(),
+        [
+            sc.joints.hip.damping_nm_s_per_rad,
+            sc.joints.knee.damping_nm_s_per_rad,
+        ],
+    )?))
+}
+
+/// The scenario's leg: fixed pelvis (as `mount` says), or on its treadmill, the belt at
+/// the reference's speed unless the scenario gives one, the other leg added and the leg
+/// standing at rest on the belt.
+pub(crate) fn build_leg(loaded: &LoadedScenario, mount: Mount) -> Result<Leg, LegError> {
+    let sc = &loaded.scenario;
+    let joints = [sc.joints.hip, sc.joints.knee];
+    let Some(treadmill) = &sc.treadmill else {
+        return Leg::mounted(
+            &loaded.urdf_text,
+            &loaded.urdf_source,
+            joints,
+            sc.period_s,
+            sc.physics_substeps,
+            mount,
+        );
+    };
+    if mount != Mount::default() {
+        return Err(LegError::Parse {
+            file: sc.name.clone(),
+            message: "a treadmill scenario's leg stands on its belt: it cannot be mounted on a seat (pendulum test)".into(),
+        });
+    }
+    let gait = GaitReference::normative(sc.gait.speed, sc.gait.stride_period_s, sc.gait.ramp_s)?;
+    let mut leg = Leg::on_treadmill(
+        &loaded.urdf_text,
+        &loaded.urdf_source,
+        joints,
+        sc.period_s,
+        sc.physics_substeps,
+        treadmill,
+    )?;
+    if treadmill.speed_m_per_s.is_none() {
+        leg.belt_at_reference_speed(&gait);
+    }
+    leg.ramp_belt(gait.ramp_s());
+    if treadmill.contralateral == crate::ground::Contralateral::Reference {
+        leg.add_other_leg(gait);
+    }
+    leg.rest_on_belt();
+    Ok(leg)
 }
 
 /// The joint errors and velocities (deg, deg/s) of every period of `origin`'s simulation
@@ -599,18 +736,27 @@ fn build_muscles(
                 g.body_link, g.joint, links[joint].1[0], links[joint].1[1]
             )));
         }
-        let scale = sc
-            .plant
-            .muscle_scale
-            .get(&g.name)
-            .copied()
-            .unwrap_or_default();
-        let params = scale.apply(MuscleParams::TABLE_I);
-        params.validate()?;
+        let scale = sc.plant.muscle_scale.get(&g.name).copied();
+        let (model, rated_force_n) = match (g.festo()?, scale) {
+            (Some(festo), None) => (MuscleModel::Festo(festo), festo.size.rated_force_n()),
+            (Some(_), Some(_)) => return Err(err(
+                "is a Festo muscle (`size`): plant.muscle_scale applies to Table I muscles only"
+                    .into(),
+            )),
+            (None, scale) => {
+                let params = scale.unwrap_or_default().apply(MuscleParams::TABLE_I);
+                params.validate()?;
+                (
+                    MuscleModel::ThreeElement(params),
+                    sc.plant.muscle_rated_force_n,
+                )
+            }
+        };
         out.push(MuscleActuator {
             geometry: g.clone(),
             joint,
-            params,
+            model,
+            rated_force_n,
             valve: Valve::new(sc.plant.valve, 0.0)?,
         });
     }

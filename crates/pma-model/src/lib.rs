@@ -27,7 +27,7 @@ mod valve;
 
 pub use error::Invalid;
 pub use load::{LoadProfile, LoadStep, GRAVITY_M_S2, MAX_LOAD_KG};
-pub use muscle::{DampingMode, MuscleParams, MAX_FACTOR_ON_TABLE_I};
+pub use muscle::{DampingMode, MuscleModel, MuscleParams, MAX_FACTOR_ON_TABLE_I};
 pub use rng::GaussianRng;
 pub use scale::MuscleScale;
 pub use sensor::{PositionSensor, SensorParams};

@@ -1,4 +1,4 @@
-use crate::error::{finite, positive, within, Invalid};
+use crate::error::{finite, non_negative, positive, within, Invalid};
 
 /// Largest factor between any parameter of a muscle and Table I's: Festo's muscles span a
 /// factor of 10 in force from the DMSP-10 to the DMSP-40; beyond 100 a parameter set is a
@@ -76,11 +76,12 @@ impl MuscleParams {
     };
 
     /// Checks that every coefficient is finite and that the muscle pulls harder with more
-    /// pressure (`f1 > 0`) and resists motion (`k0`, `b0i`, `b0d` > 0).
+    /// pressure (`f1 > 0`) and resists motion (`k0 >= 0`, `b0i`, `b0d` > 0).
     pub fn validate(&self) -> Result<(), Invalid> {
         finite("f0_n", self.f0_n)?;
         positive("f1_n_per_pa", self.f1_n_per_pa)?;
-        positive("k0_n_per_m", self.k0_n_per_m)?;
+        // Zero is a muscle whose stiffness is all pressure's (a Festo map's fit).
+        non_negative("k0_n_per_m", self.k0_n_per_m)?;
         finite("k1_n_per_m_pa", self.k1_n_per_m_pa)?;
         positive("b0_inflation_ns_per_m", self.b0_inflation_ns_per_m)?;
         finite("b1_inflation_ns_per_m_pa", self.b1_inflation_ns_per_m_pa)?;
@@ -188,6 +189,40 @@ impl MuscleParams {
             return None;
         }
         Some((self.contractile_force(pressure_pa) - load_n) / stiffness)
+    }
+}
+
+/// What a muscle's force is: eq. (1) with its parameters, or a Festo size as measured.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MuscleModel {
+    /// Eq. (1) (Table I, or Table I with factors).
+    ThreeElement(MuscleParams),
+    /// A Festo DMSP's measured static force with a scaled damping.
+    Festo(crate::festo::FestoMuscle),
+}
+
+impl MuscleModel {
+    /// Force without the slack clamp (N): negative means slack.
+    pub fn force_unclamped(
+        &self,
+        pressure_pa: f64,
+        x_m: f64,
+        v_m_s: f64,
+        mode: DampingMode,
+    ) -> f64 {
+        match self {
+            MuscleModel::ThreeElement(p) => p.force_unclamped(pressure_pa, x_m, v_m_s, mode),
+            MuscleModel::Festo(m) => m.force_unclamped(pressure_pa, x_m, v_m_s, mode),
+        }
+    }
+
+    /// The muscle in eq. (1)'s form: its own parameters, or the Festo map's fit
+    /// ([`crate::festo::FestoMuscle::three_element_fit`]).
+    pub fn as_three_element(&self) -> MuscleParams {
+        match self {
+            MuscleModel::ThreeElement(p) => *p,
+            MuscleModel::Festo(m) => m.three_element_fit(),
+        }
     }
 }
 

@@ -46,8 +46,64 @@ pub struct CompareRow {
     pub valve_saturated_s: f64,
     /// Time beyond the URDF joint limits, summed over the joints (s).
     pub time_outside_limits_s: f64,
+    /// Time a muscle's force was above its rating, summed over the muscles (s).
+    pub time_over_rated_s: f64,
+    /// Smallest margin of a muscle's peak force to its rating (N; negative: exceeded).
+    pub min_force_margin_n: f64,
+    /// Time beyond the normal range of motion, summed over the joints (s).
+    pub time_beyond_normal_range_s: f64,
+    /// On a treadmill: the gait phases, the ground reaction and the heel strikes.
+    pub treadmill: Option<TreadmillRow>,
     /// Every figure finite.
     pub finite: bool,
+}
+
+/// A run's treadmill figures.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TreadmillRow {
+    /// Hip RMS error in stance and in swing (deg).
+    pub hip_stance_swing_rms_deg: [f64; 2],
+    /// Knee RMS error in stance and in swing (deg).
+    pub knee_stance_swing_rms_deg: [f64; 2],
+    /// Mean loading peak of the vertical GRF (body weights).
+    pub peak_grf_bw: f64,
+    /// Mean loading rate at heel strike (body weights per second).
+    pub loading_rate_bw_s: f64,
+    /// Mean stance fraction and the reference's.
+    pub stance_fraction: [f64; 2],
+    /// Mean slip per stride (m).
+    pub slip_per_stride_m: f64,
+    /// Largest heel-strike deviation of hip and knee (deg).
+    pub heel_strike_max_deviation_deg: [f64; 2],
+    /// Largest recovery from a heel strike, hip and knee (s; NaN if none recovered).
+    pub heel_strike_max_recovery_s: [f64; 2],
+    /// Heel strikes not recovered within the follow-up, hip and knee.
+    pub heel_strikes_unrecovered: [usize; 2],
+}
+
+impl TreadmillRow {
+    fn of(t: &pma_leg::TreadmillReport) -> Self {
+        let phases = |j: &str| {
+            t.tracking
+                .get(j)
+                .map_or([f64::NAN; 2], |p| [p.stance_rms_deg, p.swing_rms_deg])
+        };
+        let strikes = |f: fn(&pma_leg::stance::HeelStrikeStats) -> f64| {
+            ["hip", "knee"].map(|j| t.heel_strikes.get(j).map_or(f64::NAN, f))
+        };
+        Self {
+            hip_stance_swing_rms_deg: phases("hip"),
+            knee_stance_swing_rms_deg: phases("knee"),
+            peak_grf_bw: t.peak_grf_bw.mean,
+            loading_rate_bw_s: t.loading_rate_bw_s.mean,
+            stance_fraction: [t.stance_fraction.mean, t.reference_stance_fraction],
+            slip_per_stride_m: t.slip_per_stride_m.mean,
+            heel_strike_max_deviation_deg: strikes(|h| h.deviation_deg.max),
+            heel_strike_max_recovery_s: strikes(|h| h.recovery_s.max),
+            heel_strikes_unrecovered: ["hip", "knee"]
+                .map(|j| t.heel_strikes.get(j).map_or(0, |h| h.not_recovered)),
+        }
+    }
 }
 
 impl CompareRow {
@@ -86,13 +142,32 @@ impl CompareRow {
                 .clone()
                 .map(|m| m.peak_over_rated)
                 .fold(0.0, f64::max),
-            valve_saturated_s: muscles.map(|m| m.valve_saturated_s).sum(),
+            valve_saturated_s: muscles.clone().map(|m| m.valve_saturated_s).sum(),
             time_outside_limits_s: report
                 .safety
                 .joints
                 .values()
                 .map(|l| l.time_outside_s)
                 .sum(),
+            time_over_rated_s: report
+                .safety
+                .muscles
+                .values()
+                .map(|m| m.time_over_rated_s)
+                .sum(),
+            min_force_margin_n: report
+                .safety
+                .muscles
+                .values()
+                .map(|m| m.margin_n)
+                .fold(f64::INFINITY, f64::min),
+            time_beyond_normal_range_s: report
+                .safety
+                .joints
+                .values()
+                .map(|l| l.time_beyond_normal_range_s)
+                .sum(),
+            treadmill: report.treadmill.as_ref().map(TreadmillRow::of),
             finite: report.finite,
         }
     }

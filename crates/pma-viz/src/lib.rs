@@ -287,6 +287,32 @@ pub struct Frame<'a> {
     pub link_poses: &'a [([f64; 3], [f64; 4])],
     /// One segment per registered muscle line: end points (m) and pressure (Pa).
     pub muscle_lines: &'a [([f64; 3], [f64; 3], f64)],
+    /// The ground reaction, if [`Viz::ground`] registered one.
+    pub ground: Option<GroundFrame<'a>>,
+}
+
+/// The ground's reaction on a foot in one frame.
+#[derive(Debug, Clone, Copy)]
+pub struct GroundFrame<'a> {
+    /// Points where the foot touches the ground (m).
+    pub contacts_m: &'a [[f64; 3]],
+    /// Where the resultant acts: the centre of pressure (m).
+    pub at_m: [f64; 3],
+    /// The resultant force (N); drawn at [`GRF_ARROW_M_PER_N`].
+    pub force_n: [f64; 3],
+}
+
+/// Length of the ground reaction's arrow per newton (m/N): 1 kN is half a metre.
+pub const GRF_ARROW_M_PER_N: f64 = 5e-4;
+
+/// Buffered rows of the ground reaction: arrows (origin, vector) and contact points.
+#[derive(Debug)]
+struct GroundColumns {
+    arrow_path: String,
+    points_path: String,
+    arrows: Vec<([f32; 3], [f32; 3])>,
+    points: Vec<[f32; 3]>,
+    counts: Vec<usize>,
 }
 
 /// A recording stream with the registered layout.
@@ -301,6 +327,7 @@ pub struct Viz {
     series: Vec<Columns<f64>>,
     links: Vec<Columns<([f32; 3], [f32; 4])>>,
     muscles: Vec<Columns<LineRow>>,
+    ground: Option<GroundColumns>,
     pressure_max_pa: f64,
     every: i64,
     /// `None`: wait for the sink however long it takes (file, memory).
@@ -396,6 +423,7 @@ impl Viz {
             series: Vec::new(),
             links: Vec::new(),
             muscles: Vec::new(),
+            ground: None,
             pressure_max_pa: 6.0e5,
             every,
             flush_timeout: None,
@@ -473,6 +501,64 @@ impl Viz {
             .map_err(rr)?;
         }
         self.links.push(Columns::new(path));
+        Ok(())
+    }
+
+    /// Draws a static box (a belt, a floor) at `world/<name>`.
+    pub fn fixture(&self, name: &str, shape: &Shape, rgb: [u8; 3]) -> Result<(), VizError> {
+        let color = rerun::Color::from_rgb(rgb[0], rgb[1], rgb[2]);
+        let path = format!("world/{name}");
+        match *shape {
+            Shape::Box { center, half_size } => self.rec.log_static(
+                path,
+                &rerun::Boxes3D::from_centers_and_half_sizes([center], [half_size])
+                    .with_colors([color])
+                    .with_fill_mode(rerun::FillMode::Solid),
+            ),
+            Shape::Cylinder {
+                center,
+                radius,
+                length,
+            } => self.rec.log_static(
+                path,
+                &rerun::Cylinders3D::from_lengths_and_radii([length], [radius])
+                    .with_centers([center])
+                    .with_colors([color]),
+            ),
+        }
+        .map_err(rr)
+    }
+
+    /// Registers a ground reaction drawn at `world/<name>/grf` (an arrow at the centre of
+    /// pressure) and `world/<name>/contacts` (the contact points), in every frame's
+    /// [`Frame::ground`].
+    pub fn ground(&mut self, name: &str) -> Result<(), VizError> {
+        let arrow_path = format!("world/{name}/grf");
+        let points_path = format!("world/{name}/contacts");
+        self.rec
+            .log_static(
+                arrow_path.as_str(),
+                &rerun::Arrows3D::update_fields()
+                    .with_colors([rerun::Color::from_rgb(40, 160, 60)])
+                    .with_radii([0.008]),
+            )
+            .map_err(rr)?;
+        self.rec
+            .log_static(
+                points_path.as_str(),
+                &rerun::Points3D::update_fields()
+                    .with_colors([rerun::Color::from_rgb(230, 120, 20)])
+                    .with_radii([0.012]),
+            )
+            .map_err(rr)?;
+        self.ground = Some(GroundColumns {
+            arrow_path,
+            points_path,
+            arrows: Vec::with_capacity(CHUNK_LEN),
+            // Two spheres a foot in most models; more only reallocates once.
+            points: Vec::with_capacity(2 * CHUNK_LEN),
+            counts: Vec::with_capacity(CHUNK_LEN),
+        });
         Ok(())
     }
 
@@ -580,6 +666,18 @@ impl Viz {
             m.rows
                 .push(([f32x(a), f32x(b)], pressure_color(*p, self.pressure_max_pa)));
         }
+        if let (Some(g), Some(frame)) = (&mut self.ground, &f.ground) {
+            let vector = frame.force_n.map(|v| v * GRF_ARROW_M_PER_N);
+            // Out of contact the arrow has no origin: drawn as nothing at the origin.
+            let origin = if frame.at_m.iter().all(|v| v.is_finite()) {
+                frame.at_m
+            } else {
+                [0.0; 3]
+            };
+            g.arrows.push((f32x(&origin), f32x(&vector)));
+            g.points.extend(frame.contacts_m.iter().map(f32x));
+            g.counts.push(frame.contacts_m.len());
+        }
         if self.t_s.len() >= CHUNK_LEN {
             self.flush()?;
         }
@@ -634,6 +732,30 @@ impl Viz {
                     .collect(),
             )?;
             m.rows.clear();
+        }
+        if let Some(g) = &mut self.ground {
+            if g.arrows.len() == self.t_s.len() {
+                send(
+                    &g.arrow_path,
+                    rerun::Arrows3D::update_fields()
+                        .with_origins(g.arrows.iter().map(|r| r.0))
+                        .with_vectors(g.arrows.iter().map(|r| r.1))
+                        .columns_of_unit_batches()
+                        .map_err(rr)?
+                        .collect(),
+                )?;
+                send(
+                    &g.points_path,
+                    rerun::Points3D::update_fields()
+                        .with_positions(g.points.iter().copied())
+                        .columns(g.counts.iter().copied())
+                        .map_err(rr)?
+                        .collect(),
+                )?;
+            }
+            g.arrows.clear();
+            g.points.clear();
+            g.counts.clear();
         }
         self.t_s.clear();
         self.steps.clear();

@@ -1,0 +1,514 @@
+//! Gait on the treadmill, phase by phase: stance and swing detected from the foot's
+//! contact, the vertical ground reaction force (GRF) of every stride (peak, loading rate
+//! at heel strike), the stance fraction against the reference's, the foot's slip on the
+//! belt, tracking per phase, and each heel strike as a shock; accumulated by a
+//! [`Recorder`] whose buffers are sized before the run.
+use crate::control::LegOutput;
+use crate::gait::GaitReference;
+use crate::ground::GroundReaction;
+use crate::leg::{Leg, JOINT_NAMES};
+use crate::plant::SupervisedLeg;
+use pma_loop::{Period, Recorder};
+use std::collections::BTreeMap;
+
+/// Vertical GRF above which the foot is in stance (N): the usual force-plate threshold
+/// for gait events (10-20 N); well above the contact model's noise, well below a step.
+pub const CONTACT_THRESHOLD_N: f64 = 20.0;
+/// Shortest swing that separates two stances (s): a foot that bounces off the belt for a
+/// few milliseconds at heel strike has not taken a step.
+pub const MIN_SWING_S: f64 = 0.05;
+/// How long after a heel strike its shock is followed (s): the loading response lasts
+/// about the first 10 % of the cycle (0.16 s at a 1.6 s stride); twice that.
+pub const HEEL_STRIKE_FOLLOW_S: f64 = 0.3;
+/// Error growth within which a joint counts as recovered from a heel strike (deg), as
+/// [`crate::safety::RECOVERED_DEG`] for a spasm.
+pub const HEEL_STRIKE_RECOVERED_DEG: f64 = 1.0;
+
+/// Smallest, mean and largest of a figure over the strides.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct Spread {
+    /// Mean.
+    pub mean: f64,
+    /// Smallest.
+    pub min: f64,
+    /// Largest.
+    pub max: f64,
+}
+
+impl Spread {
+    fn of(values: impl Iterator<Item = f64> + Clone) -> Self {
+        let n = values.clone().count();
+        if n == 0 {
+            return Self {
+                mean: f64::NAN,
+                min: f64::NAN,
+                max: f64::NAN,
+            };
+        }
+        let (sum, min, max) = values.fold((0.0, f64::INFINITY, f64::NEG_INFINITY), |a, v| {
+            (a.0 + v, a.1.min(v), a.2.max(v))
+        });
+        Self {
+            mean: sum / n as f64,
+            min,
+            max,
+        }
+    }
+}
+
+/// One stride, heel strike to heel strike.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct StrideReport {
+    /// Heel strike (s).
+    pub t_s: f64,
+    /// Duration (s).
+    pub duration_s: f64,
+    /// Largest vertical GRF in the first half of stance: the loading peak (body weights).
+    pub peak_grf_bw: f64,
+    /// Mean slope of the vertical GRF from 20 % to 80 % of that peak (body weights per s).
+    pub loading_rate_bw_s: f64,
+    /// Stance time over the stride's.
+    pub stance_fraction: f64,
+    /// Distance the foot slipped on the belt during stance (m).
+    pub slip_m: f64,
+}
+
+/// Tracking error of a joint in each phase, after the first stride (deg, RMS).
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct PhaseTracking {
+    /// While the foot is on the belt.
+    pub stance_rms_deg: f64,
+    /// While it swings.
+    pub swing_rms_deg: f64,
+}
+
+/// What the heel strikes did to a joint.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct HeelStrikeStats {
+    /// Heel strikes followed.
+    pub count: usize,
+    /// Growth of |tracking error| within [`HEEL_STRIKE_FOLLOW_S`] of the strike, beyond
+    /// its value at the strike (deg).
+    pub deviation_deg: Spread,
+    /// From the strike until the error is back within 1 deg of its value at the strike
+    /// for good (s), over the strikes that recovered within the follow-up.
+    pub recovery_s: Spread,
+    /// Strikes whose error was still more than 1 deg above its value at the strike at
+    /// the end of the follow-up.
+    pub not_recovered: usize,
+    /// Largest |dp/dt| of the joint's muscles within the follow-ups (bar/s).
+    pub peak_pressure_rate_bar_s: f64,
+}
+
+/// The treadmill's figures of a run.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TreadmillReport {
+    /// Belt speed (m/s).
+    pub belt_speed_m_s: f64,
+    /// Fraction of the system's weight the harness carries.
+    pub bws_fraction: f64,
+    /// The patient's body weight (N): the unit of the GRF figures (`*_bw`).
+    pub body_weight_n: f64,
+    /// The system's weight over the patient's (exoskeleton included).
+    pub system_weight_bw: f64,
+    /// Complete strides after the first (heel strike to heel strike).
+    pub strides: usize,
+    /// Loading peak of the vertical GRF per stride (body weights).
+    pub peak_grf_bw: Spread,
+    /// Loading rate at heel strike per stride (body weights per second).
+    pub loading_rate_bw_s: Spread,
+    /// Stance fraction per stride, detected from contact.
+    pub stance_fraction: Spread,
+    /// The reference's stance fraction (toe-off phase of the normative cycle).
+    pub reference_stance_fraction: f64,
+    /// Mean vertical GRF under this foot over the strides (body weights).
+    pub mean_grf_bw: f64,
+    /// Mean force of the virtual other leg over the strides (body weights).
+    pub mean_other_leg_bw: f64,
+    /// `mean_grf_bw + mean_other_leg_bw`, against `(1 - bws) x system_weight_bw` by impulse
+    /// balance: whatever the gait, the belt carries the unsupported weight on average.
+    pub mean_belt_load_bw: f64,
+    /// `(1 - bws_fraction) x system_weight_bw`.
+    pub expected_belt_load_bw: f64,
+    /// Slip of the foot on the belt per stride (m).
+    pub slip_per_stride_m: Spread,
+    /// Mean slip speed during stance (m/s).
+    pub mean_stance_slip_m_s: f64,
+    /// Deepest penetration of a foot sphere into the belt (mm).
+    pub max_penetration_mm: f64,
+    /// Range of the pelvis's height over the strides (m): the stride's vertical excursion.
+    pub pelvis_excursion_m: f64,
+    /// Tracking per phase (`hip`, `knee`).
+    pub tracking: BTreeMap<String, PhaseTracking>,
+    /// Heel strikes as shocks (`hip`, `knee`).
+    pub heel_strikes: BTreeMap<String, HeelStrikeStats>,
+    /// Every complete stride after the first.
+    pub per_stride: Vec<StrideReport>,
+}
+
+/// Time integrals over a stride, or over every counted stride.
+#[derive(Debug, Clone, Copy)]
+struct StrideSums {
+    /// Of this foot's vertical GRF and the other leg's (N s).
+    impulse_n_s: [f64; 2],
+    duration_s: f64,
+    stance_s: f64,
+    /// Of the slip speed in stance (m).
+    slip_m: f64,
+    /// Lowest and highest pelvis (m).
+    pelvis_m: (f64, f64),
+}
+
+impl Default for StrideSums {
+    fn default() -> Self {
+        Self {
+            impulse_n_s: [0.0; 2],
+            duration_s: 0.0,
+            stance_s: 0.0,
+            slip_m: 0.0,
+            pelvis_m: (f64::INFINITY, f64::NEG_INFINITY),
+        }
+    }
+}
+
+impl StrideSums {
+    fn add(&mut self, o: &StrideSums) {
+        self.impulse_n_s[0] += o.impulse_n_s[0];
+        self.impulse_n_s[1] += o.impulse_n_s[1];
+        self.duration_s += o.duration_s;
+        self.stance_s += o.stance_s;
+        self.slip_m += o.slip_m;
+        self.pelvis_m = (
+            self.pelvis_m.0.min(o.pelvis_m.0),
+            self.pelvis_m.1.max(o.pelvis_m.1),
+        );
+    }
+}
+
+/// A heel strike being followed.
+#[derive(Debug, Clone, Copy)]
+struct Strike {
+    t_s: f64,
+    error0_deg: [f64; 2],
+    worst_deg: [f64; 2],
+    last_out_s: [Option<f64>; 2],
+    out_at_end: [bool; 2],
+    peak_rate: [f64; 2],
+}
+
+/// Accumulates the [`TreadmillReport`].
+#[derive(Debug, Clone)]
+pub struct TreadmillMetrics {
+    stride_s: f64,
+    period_s: f64,
+    reference_stance: f64,
+    belt_speed_m_s: f64,
+    bws_fraction: f64,
+    body_weight_n: f64,
+    system_weight_n: f64,
+    joint_of: [usize; 4],
+    in_stance: bool,
+    /// When the foot last left the belt (s).
+    left_s: f64,
+    /// Heel strike of the stride under way, and its toe-off.
+    stride_start_s: Option<f64>,
+    toe_off_s: Option<f64>,
+    /// The stride's vertical GRF, one value per period (sized for three strides).
+    grf: Vec<f64>,
+    /// The stride under way: its sums, added to the run's when it completes.
+    stride: StrideSums,
+    strides: Vec<StrideReport>,
+    strikes: Vec<Strike>,
+    /// Sums over the counted strides.
+    total: StrideSums,
+    deepest_m: f64,
+    phase_sq: [[f64; 2]; 2],
+    phase_n: [[usize; 2]; 2],
+    previous_p: [f64; 4],
+}
+
+impl TreadmillMetrics {
+    /// Figures for `leg` on its treadmill walking `gait`, over a run of `duration_s` at
+    /// `period_s`, muscle `i` acting on joint `joint_of[i]`; `None` off a treadmill.
+    pub fn new(
+        leg: &Leg,
+        gait: &GaitReference,
+        joint_of: [usize; 4],
+        duration_s: f64,
+        period_s: f64,
+    ) -> Option<Self> {
+        let ground = leg.ground()?;
+        let settings = ground.settings();
+        let g = pma_model::GRAVITY_M_S2;
+        let stride_s = gait.stride_period_s();
+        let strides = (duration_s / stride_s).ceil() as usize + 2;
+        Some(Self {
+            stride_s,
+            period_s,
+            reference_stance: gait.toe_off_phase(),
+            belt_speed_m_s: settings.belt_speed_m_s(),
+            bws_fraction: settings.bws_fraction,
+            body_weight_n: settings.body_mass_kg * g,
+            system_weight_n: ground.total_mass_kg() * g,
+            joint_of,
+            in_stance: true,
+            left_s: f64::NEG_INFINITY,
+            stride_start_s: None,
+            toe_off_s: None,
+            grf: Vec::with_capacity((3.0 * stride_s / period_s) as usize + 1),
+            stride: StrideSums::default(),
+            strides: Vec::with_capacity(strides),
+            strikes: Vec::with_capacity(strides),
+            total: StrideSums::default(),
+            deepest_m: 0.0,
+            phase_sq: [[0.0; 2]; 2],
+            phase_n: [[0; 2]; 2],
+            previous_p: [f64::NAN; 4],
+        })
+    }
+
+    /// Closes the stride that began at `start_s` with the heel strike at `t_s`.
+    fn close_stride(&mut self, start_s: f64, t_s: f64) {
+        let duration = t_s - start_s;
+        let stance = self.toe_off_s.map_or(duration, |t| t - start_s);
+        let bw = self.body_weight_n;
+        // The loading peak lies in the first half of stance.
+        let half = ((0.5 * stance / self.period_s) as usize).clamp(1, self.grf.len().max(1));
+        let first = &self.grf[..half.min(self.grf.len())];
+        let peak = first.iter().copied().fold(0.0, f64::max);
+        let crossing = |level: f64| first.iter().position(|&f| f >= level);
+        let rate = match (crossing(0.2 * peak), crossing(0.8 * peak)) {
+            (Some(a), Some(b)) if b > a => 0.6 * peak / ((b - a) as f64 * self.period_s),
+            _ => f64::NAN,
+        };
+        // Strides whose heel strike falls in the first stride are not counted.
+        if start_s >= self.stride_s && self.strides.len() < self.strides.capacity() {
+            self.strides.push(StrideReport {
+                t_s: start_s,
+                duration_s: duration,
+                peak_grf_bw: peak / bw,
+                loading_rate_bw_s: rate / bw,
+                stance_fraction: stance / duration,
+                slip_m: self.stride.slip_m,
+            });
+            self.total.add(&self.stride);
+        }
+    }
+
+    fn heel_strike(&mut self, t_s: f64, error_deg: [f64; 2]) {
+        if let Some(start) = self.stride_start_s {
+            self.close_stride(start, t_s);
+        }
+        self.stride_start_s = Some(t_s);
+        self.toe_off_s = None;
+        self.grf.clear();
+        self.stride = StrideSums::default();
+        if t_s >= self.stride_s && self.strikes.len() < self.strikes.capacity() {
+            self.strikes.push(Strike {
+                t_s,
+                error0_deg: error_deg.map(f64::abs),
+                worst_deg: [0.0; 2],
+                last_out_s: [None; 2],
+                out_at_end: [false; 2],
+                peak_rate: [0.0; 2],
+            });
+        }
+    }
+
+    fn follow_strike(&mut self, t_s: f64, error_deg: [f64; 2], rate: [f64; 4]) {
+        let Some(s) = self.strikes.last_mut() else {
+            return;
+        };
+        if t_s > s.t_s + HEEL_STRIKE_FOLLOW_S {
+            return;
+        }
+        for (j, e) in error_deg.iter().enumerate() {
+            let growth = e.abs() - s.error0_deg[j];
+            s.worst_deg[j] = s.worst_deg[j].max(growth);
+            let out = growth > HEEL_STRIKE_RECOVERED_DEG;
+            if out {
+                s.last_out_s[j] = Some(t_s);
+            }
+            s.out_at_end[j] = out;
+        }
+        for (i, r) in rate.iter().enumerate() {
+            if r.is_finite() {
+                let j = self.joint_of[i];
+                s.peak_rate[j] = s.peak_rate[j].max(r.abs());
+            }
+        }
+    }
+
+    /// The report of the run so far.
+    pub fn report(&self) -> TreadmillReport {
+        let bw = self.body_weight_n;
+        let s = &self.strides;
+        let t = &self.total;
+        let per_counted = |v: f64| {
+            if t.duration_s > 0.0 {
+                v / t.duration_s / bw
+            } else {
+                f64::NAN
+            }
+        };
+        let (mean_grf, mean_other) = (per_counted(t.impulse_n_s[0]), per_counted(t.impulse_n_s[1]));
+        let system = self.system_weight_n / bw;
+        let rms = |j: usize, k: usize| {
+            if self.phase_n[j][k] > 0 {
+                (self.phase_sq[j][k] / self.phase_n[j][k] as f64).sqrt()
+            } else {
+                f64::NAN
+            }
+        };
+        let tracking = JOINT_NAMES
+            .iter()
+            .enumerate()
+            .map(|(j, n)| {
+                (
+                    (*n).to_owned(),
+                    PhaseTracking {
+                        stance_rms_deg: rms(j, 0),
+                        swing_rms_deg: rms(j, 1),
+                    },
+                )
+            })
+            .collect();
+        let heel_strikes = JOINT_NAMES
+            .iter()
+            .enumerate()
+            .map(|(j, n)| ((*n).to_owned(), self.strike_stats(j)))
+            .collect();
+        TreadmillReport {
+            belt_speed_m_s: self.belt_speed_m_s,
+            bws_fraction: self.bws_fraction,
+            body_weight_n: bw,
+            system_weight_bw: system,
+            strides: s.len(),
+            peak_grf_bw: Spread::of(s.iter().map(|r| r.peak_grf_bw)),
+            loading_rate_bw_s: Spread::of(
+                s.iter()
+                    .map(|r| r.loading_rate_bw_s)
+                    .filter(|v| v.is_finite()),
+            ),
+            stance_fraction: Spread::of(s.iter().map(|r| r.stance_fraction)),
+            reference_stance_fraction: self.reference_stance,
+            mean_grf_bw: mean_grf,
+            mean_other_leg_bw: mean_other,
+            mean_belt_load_bw: mean_grf + mean_other,
+            expected_belt_load_bw: (1.0 - self.bws_fraction) * system,
+            slip_per_stride_m: Spread::of(s.iter().map(|r| r.slip_m)),
+            mean_stance_slip_m_s: if t.stance_s > 0.0 {
+                t.slip_m / t.stance_s
+            } else {
+                f64::NAN
+            },
+            max_penetration_mm: self.deepest_m * 1e3,
+            pelvis_excursion_m: if t.pelvis_m.1 >= t.pelvis_m.0 {
+                t.pelvis_m.1 - t.pelvis_m.0
+            } else {
+                f64::NAN
+            },
+            tracking,
+            heel_strikes,
+            per_stride: s.clone(),
+        }
+    }
+
+    fn strike_stats(&self, j: usize) -> HeelStrikeStats {
+        let strikes = &self.strikes;
+        let recovered = strikes.iter().filter(|s| !s.out_at_end[j]);
+        HeelStrikeStats {
+            count: strikes.len(),
+            deviation_deg: Spread::of(strikes.iter().map(|s| s.worst_deg[j])),
+            recovery_s: Spread::of(recovered.map(|s| s.last_out_s[j].map_or(0.0, |t| t - s.t_s))),
+            not_recovered: strikes.iter().filter(|s| s.out_at_end[j]).count(),
+            peak_pressure_rate_bar_s: strikes
+                .iter()
+                .map(|s| s.peak_rate[j] / 1e5)
+                .fold(0.0, f64::max),
+        }
+    }
+}
+
+/// What [`TreadmillMetrics`] takes from one period.
+#[derive(Debug, Clone, Copy)]
+pub struct GroundPeriod {
+    /// Time of the reading (s) and since the previous one (s).
+    pub t_s: f64,
+    /// Length of the period (s).
+    pub dt_s: f64,
+    /// The belt's reaction over the period.
+    pub ground: GroundReaction,
+    /// Pelvis height (m).
+    pub pelvis_height_m: f64,
+    /// Tracking errors (deg), hip and knee.
+    pub error_deg: [f64; 2],
+    /// Muscle pressures (Pa; NaN without muscles).
+    pub pressure_pa: [f64; 4],
+}
+
+impl TreadmillMetrics {
+    /// Accumulates one period.
+    pub fn push(&mut self, p: &GroundPeriod) {
+        let (t, dt, g, error_deg) = (p.t_s, p.dt_s, p.ground, p.error_deg);
+        let rate: [f64; 4] = std::array::from_fn(|i| (p.pressure_pa[i] - self.previous_p[i]) / dt);
+        self.previous_p = p.pressure_pa;
+        let contact = g.vertical_n > CONTACT_THRESHOLD_N;
+        if contact && !self.in_stance {
+            if t - self.left_s >= MIN_SWING_S {
+                self.heel_strike(t, error_deg);
+            } else {
+                // A bounce: the stance goes on.
+                self.toe_off_s = None;
+            }
+            self.in_stance = true;
+        } else if !contact && self.in_stance {
+            self.in_stance = false;
+            self.left_s = t;
+            self.toe_off_s = Some(t);
+        }
+        if self.stride_start_s.is_some() {
+            if self.grf.len() < self.grf.capacity() {
+                self.grf.push(g.vertical_n);
+            }
+            let st = &mut self.stride;
+            st.impulse_n_s[0] += g.vertical_n * dt;
+            st.impulse_n_s[1] += g.contralateral_n * dt;
+            st.duration_s += dt;
+            if self.in_stance {
+                st.stance_s += dt;
+                st.slip_m += g.slip_m_s * dt;
+            }
+            let z = p.pelvis_height_m;
+            st.pelvis_m = (st.pelvis_m.0.min(z), st.pelvis_m.1.max(z));
+        }
+        self.follow_strike(t, error_deg, rate);
+        self.deepest_m = self.deepest_m.max(g.penetration_m);
+        if t > self.stride_s {
+            let phase = usize::from(!self.in_stance);
+            for (j, e) in error_deg.iter().enumerate() {
+                self.phase_sq[j][phase] += e * e;
+                self.phase_n[j][phase] += 1;
+            }
+        }
+    }
+}
+
+impl Recorder<SupervisedLeg, LegOutput> for TreadmillMetrics {
+    fn record(&mut self, p: &Period<'_, SupervisedLeg, LegOutput>) {
+        let s = p.truth;
+        let Some(ground) = s.ground else {
+            return;
+        };
+        self.push(&GroundPeriod {
+            t_s: p.t_s,
+            dt_s: p.dt_s,
+            ground,
+            pelvis_height_m: s.pelvis_height_m.unwrap_or(f64::NAN),
+            error_deg: std::array::from_fn(|j| {
+                (p.output.reference_rad[j] - s.angle_rad[j]).to_degrees()
+            }),
+            pressure_pa: s.pressure_pa,
+        });
+    }
+}

@@ -1,0 +1,169 @@
+//! `pma-exo size`: the Festo muscles and pulleys a scenario's gait needs.
+use crate::output::{self, OutFile};
+use crate::provenance::Provenance;
+use crate::say;
+use anyhow::{bail, Result};
+use pma_leg::demand::stride_demand;
+use pma_leg::sizing::{muscle_geometry, muscles_toml, size_joints, JointSizing, Sizing};
+use pma_leg::Scenario;
+use std::path::PathBuf;
+
+/// `size`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// An embedded scenario (gait_treadmill, gait_treadmill_spastic, or an in-air one) or a
+    /// scenario .toml file: its gait, patient, body-weight support and valve.
+    #[arg(default_value = "gait_treadmill")]
+    scenario: String,
+    /// Strides measured (after the start-up ramp and one stride).
+    #[arg(long, default_value_t = 3)]
+    strides: usize,
+    /// Longest muscle considered (m): up to 0.4 m fits along the thigh, longer muscles sit
+    /// on the trainer's frame and pull through cables.
+    #[arg(long, default_value_t = 1.2, allow_negative_numbers = true)]
+    max_length_m: f64,
+    /// Where to write the recommended muscle geometry.
+    #[arg(long, default_value = "muscles.toml")]
+    out: PathBuf,
+    /// Print the sizing as JSON instead of a summary.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs `size`.
+pub fn run(a: Args) -> Result<i32> {
+    if !(a.max_length_m.is_finite() && a.max_length_m >= 0.1) {
+        bail!(
+            "--max-length-m must be at least 0.1 m (the shortest length tried; got {})",
+            a.max_length_m
+        );
+    }
+    if !(1..=50).contains(&a.strides) {
+        bail!("--strides must be 1..=50 (got {})", a.strides);
+    }
+    let loaded = Scenario::load(&a.scenario)?;
+    output::refuse_input_as_output(
+        &super::scenario_inputs(&a.scenario, &loaded, None),
+        &[("--out", &a.out)],
+    )?;
+    let out_file = OutFile::create(&a.out)?;
+    let sc = &loaded.scenario;
+    let demand = stride_demand(&loaded, a.strides)?;
+    let p_max = sc.plant.valve.pressure_max_pa;
+    let sizing = size_joints(&demand, p_max, a.max_length_m);
+    let provenance = Provenance {
+        scenario: Some(sc.name.clone()),
+        patient: Some(super::simulate::patient_name(&loaded)),
+        seed: super::simulate::spasm_seed(&loaded),
+        ..Provenance::of_this_run()
+    };
+    let written = match muscle_geometry(&sizing) {
+        Some(muscles) => {
+            let header = format!(
+                "Muscle geometry recommended by `pma-exo size {}` (docs/treadmill.md).\nEach joint: the smallest Festo size that supplies the stride's torques within\nits rating, a 25 % contraction, the valve's range and its useful speed, then the\nlargest margin. Set the scenario's control.cocontraction_pa to {}.\n{}",
+                sc.name,
+                sizing
+                    .cocontraction_pa
+                    .map_or_else(|| "(none common)".to_owned(), |p| format!("{p:.4e}")),
+                provenance.line()
+            );
+            out_file.finish_with(&muscles_toml(&muscles, &header))?;
+            true
+        }
+        None => false,
+    };
+    if a.json {
+        let json = serde_json::json!({
+            "provenance": provenance,
+            "servo_max_error_deg": demand.max_error_deg,
+            "treadmill": demand.treadmill,
+            "sizing": sizing,
+            "muscle_geometry": written.then(|| a.out.display().to_string()),
+        });
+        say!("{}", serde_json::to_string_pretty(&json)?);
+    } else {
+        print_summary(&sizing, &demand, &sc.name)?;
+        say!("{}", provenance.line());
+    }
+    if written {
+        eprintln!("wrote {}", a.out.display());
+        Ok(0)
+    } else {
+        eprintln!(
+            "no Festo DMSP pair up to {} m long on a pulley up to 120 mm works for every joint: nothing written",
+            a.max_length_m
+        );
+        Ok(1)
+    }
+}
+
+fn print_summary(s: &Sizing, demand: &pma_leg::demand::Demand, scenario: &str) -> Result<()> {
+    say!(
+        "{scenario}: what a stride asks of the joints (servos along the reference, within {:.2} / {:.2} deg at hip / knee), and the muscles that supply it",
+        demand.max_error_deg[0],
+        demand.max_error_deg[1]
+    );
+    if let Some(t) = &demand.treadmill {
+        say!(
+            "  on the belt at {:.3} m/s with {:.0} % support: GRF loading peak {:.2} BW, stance {:.1} % (reference {:.1} %), slip {:.1} mm per stride",
+            t.belt_speed_m_s,
+            100.0 * t.bws_fraction,
+            t.peak_grf_bw.mean,
+            100.0 * t.stance_fraction.mean,
+            100.0 * t.reference_stance_fraction,
+            1e3 * t.slip_per_stride_m.mean
+        );
+    }
+    for j in &s.joints {
+        print_joint(j)?;
+    }
+    match s.cocontraction_pa {
+        Some(p) => say!(
+            "  co-contraction at which both pairs work with the widest margin: {:.2} bar",
+            p / 1e5
+        ),
+        None => say!("  no co-contraction pressure suits both joints"),
+    }
+    Ok(())
+}
+
+fn print_joint(j: &JointSizing) -> Result<()> {
+    say!(
+        "  {:5} range {:.1}..{:.1} deg, torque {:.1}..{:.1} N m, up to {:.0} deg/s",
+        j.joint,
+        j.range_deg[0],
+        j.range_deg[1],
+        j.torque_nm[0],
+        j.torque_nm[1],
+        j.peak_speed_deg_s
+    );
+    for ((size, n), (_, rejected)) in j.feasible_per_size.iter().zip(&j.rejected_per_size) {
+        let why: Vec<String> = rejected
+            .iter()
+            .map(|(r, k)| format!("{k} {}", r.as_str()))
+            .collect();
+        say!(
+            "    {size}: {n} designs work; the others fail on {}",
+            if why.is_empty() {
+                "nothing".to_owned()
+            } else {
+                why.join(", ")
+            }
+        );
+    }
+    match &j.recommended {
+        Some(d) => say!(
+            "    recommended: {} {:.2} m on a {:.0} mm pulley at {:.2} bar: peak force {:.2} of its rating, strain up to {:.1} %, speed up to {:.2} of its useful speed, pressure headroom {:.1} %",
+            d.size,
+            d.rest_length_m,
+            1e3 * d.pulley_radius_m,
+            d.cocontraction_pa / 1e5,
+            d.peak_force_over_rated,
+            100.0 * d.max_strain,
+            d.speed_over_useful,
+            100.0 * d.pressure_headroom
+        ),
+        None => say!("    no design works"),
+    }
+    Ok(())
+}
