@@ -26,6 +26,7 @@ fn tables() -> Vec<(&'static str, Schema)> {
             "simulate",
             with_time(LegSample::schema(&["{muscle}".to_owned()])),
         ),
+        ("simulate-treadmill", LegSample::ground_schema()),
         ("pendulum", with_time(PendulumSample::schema())),
         ("single", with_time(Sample::schema())),
     ]

@@ -351,3 +351,102 @@ fn a_rig_fault_and_its_vent_are_logged_as_an_event() {
     assert_eq!(marks, times, "the fault is marked on the position plot too");
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// Every logged row's `component` values at `path`, as `[f32; 3]`, with their times.
+fn logged_vectors(
+    msgs: &[LogMsg],
+    path: &str,
+    component: rerun::ComponentIdentifier,
+) -> Vec<(f64, Vec<[f32; 3]>)> {
+    let mut out = Vec::new();
+    for msg in msgs {
+        let LogMsg::ArrowMsg(_, arrow) = msg else {
+            continue;
+        };
+        let chunk = Chunk::from_arrow_msg(arrow).expect("chunk");
+        if chunk.is_static() || chunk.entity_path().to_string() != path {
+            continue;
+        }
+        let times: Vec<f64> = chunk.timelines()[&"sim_time".into()]
+            .times_raw()
+            .iter()
+            .map(|ns| *ns as f64 * 1e-9)
+            .collect();
+        for (t, v) in times
+            .into_iter()
+            .zip(chunk.iter_slices::<[f32; 3]>(component))
+        {
+            out.push((t, v.to_vec()));
+        }
+    }
+    out
+}
+
+#[test]
+fn a_treadmill_recording_shows_the_belt_the_contacts_the_grf_and_the_phases() {
+    let loaded = Scenario::load("gait_treadmill").unwrap();
+    let mut sim = LegSim::new(&loaded).unwrap();
+    let (mut v, storage) = Viz::memory("test", loaded.scenario.period_s, None).unwrap();
+    let channels = viz::leg_layout(&mut v, &sim, "# test").unwrap();
+    let mut samples = Vec::new();
+    let mut shank = Vec::new();
+    let (mut step, mut scalars) = (0i64, vec![0.0; channels]);
+    let mut observe = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
+        step += 1;
+        let s = LegSample::of(p);
+        samples.push(s);
+        let leg = p.backend.leg();
+        let i = leg.link_names().position(|n| n == "shank").unwrap();
+        shank.push(leg.link_pose(i).0.map(|x| x as f32));
+        viz::push_leg(&mut v, p.backend, &s, step, &mut scalars).unwrap();
+    });
+    sim.run(3.0, &mut observe).unwrap();
+    v.finish().unwrap();
+    let msgs = storage.take();
+    let (series, rows) = decode(&msgs);
+    // The belt (static), its stripes (moving with it), the contacts and the force arrow.
+    assert!(rows.contains_key("/world/belt"));
+    for path in [
+        "/world/belt_stripes",
+        "/world/foot_on_belt/grf",
+        "/world/foot_on_belt/contacts",
+    ] {
+        assert_eq!(rows[path], 3000, "{path}");
+    }
+    // The stripes travel backwards at the belt's speed, wrapping every 0.2 m.
+    let stripes = logged_translations(&msgs, "/world/belt_stripes");
+    let speed = sim.leg().ground().unwrap().settings().belt_speed_m_s();
+    let (a, b) = (stripes[2000][0], stripes[2010][0]);
+    let moved = f64::from(a - b).rem_euclid(0.2);
+    assert!(
+        (moved - speed * 0.01).abs() < 1e-4,
+        "{moved} vs {}",
+        speed * 0.01
+    );
+    // Every link where the simulation had it, the treadmill's five links included.
+    assert_eq!(logged_translations(&msgs, "/world/shank"), shank);
+    // The phases and the ground reaction as series, the simulation's own values.
+    let stance = &series["/ground/foot/stance"].1;
+    let grf = &series["/ground/foot/grf_vertical_n"].1;
+    assert_eq!(stance.len(), 3000);
+    assert!(stance.iter().any(|s| *s == 0.0) && stance.iter().any(|s| *s == 1.0));
+    for (k, s) in samples.iter().enumerate() {
+        let (g, _, _) = s.ground.unwrap();
+        assert_eq!(grf[k], g.vertical_n);
+        assert_eq!(
+            stance[k] == 1.0,
+            g.vertical_n > pma_leg::stance::CONTACT_THRESHOLD_N
+        );
+    }
+    // The arrow is the force at the last substep, 1 kN to half a metre, upwards in stance.
+    let arrows = logged_vectors(
+        &msgs,
+        "/world/foot_on_belt/grf",
+        rerun::Arrows3D::descriptor_vectors().component,
+    );
+    assert_eq!(arrows.len(), 3000);
+    let threshold = (pma_leg::stance::CONTACT_THRESHOLD_N * pma_viz::GRF_ARROW_M_PER_N) as f32;
+    let up = arrows.iter().filter(|(_, v)| v[0][2] > threshold).count();
+    let in_stance = stance.iter().filter(|s| **s == 1.0).count();
+    assert_eq!(up, in_stance, "arrows up vs periods in stance");
+}

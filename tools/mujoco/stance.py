@@ -183,15 +183,37 @@ def case(m, total, body_mass_kg, hip_deg, knee_deg, bws):
     }
 
 
+def check(rows, path):
+    """Compares `rows` with the cases in `path`; a message (non-zero exit) if they moved."""
+    keys = ("vertical_n", "heel_vertical_n", "ball_vertical_n", "hip_torque_nm", "knee_torque_nm")
+    old = json.loads(pathlib.Path(path).read_text())["cases"]
+    if len(old) != len(rows):
+        return f"{path}: {len(old)} cases, now {len(rows)}: regenerate it with --json"
+    for a, b in zip(old, rows):
+        for k in keys:
+            scale = max(abs(a["vertical_n"]) * 0.01, abs(a[k]))
+            if abs(a[k] - b[k]) > 1e-3 * scale:
+                return (f"{path}: hip {b['hip_deg']:.2f} knee {b['knee_deg']:.2f} bws "
+                        f"{b['bws_fraction']}: {k} {a[k]} there, {b[k]} now: regenerate it")
+    print(f"{path}: the {len(rows)} cases agree within 0.1 %")
+    return 0
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--body-mass-kg", type=float, default=75.0)
     ap.add_argument("--json", action="store_true", help="JSON on stdout instead of a table")
+    ap.add_argument("--check", metavar="FILE",
+                    help="compare with an earlier --json output (CI: tools/mujoco/stance.json, "
+                         "which tests/treadmill_mujoco.rs reads); exit 1 if a force or torque "
+                         "moved by more than 0.1 %%")
     args = ap.parse_args()
     m, total = build(args.body_mass_kg)
     rows = [case(m, total, args.body_mass_kg, h, k, b)
             for b in BWS_FRACTIONS for h, k in POSES_DEG]
     bad = [r for r in rows if abs(r["vertical_error_pct"]) > 0.5]
+    if args.check:
+        sys.exit(check(rows, args.check))
     if args.json:
         urdf = str(URDF.relative_to(URDF.parents[3]))
         json.dump({"mujoco": mujoco.__version__, "urdf": urdf, "gravity": G, "cases": rows},

@@ -333,7 +333,42 @@ impl LegPlant {
                 });
             }
         }
-        Ok(())
+        self.check_ground()
+    }
+
+    /// On a treadmill: the pelvis finite and the foot no deeper in the belt than its
+    /// spheres are wide (Hertz contact means nothing past that: the model has failed).
+    fn check_ground(&self) -> Result<(), LegError> {
+        let (Some(g), Some(r)) = (self.leg.ground(), self.leg.ground_reaction()) else {
+            return Ok(());
+        };
+        let bound_m = g
+            .spheres()
+            .iter()
+            .map(|s| 2.0 * s.radius_m)
+            .fold(0.0, f64::max);
+        let z = self.leg.pelvis_height_m().unwrap_or(f64::NAN);
+        let what = if !(z.is_finite() && r.vertical_n.is_finite()) {
+            Some(format!(
+                "the pelvis or the ground reaction is not finite ({z} m, {} N)",
+                r.vertical_n
+            ))
+        } else if r.penetration_m > bound_m {
+            Some(format!(
+                "the foot is {:.1} mm into the belt (bound {:.0} mm, its spheres' diameter)",
+                r.penetration_m * 1e3,
+                bound_m * 1e3
+            ))
+        } else {
+            None
+        };
+        match what {
+            Some(what) => Err(LegError::LeftPhysics {
+                t_s: self.time(),
+                what,
+            }),
+            None => Ok(()),
+        }
     }
 }
 

@@ -85,6 +85,13 @@ impl LegSample {
 const JOINTS: [&str; 2] = ["hip", "knee"];
 
 impl LegSample {
+    /// The treadmill's channels alone (they follow the leg's in [`Self::schema_of`]).
+    pub fn ground_schema() -> Schema {
+        let mut s = Schema::new();
+        Self::push_ground_schema(&mut s);
+        s
+    }
+
     /// The treadmill's channels, after the leg's: what the belt, the harness and the
     /// other leg do, and the phases.
     fn push_ground_schema(s: &mut Schema) {
@@ -104,13 +111,13 @@ impl LegSample {
             "ground",
             "foot",
             "stance",
-            "stance from contact (1) or swing (0)",
+            "in stance (1, from contact) or swing (0)",
         )
         .push_part(
             "ground",
             "foot",
             "reference_stance",
-            "the reference's stance (1) or swing (0)",
+            "in the reference's stance (1) or swing (0)",
         )
         .push_part("ground", "foot", "slip_m_s", "slip on the belt (m/s)")
         .push_part(
@@ -123,15 +130,15 @@ impl LegSample {
             "ground",
             "other_leg",
             "force_n",
-            "virtual other leg's force on the pelvis (N)",
+            "(virtual) force on the pelvis (N)",
         )
-        .push_part("ground", "harness", "force_n", "body-weight support (N)")
         .push_part(
             "ground",
-            "pelvis",
-            "height_m",
-            "pelvis height above the belt (m)",
-        );
+            "harness",
+            "force_n",
+            "body-weight support force (N)",
+        )
+        .push_part("ground", "pelvis", "height_m", "height above the belt (m)");
     }
 
     /// The leg's channels (after the time) for muscles named `muscles`, on a treadmill or
