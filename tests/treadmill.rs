@@ -151,13 +151,11 @@ fn a_static_stance_splits_and_holds_the_weight_as_mujoco_does() {
         // (Hertz spheres sink 30 mm under 868 N, so the lifted sphere of a tilted foot
         // still touches; MuJoCo's stiffer contact sinks 2.6 mm).
         let from_split = SPHERES_APART_M * (ball - c.ball_n).abs();
-        for j in 0..2 {
-            let allowed = 0.01 * c.torque_nm[j].abs() + from_split;
+        for (j, (ours, theirs)) in torque.iter().zip(c.torque_nm).enumerate() {
+            let allowed = 0.01 * theirs.abs() + from_split;
             assert!(
-                (torque[j] - c.torque_nm[j]).abs() < allowed,
-                "joint {j}: {} vs {} (allowed {allowed})",
-                torque[j],
-                c.torque_nm[j]
+                (ours - theirs).abs() < allowed,
+                "joint {j}: {ours} vs {theirs} (allowed {allowed})"
             );
         }
     }

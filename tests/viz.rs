@@ -429,7 +429,7 @@ fn a_treadmill_recording_shows_the_belt_the_contacts_the_grf_and_the_phases() {
     let stance = &series["/ground/foot/stance"].1;
     let grf = &series["/ground/foot/grf_vertical_n"].1;
     assert_eq!(stance.len(), 3000);
-    assert!(stance.iter().any(|s| *s == 0.0) && stance.iter().any(|s| *s == 1.0));
+    assert!(stance.contains(&0.0) && stance.contains(&1.0));
     for (k, s) in samples.iter().enumerate() {
         let (g, _, _) = s.ground.unwrap();
         assert_eq!(grf[k], g.vertical_n);
