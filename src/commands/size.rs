@@ -80,7 +80,7 @@ pub fn run(a: Args) -> Result<i32> {
             "sizing": sizing,
             "muscle_geometry": written.then(|| a.out.display().to_string()),
         });
-        say!("{}", serde_json::to_string_pretty(&json)?);
+        say!("{}", serde_json::to_string(&json)?);
     } else {
         print_summary(&sizing, &demand, &sc.name)?;
         say!("{}", provenance.line());
@@ -153,11 +153,13 @@ fn print_joint(j: &JointSizing) -> Result<()> {
     }
     match &j.recommended {
         Some(d) => say!(
-            "    recommended: {} {:.2} m on a {:.0} mm pulley at {:.2} bar: peak force {:.2} of its rating, strain up to {:.1} %, speed up to {:.2} of its useful speed, pressure headroom {:.1} %",
+            "    recommended: {} {:.2} m on a {:.0} mm pulley at {:.2} bar (it works from {:.2} to {:.2} bar): peak force {:.2} of its rating, strain up to {:.1} %, speed up to {:.2} of its useful speed, pressure headroom {:.1} %",
             d.size,
             d.rest_length_m,
             1e3 * d.pulley_radius_m,
             d.cocontraction_pa / 1e5,
+            j.recommended_cocontraction_range_pa.map_or(f64::NAN, |r| r[0] / 1e5),
+            j.recommended_cocontraction_range_pa.map_or(f64::NAN, |r| r[1] / 1e5),
             d.peak_force_over_rated,
             100.0 * d.max_strain,
             d.speed_over_useful,

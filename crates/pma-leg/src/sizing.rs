@@ -110,6 +110,9 @@ pub struct JointSizing {
     pub rejected_per_size: Vec<(String, Vec<(Reject, usize)>)>,
     /// The recommended design, if any works.
     pub recommended: Option<PairDesign>,
+    /// The co-contraction pressures (Pa) at which the recommended geometry works, lowest
+    /// and highest of those tried (the regulator need not hold it exactly).
+    pub recommended_cocontraction_range_pa: Option<[f64; 2]>,
 }
 
 /// The sizing of both joints.
@@ -294,6 +297,10 @@ pub fn size_joints(demand: &Demand, p_max: f64, max_length_m: f64) -> Sizing {
             let (_, (lo, hi)) = &per_joint[j];
             let candidates: Vec<Candidate> = grid.iter().flat_map(|(_, d)| d[j].clone()).collect();
             let all = feasible(&candidates);
+            let recommended = match &common {
+                Some((_, designs)) => Some(designs[j]),
+                None => best(&all),
+            };
             let rejected_per_size = DmspSize::ALL
                 .iter()
                 .map(|size| {
@@ -324,10 +331,18 @@ pub fn size_joints(demand: &Demand, p_max: f64, max_length_m: f64) -> Sizing {
                     })
                     .collect(),
                 rejected_per_size,
-                recommended: match &common {
-                    Some((_, designs)) => Some(designs[j]),
-                    None => best(&all),
-                },
+                recommended,
+                recommended_cocontraction_range_pa: recommended.and_then(|d| {
+                    let same = all.iter().filter(|o| {
+                        o.size == d.size
+                            && o.rest_length_m == d.rest_length_m
+                            && o.pulley_radius_m == d.pulley_radius_m
+                    });
+                    same.fold(None, |range: Option<[f64; 2]>, o| {
+                        let p = o.cocontraction_pa;
+                        Some(range.map_or([p, p], |[lo, hi]| [lo.min(p), hi.max(p)]))
+                    })
+                }),
             }
         })
         .collect();
