@@ -201,7 +201,7 @@ fn push_leg_frame(
             [0.0, 0.0, 0.0, 1.0],
         );
         n += 1;
-        let (mut k, mut force, mut moment) = (0, [0.0; 3], 0.0);
+        let (mut k, mut force) = (0, [0.0; 3]);
         for c in g.sphere_contacts().iter().flatten() {
             if k < contacts.len() {
                 contacts[k] = c.point_m;
@@ -210,13 +210,8 @@ fn push_leg_frame(
             for (f, v) in force.iter_mut().zip(c.force_n) {
                 *f += v;
             }
-            moment += c.point_m[0] * c.force_n[2];
         }
-        let at = if force[2] > 0.0 {
-            [moment / force[2], contacts[0][1], 0.0]
-        } else {
-            [f64::NAN; 3]
-        };
+        let at = [g.centre_of_pressure_x_m(), contacts[0][1], 0.0];
         ground_frame = Some(pma_viz::GroundFrame {
             contacts_m: &contacts[..k],
             at_m: at,

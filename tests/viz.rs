@@ -213,19 +213,11 @@ fn row_times(msgs: &[LogMsg], path: &str) -> Vec<f64> {
 
 #[test]
 fn spasms_are_logged_as_events_markers_and_torque_series() {
-    let loaded = Scenario::load("gait_spasms").unwrap();
-    let mut sim = LegSim::new(&loaded).unwrap();
-    let (mut v, storage) = Viz::memory("test", loaded.scenario.period_s, None).unwrap();
-    let channels = viz::leg_layout(&mut v, &sim, "# test").unwrap();
     let mut samples = Vec::new();
-    let mut keep = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
+    let duration = 20.0;
+    let (sim, report, msgs) = recorded("gait_spasms", duration, |p| {
         samples.push(LegSample::of(p));
     });
-    let mut rec = viz::VizRecorder::new(v, channels);
-    let duration = 20.0;
-    let report = sim.run(duration, &mut (&mut keep, &mut rec)).unwrap();
-    rec.finish().unwrap();
-    let msgs = storage.take();
     let (series, _) = decode(&msgs);
     let events = &report.spasms;
     assert!(events.len() >= 2, "{events:?}");
@@ -249,7 +241,7 @@ fn spasms_are_logged_as_events_markers_and_torque_series() {
     assert!(spasm.iter().any(|x| *x != 0.0));
     // A log line at each onset and end, within a period of the event's times.
     let logged = row_times(&msgs, "/events");
-    let period = loaded.scenario.period_s;
+    let period = sim.scenario().period_s;
     let mut expected: Vec<f64> = events.iter().flat_map(times).flatten().collect();
     expected.sort_by(f64::total_cmp);
     assert_eq!(logged.len(), expected.len(), "{logged:?} vs {expected:?}");
@@ -352,6 +344,25 @@ fn a_rig_fault_and_its_vent_are_logged_as_an_event() {
     std::fs::remove_dir_all(dir).ok();
 }
 
+/// `scenario` run for `duration_s` into an in-memory recording through the leg's
+/// `VizRecorder` (as `simulate --rerun` records), `keep` seeing every period: the
+/// simulation, its report and the recording.
+fn recorded(
+    scenario: &str,
+    duration_s: f64,
+    keep: impl FnMut(&Period<'_, SupervisedLeg, LegOutput>),
+) -> (LegSim, pma_leg::LegReport, Vec<LogMsg>) {
+    let loaded = Scenario::load(scenario).unwrap();
+    let mut sim = LegSim::new(&loaded).unwrap();
+    let (mut v, storage) = Viz::memory("test", loaded.scenario.period_s, None).unwrap();
+    let channels = viz::leg_layout(&mut v, &sim, "# test").unwrap();
+    let mut rec = viz::VizRecorder::new(v, channels);
+    let mut keep = FnRecorder(keep);
+    let report = sim.run(duration_s, &mut (&mut keep, &mut rec)).unwrap();
+    rec.finish().unwrap();
+    (sim, report, storage.take())
+}
+
 /// Every logged row's `component` values at `path`, as `[f32; 3]`, with their times.
 fn logged_vectors(
     msgs: &[LogMsg],
@@ -384,25 +395,14 @@ fn logged_vectors(
 
 #[test]
 fn a_treadmill_recording_shows_the_belt_the_contacts_the_grf_and_the_phases() {
-    let loaded = Scenario::load("gait_treadmill").unwrap();
-    let mut sim = LegSim::new(&loaded).unwrap();
-    let (mut v, storage) = Viz::memory("test", loaded.scenario.period_s, None).unwrap();
-    let channels = viz::leg_layout(&mut v, &sim, "# test").unwrap();
     let mut samples = Vec::new();
     let mut shank = Vec::new();
-    let (mut step, mut scalars) = (0i64, vec![0.0; channels]);
-    let mut observe = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
-        step += 1;
-        let s = LegSample::of(p);
-        samples.push(s);
+    let (sim, _, msgs) = recorded("gait_treadmill", 3.0, |p| {
+        samples.push(LegSample::of(p));
         let leg = p.backend.leg();
         let i = leg.link_names().position(|n| n == "shank").unwrap();
         shank.push(leg.link_pose(i).0.map(|x| x as f32));
-        viz::push_leg(&mut v, p.backend, &s, step, &mut scalars).unwrap();
     });
-    sim.run(3.0, &mut observe).unwrap();
-    v.finish().unwrap();
-    let msgs = storage.take();
     let (series, rows) = decode(&msgs);
     // The belt (static), its stripes (moving with it), the contacts and the force arrow.
     assert!(rows.contains_key("/world/belt"));

@@ -264,9 +264,6 @@ pub struct GroundReaction {
     pub contralateral_n: f64,
     /// The harness's upward force on the pelvis (N).
     pub support_n: f64,
-    /// Fore-aft position of the centre of pressure under this foot at the end of the
-    /// period (m, world X; NaN out of contact).
-    pub cop_x_m: f64,
 }
 
 /// One sphere's contact with the belt.
@@ -374,13 +371,6 @@ impl SagittalChain {
         self.pitch_rad.iter().sum::<f64>()
             + self.flexion_sign[0] * q[0]
             + self.flexion_sign[1] * q[1]
-    }
-
-    /// The lowest point of any sphere below the pelvis frame at `q` (m, negative below).
-    pub fn sole_z_m(&self, q: [f64; 2]) -> f64 {
-        (0..self.spheres.len())
-            .map(|i| self.sphere_centre(i, q)[1] - self.spheres[i].radius_m)
-            .fold(f64::INFINITY, f64::min)
     }
 }
 
@@ -716,7 +706,6 @@ impl Ground {
             contacts: self.contacts,
             contralateral_n: self.sum[2] / n,
             support_n: self.sum[3] / n,
-            cop_x_m: self.centre_of_pressure_x(),
         };
         self.sum = [0.0; 4];
         self.substeps = 0;
@@ -729,8 +718,9 @@ impl Ground {
         self.last
     }
 
-    /// Fore-aft centre of pressure of the last substep's contacts (m; NaN without one).
-    fn centre_of_pressure_x(&self) -> f64 {
+    /// Fore-aft centre of pressure of the last substep's contacts (m, world X; NaN
+    /// without one).
+    pub fn centre_of_pressure_x_m(&self) -> f64 {
         let (moment, force) = self.current.iter().flatten().fold((0.0, 0.0), |(m, f), c| {
             (m + c.point_m[0] * c.force_n[2], f + c.force_n[2])
         });
