@@ -816,6 +816,21 @@ pub struct LegTrace {
     pub pressure_max_bar: f64,
     /// Rated force (N).
     pub rated_force_n: f64,
+    /// On a treadmill: the ground's side of the run.
+    pub ground: Option<GroundTrace>,
+}
+
+/// The treadmill's side of a leg run, every 10th period as [`LegTrace`].
+#[derive(Debug, Clone, Default)]
+pub struct GroundTrace {
+    /// Vertical ground reaction under this foot (N).
+    pub foot_n: Vec<f64>,
+    /// The virtual other leg's force on the pelvis (N).
+    pub other_leg_n: Vec<f64>,
+    /// Height of the pelvis above the belt (m).
+    pub pelvis_m: Vec<f64>,
+    /// What the belt carries at rest, `(1 - bws) m g` (N).
+    pub unsupported_n: f64,
 }
 
 /// One panel of lines over time with dashed horizontal marks and shaded spasms.
@@ -904,13 +919,15 @@ fn muscle_lines<'a>(
 
 /// `simulate --plot`: joint angles over their references, tracking errors, the four
 /// pressures against the valve's limit, the forces against the rating, and the patient's
-/// torques, spasms shaded.
+/// torques, spasms shaded; on a treadmill also the vertical ground reaction of both legs
+/// against the unsupported weight and the pelvis's height.
 pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawResult {
-    let root = BitMapBackend::new(path, (1400, 1300)).into_drawing_area();
+    let row_count = if tr.ground.is_some() { 4 } else { 3 };
+    let root = BitMapBackend::new(path, (1400, 100 + 400 * row_count as u32)).into_drawing_area();
     root.fill(&WHITE)?;
     let (head, body) = root.split_vertically(TITLE_HEIGHT);
     title_block(&head, title, setting)?;
-    let rows = body.split_evenly((3, 2));
+    let rows = body.split_evenly((row_count, 2));
     let spasms = |j: Option<usize>| -> Vec<(f64, f64)> {
         tr.spasms
             .iter()
@@ -950,7 +967,7 @@ pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawRe
         marks: Vec::new(),
         spasms: spasms(Some(j)),
     };
-    let panels = [
+    let mut panels = vec![
         joint_panel(0, "hip"),
         joint_panel(1, "knee"),
         LinePanel {
@@ -987,6 +1004,23 @@ pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawRe
             spasms: spasms(None),
         },
     ];
+    if let Some(g) = &tr.ground {
+        panels.push(LinePanel {
+            y_desc: "vertical ground reaction (N)",
+            lines: vec![
+                ("this foot".into(), &g.foot_n[..], colour(0), false),
+                ("the other leg".into(), &g.other_leg_n[..], colour(1), false),
+            ],
+            marks: vec![(g.unsupported_n, "(1 - bws) m g".into())],
+            spasms: spasms(None),
+        });
+        panels.push(LinePanel {
+            y_desc: "pelvis height (m)",
+            lines: vec![("pelvis".into(), &g.pelvis_m[..], colour(2), false)],
+            marks: Vec::new(),
+            spasms: spasms(None),
+        });
+    }
     for (area, panel) in rows.iter().zip(&panels) {
         draw_line_panel(area, &tr.t_s, panel)?;
     }

@@ -1117,6 +1117,21 @@ fn simulate_draws_the_run_when_asked() {
     let png = std::fs::read(dir.join("leg.png")).expect("leg.png");
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     assert!(png.len() > 50_000, "{} bytes", png.len());
+    // On a treadmill, a fourth row: the ground reaction and the pelvis (the PNG's height,
+    // big-endian at byte 20, grows from 1300 to 1700 pixels).
+    let height = |png: &[u8]| u32::from_be_bytes([png[20], png[21], png[22], png[23]]);
+    assert_eq!(height(&png), 1300);
+    let belt = temp("leg-plot-belt");
+    pma_exo_ok(&[
+        "simulate",
+        "gait_treadmill",
+        "--duration",
+        "4",
+        "--plot",
+        belt.to_str().unwrap(),
+    ]);
+    let png = std::fs::read(belt.join("leg.png")).expect("leg.png");
+    assert_eq!(height(&png), 1700);
     pma_exo_ok(&[
         "pendulum",
         "--spasticity",

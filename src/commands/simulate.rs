@@ -31,7 +31,8 @@ pub struct Args {
     #[arg(long)]
     yes: bool,
     /// Draw the run into this directory (`leg.png`: angles over their references, tracking
-    /// errors, patient torques, pressures and forces against their limits, spasms shaded).
+    /// errors, patient torques, pressures and forces against their limits, spasms shaded;
+    /// on a treadmill the ground reaction and the pelvis's height too).
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
     #[command(flatten)]
@@ -111,7 +112,19 @@ pub fn run(a: Args) -> Result<i32> {
         std::fs::create_dir_all(dir)
             .map_err(|e| anyhow::anyhow!("cannot create `{}`: {e}", dir.display()))?;
     }
-    let trace = a.plot.as_ref().map(|_| Trace::with_capacity(periods));
+    let trace = a.plot.as_ref().map(|_| {
+        let mut t = Trace::with_capacity(periods);
+        if let Some(g) = sim.leg().ground() {
+            let n = (periods / 10 + 2) as usize;
+            t.0.ground = Some(crate::plot::GroundTrace {
+                foot_n: Vec::with_capacity(n),
+                other_leg_n: Vec::with_capacity(n),
+                pelvis_m: Vec::with_capacity(n),
+                unsupported_n: g.unsupported_weight_n(),
+            });
+        }
+        t
+    });
     let stop = output::stop_flag()?;
     let settings = settings.with_stop_flag(&stop);
     let mut recorders = (csv, viz, progress, trace);
@@ -196,6 +209,11 @@ impl pma_loop::Recorder<pma_leg::SupervisedLeg, pma_leg::LegOutput> for Trace {
         for (i, (p, f)) in s.pressure_pa.iter().zip(&s.force_n).enumerate() {
             t.pressure_bar[i].push(p / 1e5);
             t.force_n[i].push(*f);
+        }
+        if let (Some(g), Some(r)) = (&mut t.ground, s.ground) {
+            g.foot_n.push(r.vertical_n);
+            g.other_leg_n.push(r.contralateral_n);
+            g.pelvis_m.push(s.pelvis_height_m.unwrap_or(f64::NAN));
         }
     }
 }
