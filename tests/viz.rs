@@ -49,24 +49,12 @@ fn decode(msgs: &[LogMsg]) -> (Series, BTreeMap<String, usize>) {
 }
 
 /// Every logged translation of the link at `path`, in order.
-fn logged_translations(storage_msgs: &[LogMsg], path: &str) -> Vec<[f32; 3]> {
+fn logged_translations(msgs: &[LogMsg], path: &str) -> Vec<[f32; 3]> {
     let translation = rerun::Transform3D::descriptor_translation().component;
-    let mut out = Vec::new();
-    for msg in storage_msgs {
-        let LogMsg::ArrowMsg(_, arrow) = msg else {
-            continue;
-        };
-        let chunk = Chunk::from_arrow_msg(arrow).expect("chunk");
-        if chunk.is_static() || chunk.entity_path().to_string() != path {
-            continue;
-        }
-        out.extend(
-            chunk
-                .iter_slices::<[f32; 3]>(translation)
-                .flat_map(|s| s.to_vec()),
-        );
-    }
-    out
+    logged_vectors(msgs, path, translation)
+        .into_iter()
+        .flat_map(|(_, v)| v)
+        .collect()
 }
 
 /// A logged leg run: the simulation's own record beside the decoded recording.
