@@ -180,17 +180,21 @@ fn recorded_error_gives_the_reported_rms() {
     }
 }
 
+/// The temporal chunks logged at `path`, in order.
+fn temporal_chunks<'a>(msgs: &'a [LogMsg], path: &'a str) -> impl Iterator<Item = Chunk> + 'a {
+    msgs.iter().filter_map(move |msg| {
+        let LogMsg::ArrowMsg(_, arrow) = msg else {
+            return None;
+        };
+        let chunk = Chunk::from_arrow_msg(arrow).expect("chunk");
+        (!chunk.is_static() && chunk.entity_path().to_string() == path).then_some(chunk)
+    })
+}
+
 /// The `sim_time` of every temporal row logged at `path`.
 fn row_times(msgs: &[LogMsg], path: &str) -> Vec<f64> {
     let mut out = Vec::new();
-    for msg in msgs {
-        let LogMsg::ArrowMsg(_, arrow) = msg else {
-            continue;
-        };
-        let chunk = Chunk::from_arrow_msg(arrow).expect("chunk");
-        if chunk.is_static() || chunk.entity_path().to_string() != path {
-            continue;
-        }
+    for chunk in temporal_chunks(msgs, path) {
         if let Some(times) = chunk.timelines().get(&"sim_time".into()) {
             out.extend(times.times_raw().iter().map(|ns| *ns as f64 * 1e-9));
         }
@@ -358,14 +362,7 @@ fn logged_vectors(
     component: rerun::ComponentIdentifier,
 ) -> Vec<(f64, Vec<[f32; 3]>)> {
     let mut out = Vec::new();
-    for msg in msgs {
-        let LogMsg::ArrowMsg(_, arrow) = msg else {
-            continue;
-        };
-        let chunk = Chunk::from_arrow_msg(arrow).expect("chunk");
-        if chunk.is_static() || chunk.entity_path().to_string() != path {
-            continue;
-        }
+    for chunk in temporal_chunks(msgs, path) {
         let times: Vec<f64> = chunk.timelines()[&"sim_time".into()]
             .times_raw()
             .iter()
