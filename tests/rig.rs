@@ -837,3 +837,105 @@ fn a_pressure_reading_above_the_limit_stops_the_run_and_vents() {
     assert_eq!(r.periods, 2999, "{r:?}");
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// The pressure channel wired on AI 0/1 with `extra` added to the calibration and its range
+/// index `range`.
+fn with_pressure_channel(range: u32, calibration: &str) -> String {
+    let text = EMBEDDED_VIRTUAL
+        .replace(
+            "# pressure = { subdevice = 0, channel = 1, range = 0, aref = \"ground\" }",
+            &format!(
+                "pressure = {{ subdevice = 0, channel = 1, range = {range}, aref = \"ground\" }}"
+            ),
+        )
+        .replace(
+            "valve_offset_v = 0.0\n",
+            &format!("valve_offset_v = 0.0\n{calibration}\n"),
+        );
+    assert!(
+        text.contains(&format!("channel = 1, range = {range}")),
+        "the channel"
+    );
+    text
+}
+
+/// Regression: `pressure_pa_per_v = 1e4` with the pressure channel on AI range 3 (+-1 V)
+/// passed `rig check`, and every run then faulted at period 701 ("the valve reports NaN
+/// bar") once the muscle passed 0.1 bar, the top of the channel. The channel must read 0
+/// to the limit + 10 % strictly inside its range, checked before anything is written to the
+/// board; a negative scale, which hides an over-pressure, is refused too.
+#[test]
+fn rig_check_refuses_a_pressure_channel_that_cannot_read_the_limit() {
+    let dir = temp_dir("pressure-channel");
+    let narrow = with_pressure_channel(3, "pressure_pa_per_v = 1.0e4");
+    let cfg = RigConfig::from_toml_str(&narrow, "narrow.toml").expect("valid as a file");
+    // Config level: nothing reaches the board.
+    let daq = Recording::default();
+    let writes = Arc::clone(&daq.0);
+    let e = RigBackend::configure(
+        &cfg,
+        Box::new(daq),
+        pma_rig::Pacing::Realtime(std::time::Duration::from_millis(1)),
+    )
+    .err()
+    .expect("refused");
+    assert!(e.to_string().contains("signals.pressure"), "{e}");
+    assert!(writes.lock().unwrap().is_empty());
+    // 0 Pa at 0 V is the bottom of a unipolar range, where the converter reads NaN.
+    let unipolar = with_pressure_channel(9, "");
+    let cases = [
+        ("range 3", narrow, "signals.pressure"),
+        ("unipolar", unipolar, "signals.pressure"),
+        (
+            "negative scale",
+            with_pressure_channel(0, "pressure_pa_per_v = -1.0e5"),
+            "calibration.pressure_pa_per_v",
+        ),
+    ];
+    for (what, text, needle) in cases {
+        let p = config_file(&dir, &what.replace(' ', "_"), &text);
+        assert_refused(&["rig", "check", "--config", &p], needle);
+        let log = dir.join(format!("{}.csv", what.replace(' ', "_")));
+        assert_refused(
+            &[
+                "rig",
+                "run",
+                "--config",
+                &p,
+                "--log",
+                log.to_str().expect("utf-8"),
+            ],
+            needle,
+        );
+        assert!(!log.exists(), "{what}: a run started");
+    }
+    // The channel as the shipped file suggests it (+-10 V, the valve's scale) passes and a
+    // run with it completes.
+    let p = config_file(&dir, "bipolar", &with_pressure_channel(0, ""));
+    let out = pma_exo(&["rig", "check", "--config", &p]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("above 6.60 bar (6.6000 V)"), "{text}");
+    let log = dir.join("bipolar.csv");
+    let out = pma_exo(&[
+        "rig",
+        "run",
+        "--config",
+        &p,
+        "--duration",
+        "3",
+        "--log",
+        log.to_str().expect("utf-8"),
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -258,12 +258,14 @@ fn check(config: &str) -> Result<()> {
         c.position_offset_v
     );
     if let Some(p) = backend.pressure_reading_pa() {
+        let highest_pa = (1.0 + pma_rig::backend::PRESSURE_FAULT_MARGIN) * l.pressure_max_pa;
         say!(
-            "  pressure channel: {:.3} bar ({} Pa/V, {:.4} V at 0 Pa); a reading above {:.2} bar stops a run",
+            "  pressure channel: {:.3} bar ({} Pa/V, {:.4} V at 0 Pa); a reading above {:.2} bar ({:.4} V) stops a run",
             p / 1e5,
-            c.pressure_pa_per_v.unwrap_or(c.valve_pa_per_v),
-            c.pressure_offset_v.unwrap_or(c.valve_offset_v),
-            (1.0 + pma_rig::backend::PRESSURE_FAULT_MARGIN) * l.pressure_max_pa / 1e5
+            c.pressure_scale_pa_per_v(),
+            c.pressure_zero_v(),
+            highest_pa / 1e5,
+            c.pressure_v(highest_pa)
         );
     }
     say!(
