@@ -939,3 +939,51 @@ fn rig_check_refuses_a_pressure_channel_that_cannot_read_the_limit() {
     );
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// The shipped virtual rig at `period_s`, its watchdog at 0.2 s.
+fn virtual_at_period(period_s: f64) -> String {
+    let watchdog = (0.2 / period_s).round() as u32;
+    let text = EMBEDDED_VIRTUAL
+        .replace("period_s = 0.001", &format!("period_s = {period_s}"))
+        .replace(
+            "watchdog_periods = 50",
+            &format!(
+                "watchdog_periods = {watchdog}\noverrun_max_consecutive_periods = {}",
+                watchdog / 2
+            ),
+        );
+    assert_ne!(text, EMBEDDED_VIRTUAL);
+    text
+}
+
+/// Regression: `rig excite` at `period_s = 0.01` or `0.005` on the shipped virtual rig went
+/// `position-out` (at 2.6 s and 29 s) despite the back-off: the lockstep plant's
+/// integration step grew with the period and rang. The excitation now holds inside the
+/// window at every period, its commands at the slew rate per second whatever the period.
+#[test]
+fn rig_excite_holds_its_back_off_at_10_and_5_ms_periods() {
+    let dir = temp_dir("excite-periods");
+    for period_s in [0.01, 0.005] {
+        let p = config_file(&dir, &format!("p{period_s}"), &virtual_at_period(period_s));
+        let log = dir.join(format!("p{period_s}.csv"));
+        let out = pma_exo(&[
+            "rig",
+            "excite",
+            "--config",
+            &p,
+            "--duration",
+            "60",
+            "--out",
+            log.to_str().expect("utf-8"),
+            "--json",
+        ]);
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+        assert_eq!(out.status.code(), Some(0), "{period_s} s: {v}");
+        assert_eq!(v["completed"], true, "{v}");
+        let highest = log_column(&log, "position_m")
+            .into_iter()
+            .fold(f64::MIN, f64::max);
+        assert!(highest < 0.045, "{period_s} s: reached {highest} m");
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
