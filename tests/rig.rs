@@ -987,3 +987,63 @@ fn rig_excite_holds_its_back_off_at_10_and_5_ms_periods() {
     }
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// A run of `config` with a recorder that holds the loop 100 ms of wall time at periods
+/// 200 and 400, as a loaded machine does.
+fn run_with_slow_periods(cfg: &RigConfig, log: &Path) -> pma_rig::RigReport {
+    let stop = AtomicBool::new(false);
+    let slow = FnRecorder(|p: &Period<'_, Rig, MuscleStep>| {
+        if p.index == 200 || p.index == 400 {
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+    });
+    let options = RunOptions {
+        duration_s: Some(1.0),
+        log_path: Some(log.to_path_buf()),
+        ..RunOptions::default()
+    };
+    pma_rig::run::run(cfg, Path::new("."), &options, &stop, slow).expect("run")
+}
+
+/// Regression: under CPU load, lockstep virtual runs with a 10 ms watchdog faulted with
+/// `stall` at random: the watchdog measured silence on the wall clock, where a lockstep
+/// run's periods take no defined time. A lockstep run's watchdog follows the simulated
+/// clock (two 100 ms holds of the loop are no stall there), while a real-time run keeps
+/// the wall clock and still finds the same hold a stall; an injected (simulated) hang
+/// still trips the lockstep watchdog.
+#[test]
+fn a_slow_period_is_no_stall_in_lockstep_but_a_stall_in_real_time() {
+    let dir = temp_dir("slow-period");
+    let lockstep = run_with_slow_periods(&virtual_config(), &dir.join("lockstep.csv"));
+    assert!(
+        lockstep.completed && lockstep.fault.is_none(),
+        "{lockstep:?}"
+    );
+    assert_eq!(lockstep.periods, 1000);
+    // What is tested is the watchdog, not the machine's timing: the overrun limits at
+    // their loosest (the hold misses 100 deadlines; the watchdog sees it first).
+    let text = EMBEDDED_VIRTUAL.replace(
+        "watchdog_periods = 50",
+        "watchdog_periods = 50\noverrun_max_consecutive_periods = 49\noverrun_max_share = 0.5",
+    );
+    let mut realtime = RigConfig::from_toml_str(&text, "loose-timing.toml").expect("config");
+    let v = realtime.virtual_rig.as_mut().expect("virtual");
+    v.clock = ClockMode::Realtime;
+    realtime.realtime.fifo = false;
+    let r = run_with_slow_periods(&realtime, &dir.join("realtime.csv"));
+    assert_eq!(r.fault.as_deref(), Some("stall"), "{r:?}");
+    assert!(r.watchdog_vented && r.vented, "{r:?}");
+    let stalled = run_virtual(
+        &virtual_config(),
+        &RunOptions {
+            duration_s: Some(1.0),
+            injections: vec!["stall@0.5".parse().expect("injection")],
+            log_path: Some(dir.join("injected.csv")),
+            ..RunOptions::default()
+        },
+    );
+    assert_eq!(stalled.fault.as_deref(), Some("stall"), "{stalled:?}");
+    assert!(stalled.watchdog_vented, "{stalled:?}");
+    assert_eq!(stalled.periods, 499, "{stalled:?}");
+    std::fs::remove_dir_all(dir).ok();
+}

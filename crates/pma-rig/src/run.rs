@@ -11,7 +11,9 @@ use crate::replay::{
 };
 use crate::timing::{enter_realtime, RealtimeStatus, TimingSummary};
 use crate::virtual_daq::{Injection, VirtualDaq};
-use pma_control::supervisor::{Alarm, Fault, Supervised, VentAction, WatchdogFactory};
+use pma_control::supervisor::{
+    Alarm, Fault, Supervised, VentAction, WatchdogClock, WatchdogFactory,
+};
 use pma_control::{ControllerConfig, ExcitationSpec, MuscleStep, MuscleTask, Tracking};
 use pma_loop::{End, LoopSettings, Recorder};
 use std::panic::AssertUnwindSafe;
@@ -308,6 +310,7 @@ fn arm(cfg: &RigConfig, gains: &ControllerConfig, options: &RunOptions) -> Resul
     } else {
         "realtime"
     };
+    let watchdog_clock = watchdog_clock(board.lockstep.clone());
     let pacing = pacing_of(cfg, board.daq.as_ref(), board.lockstep);
     let realtime_pacing = matches!(pacing, Pacing::Realtime(_));
     let backend = RigBackend::configure(cfg, board.daq, pacing)?;
@@ -323,6 +326,7 @@ fn arm(cfg: &RigConfig, gains: &ControllerConfig, options: &RunOptions) -> Resul
     });
     let alarm = Alarm::new();
     let rig = Supervised::new(backend, cfg.supervisor_limits(), Some(factory))
+        .with_watchdog_clock(watchdog_clock)
         .with_alarm(Arc::clone(&alarm));
     Ok(Armed {
         rig,
@@ -335,6 +339,16 @@ fn arm(cfg: &RigConfig, gains: &ControllerConfig, options: &RunOptions) -> Resul
         device,
         _panic_vent: panic_vent,
     })
+}
+
+/// The clock the watchdog measures silence on: a lockstep rig's simulated periods (a
+/// loaded machine slows the loop and its plant alike: nothing stalls in simulated time
+/// but a simulated hang), the wall clock for everything that follows wall time.
+fn watchdog_clock(lockstep: Option<crate::virtual_daq::LockstepClock>) -> WatchdogClock {
+    match lockstep {
+        Some(clock) => WatchdogClock::Simulated(Arc::new(move || clock.elapsed())),
+        None => WatchdogClock::Wall,
+    }
 }
 
 /// How the loop thread ended.

@@ -44,7 +44,8 @@ pub enum InjectedFault {
     PositionOut,
     /// The board's reads fail (EIO).
     DaqError,
-    /// One read blocks for 0.5 s (a hung driver call).
+    /// One read blocks for 0.5 s (a hung driver call): of wall time on a rig that follows
+    /// it, of simulated time in lockstep.
     Stall,
     /// The control loop panics (the virtual board panics in a read, standing for any bug
     /// in the loop; it tests the panic path, not a board fault).
@@ -56,6 +57,10 @@ pub enum InjectedFault {
 
 /// The supply pressure a valve stuck open reports (Pa).
 const SUPPLY_PA: f64 = 8.0e5;
+
+/// How long the injected stall hangs a read (s): twice the longest watchdog timeout a
+/// configuration may ask for, so that every watchdog trips during it.
+const STALL_S: f64 = 2.0 * crate::config::WATCHDOG_MAX_S;
 
 impl InjectedFault {
     /// Every fault, with its command-line name.
@@ -254,12 +259,21 @@ impl TimeSource {
 
 /// The lockstep clock of a virtual rig: one tick per control period.
 #[derive(Debug, Clone)]
-pub struct LockstepClock(Arc<AtomicU64>);
+pub struct LockstepClock {
+    ticks: Arc<AtomicU64>,
+    period_s: f64,
+}
 
 impl LockstepClock {
     /// Lets one period pass.
     pub fn tick(&self) {
-        self.0.fetch_add(1, Ordering::Relaxed);
+        self.ticks.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Simulated time since the rig was configured: the clock a lockstep run's watchdog
+    /// measures silence on (wall time says nothing about a simulation's periods).
+    pub fn elapsed(&self) -> Duration {
+        Duration::from_secs_f64(self.ticks.load(Ordering::Relaxed) as f64 * self.period_s)
     }
 }
 
@@ -414,7 +428,10 @@ impl VirtualDaq {
     /// The lockstep clock, if the rig runs in lockstep.
     pub fn lockstep_clock(&self) -> Option<LockstepClock> {
         match &self.time {
-            TimeSource::Lockstep(c) => Some(LockstepClock(Arc::clone(c))),
+            TimeSource::Lockstep(c) => Some(LockstepClock {
+                ticks: Arc::clone(c),
+                period_s: self.period_s,
+            }),
             TimeSource::Wall(_) => None,
         }
     }
@@ -456,6 +473,18 @@ impl VirtualDaq {
         };
         let volts = hw.calibration.pressure_v(pressure);
         hw.pressure_input.map_or(f64::NAN, |c| c.sample(volts))
+    }
+
+    /// A driver call that hangs for `seconds`, without holding the plant, as a hung call
+    /// would: the watchdog must be able to vent meanwhile. In lockstep the simulated time
+    /// jumps (the run's watchdog follows it); otherwise the wall time passes.
+    fn hang(&self, seconds: f64) {
+        match &self.time {
+            TimeSource::Lockstep(c) => {
+                c.fetch_add((seconds / self.period_s).round() as u64, Ordering::Relaxed);
+            }
+            TimeSource::Wall(_) => std::thread::sleep(Duration::from_secs_f64(seconds)),
+        }
     }
 
     fn wrong_channel(&self, channel: ChannelName) -> DaqError {
@@ -530,9 +559,7 @@ impl Daq for VirtualDaq {
                 !std::mem::replace(&mut hw.stalled, true)
             };
             if first {
-                // Blocks without holding the plant, as a hung driver call would: the
-                // watchdog must be able to vent meanwhile.
-                std::thread::sleep(Duration::from_millis(500));
+                self.hang(STALL_S);
             }
         }
         if self.active(InjectedFault::ControllerPanic) {
