@@ -420,37 +420,35 @@ impl Daq for Recording {
     }
 }
 
-#[test]
-fn nothing_reaches_the_board_before_the_configuration_is_sound() {
-    let mut bad = virtual_config();
-    bad.calibration.valve_pa_per_v = 0.0;
+/// `cfg` configured on a board that records its writes: the error, nothing written.
+fn refused_before_any_write(cfg: &RigConfig) -> String {
     let daq = Recording::default();
     let writes = Arc::clone(&daq.0);
     let e = RigBackend::configure(
-        &bad,
-        Box::new(daq),
-        pma_rig::Pacing::Realtime(std::time::Duration::from_millis(1)),
-    );
-    assert!(e.is_err());
-    assert!(
-        writes.lock().unwrap().is_empty(),
-        "{:?}",
-        writes.lock().unwrap()
-    );
-    // A vent value outside the output's range is caught before the first write, too.
-    let mut outside = virtual_config();
-    outside.calibration.valve_offset_v = -1.0;
-    let daq = Recording::default();
-    let writes = Arc::clone(&daq.0);
-    let e = RigBackend::configure(
-        &outside,
+        cfg,
         Box::new(daq),
         pma_rig::Pacing::Realtime(std::time::Duration::from_millis(1)),
     )
     .err()
     .expect("refused");
-    assert!(e.to_string().contains("valve_offset_v"), "{e}");
-    assert!(writes.lock().unwrap().is_empty());
+    assert!(
+        writes.lock().unwrap().is_empty(),
+        "{:?}",
+        writes.lock().unwrap()
+    );
+    e.to_string()
+}
+
+#[test]
+fn nothing_reaches_the_board_before_the_configuration_is_sound() {
+    let mut bad = virtual_config();
+    bad.calibration.valve_pa_per_v = 0.0;
+    refused_before_any_write(&bad);
+    // A vent value outside the output's range is caught before the first write, too.
+    let mut outside = virtual_config();
+    outside.calibration.valve_offset_v = -1.0;
+    let e = refused_before_any_write(&outside);
+    assert!(e.contains("valve_offset_v"), "{e}");
     // A sound configuration vents first and resets the charge pump.
     let daq = Recording::default();
     let writes = Arc::clone(&daq.0);
@@ -860,8 +858,8 @@ fn with_pressure_channel(range: u32, calibration: &str) -> String {
 }
 
 /// Regression: `pressure_pa_per_v = 1e4` with the pressure channel on AI range 3 (+-1 V)
-/// passed `rig check`, and every run then faulted at period 701 ("the valve reports NaN
-/// bar") once the muscle passed 0.1 bar, the top of the channel. The channel must read 0
+/// passed `rig check`, and every run then faulted ("the valve reports NaN bar", at period
+/// 288 on the shipped virtual rig) once the muscle passed 0.1 bar, the top of the channel. The channel must read 0
 /// to the limit + 10 % strictly inside its range, checked before anything is written to the
 /// board; a negative scale, which hides an over-pressure, is refused too.
 #[test]
@@ -869,18 +867,9 @@ fn rig_check_refuses_a_pressure_channel_that_cannot_read_the_limit() {
     let dir = temp_dir("pressure-channel");
     let narrow = with_pressure_channel(3, "pressure_pa_per_v = 1.0e4");
     let cfg = RigConfig::from_toml_str(&narrow, "narrow.toml").expect("valid as a file");
-    // Config level: nothing reaches the board.
-    let daq = Recording::default();
-    let writes = Arc::clone(&daq.0);
-    let e = RigBackend::configure(
-        &cfg,
-        Box::new(daq),
-        pma_rig::Pacing::Realtime(std::time::Duration::from_millis(1)),
-    )
-    .err()
-    .expect("refused");
-    assert!(e.to_string().contains("signals.pressure"), "{e}");
-    assert!(writes.lock().unwrap().is_empty());
+    // At configure, before anything reaches the board.
+    let e = refused_before_any_write(&cfg);
+    assert!(e.contains("signals.pressure"), "{e}");
     // 0 Pa at 0 V is the bottom of a unipolar range, where the converter reads NaN.
     let unipolar = with_pressure_channel(9, "");
     let cases = [
