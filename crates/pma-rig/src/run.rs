@@ -42,6 +42,9 @@ pub struct RunOptions {
     pub fifo: Option<bool>,
     /// Excite the muscle open loop (`rig excite`) instead of running the controller.
     pub excitation: Option<ExcitationSpec>,
+    /// One line saying what ran (the program, the command line, the inputs), written into
+    /// the log's header after its format line.
+    pub provenance: Option<String>,
 }
 
 /// A run's outcome.
@@ -235,9 +238,10 @@ impl VirtualOrBoard {
 fn header(
     config: &RigConfig,
     gains: &ControllerConfig,
-    excitation: Option<&ExcitationSpec>,
+    options: &RunOptions,
     reference_start_m: f64,
 ) -> Result<String, RigError> {
+    let excitation = options.excitation.as_ref();
     let mut cfg = config.clone();
     cfg.control.gains = None;
     cfg.control.controller = gains.kind().as_str().to_owned();
@@ -255,8 +259,13 @@ fn header(
         }
         None => String::new(),
     };
+    // One line, whatever the command line held (the header is one `#` comment per line).
+    let provenance = match &options.provenance {
+        Some(line) => format!("{}\n", line.replace(['\n', '\r'], " ")),
+        None => String::new(),
+    };
     Ok(format!(
-        "{}\n{CONFIG_BEGIN}\n{toml}{CONFIG_END}\n{GAINS_BEGIN}\n{}{GAINS_END}\n{excitation}{REFERENCE_START}{reference_start_m:?}",
+        "{}\n{provenance}{CONFIG_BEGIN}\n{toml}{CONFIG_END}\n{GAINS_BEGIN}\n{}{GAINS_END}\n{excitation}{REFERENCE_START}{reference_start_m:?}",
         format_line(),
         gains.to_toml_string()
     ))
@@ -317,7 +326,7 @@ fn arm(cfg: &RigConfig, gains: &ControllerConfig, options: &RunOptions) -> Resul
     let device = backend.device().to_owned();
     let start_m = backend.configure_reading_m();
     let vent_v = backend.vent_v();
-    let header = header(cfg, gains, options.excitation.as_ref(), start_m)?;
+    let header = header(cfg, gains, options, start_m)?;
     let panic_vent = PanicVent::register(backend.valve_handle()?, vent_v);
     let watchdog_handle = backend.valve_handle()?;
     let factory: WatchdogFactory = Box::new(move || {
