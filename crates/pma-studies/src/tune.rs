@@ -225,6 +225,11 @@ impl Aggregate {
     }
 }
 
+/// Refuses a robust tuning's spread outside 0..=0.5 (a factor of 1 - 0.5 halves a muscle).
+pub fn check_spread(spread: f64) -> Result<(), pma_model::Invalid> {
+    pma_model::error::within("spread", spread, 0.0, 0.5, "must be 0..=0.5").map(|_| ())
+}
+
 /// `n` plants around `base` for a robust tuning: each muscle scale, the load and the
 /// valve's time constant and dead time multiplied by independent factors uniform in
 /// `[1 - spread, 1 + spread]`, seeded; the nominal (what the controllers are told) and
@@ -235,7 +240,7 @@ pub fn robust_plants(
     spread: f64,
     seed: u64,
 ) -> Result<Vec<PlantConfig>, crate::StudyError> {
-    pma_model::error::within("spread", spread, 0.0, 0.5, "must be 0..=0.5")?;
+    check_spread(spread)?;
     (0..n)
         .map(|k| {
             let mut rng = GaussianRng::new(seed.wrapping_mul(0x9E37_79B9).wrapping_add(k as u64));
