@@ -203,6 +203,7 @@ pub fn run(a: Args) -> Result<i32> {
     let objective = pma_studies::tune::Objective {
         duration_s: a.duration,
         max_variation_pa_per_s: a.max_variation.map(|v| v * 1e5),
+        rig: None,
     };
     let stop = output::stop_flag()?;
     let found = super::with_threads(a.threads, || {
@@ -212,6 +213,7 @@ pub fn run(a: Args) -> Result<i32> {
             a.objective.into(),
             &opts,
             &objective,
+            None,
             &stop,
         )
     })?;

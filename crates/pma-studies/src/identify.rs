@@ -1163,6 +1163,13 @@ mod tests {
         let id = identify(&log, 2.5, 1).unwrap();
         assert!((id.valve_lag_s - 0.015).abs() < 0.1 * 0.015, "{id:?}");
         assert!(id.fit_percent > 99.0, "{id:?}");
+        // Regression (issue 26): `rig commission` could not stop an identification. The
+        // operator's stop, raised, ends it without a result.
+        let stopped = identify_logs(&[log], Some(2.5), 1, &AtomicBool::new(true));
+        assert!(
+            matches!(stopped, Err(StudyError::Interrupted)),
+            "{stopped:?}"
+        );
     }
 
     /// Regression: without a weighed load, the fit started from the anchored first stage

@@ -15,7 +15,9 @@ use anyhow::{bail, Context, Result};
 use pma_control::{ControllerConfig, ControllerKind};
 use pma_rig::{RigConfig, RunOptions};
 use pma_studies::identify::{identify_logs, read_log, IdLog, Identified, MIN_LOG_S};
-use pma_studies::tune::{robust_plants, tune_robust, Aggregate, FireflyOptions, Objective};
+use pma_studies::tune::{
+    robust_plants, tune_robust, Aggregate, FireflyOptions, Objective, RigScenario,
+};
 use report::{Report, RunResult};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -352,9 +354,18 @@ fn commission(
         ),
     );
     let plants = robust_plants(&plant, a.robust, a.spread, a.seed)?;
+    // The gains are scored on the run the rig will make: its reference entered from the
+    // vented rest, inside its position window.
+    let reference = cfg.reference(0.0);
     let objective = Objective {
         duration_s: TUNING_RUN_S,
         max_variation_pa_per_s: Some(a.max_variation * 1e5),
+        rig: Some(RigScenario {
+            trajectory: reference.trajectory,
+            ramp_s: reference.ramp_s,
+            position_min_m: cfg.limits.position_min_m,
+            position_max_m: cfg.limits.position_max_m,
+        }),
     };
     let opts = FireflyOptions {
         population: a.population,
@@ -362,10 +373,26 @@ fn commission(
         seed: a.seed,
         ..FireflyOptions::default()
     };
-    let tuned = tune_robust(plan.kind, &plants, Aggregate::Mean, &opts, &objective, stop);
+    // The search starts one firefly from the gains that run now: it keeps them unless it
+    // finds better on the plants around the identified one.
+    let tuned = tune_robust(
+        plan.kind,
+        &plants,
+        Aggregate::Mean,
+        &opts,
+        &objective,
+        Some(&plan.current),
+        stop,
+    );
     if stop.load(Ordering::Relaxed) {
         return Err(Interrupted { stage: 4 }.into());
     }
+    report.tuning = tuned.as_ref().map(|(r, _)| report::Tuning {
+        runs: r.evaluations,
+        iae_m: r.score.iae_m,
+        variation_bar_per_s: r.score.variation_pa_per_s / 1e5,
+        within_budget: r.feasible,
+    });
     let tuned = tuned.map(|(r, _)| r).filter(|r| r.feasible);
 
     stage(5, "verification with the identified plant told");
@@ -410,22 +437,22 @@ fn commission(
         None => None,
     };
     report.tuned = tuned_run.clone();
-    if current.fault.is_some() && tuned_run.as_ref().is_none_or(|t| t.fault.is_some()) {
-        report.finish(a, &out.path, &logs[0], tuned.is_some())?;
-        bail!(
-            "no gain set completed the verification: the rig keeps its configuration, no gains kept (see {})",
-            out.path.join("report.md").display()
-        );
-    }
-    // The tuned gains are kept only if the rig says they are better.
-    let (kept, gains, rte_after) = match (&tuned, &tuned_run) {
-        (Some(t), Some(r))
-            if r.fault.is_none()
-                && (current.fault.is_some() || r.rte_percent < current.rte_percent) =>
-        {
-            ("tuned", t.config, r.rte_percent)
+    // The tuned gains are kept only if they completed and the rig says they track better
+    // than the current ones (up to their fault, if the supervisor stopped them); the
+    // current ones only if they completed.
+    let tuned_better = tuned_run
+        .as_ref()
+        .is_some_and(|r| r.fault.is_none() && r.rte_percent < current.rte_percent);
+    let (kept, gains, rte_after) = match &tuned {
+        Some(t) if tuned_better => ("tuned", t.config, report_rte(&tuned_run)),
+        _ if current.fault.is_none() => ("current", plan.current, current.rte_percent),
+        _ => {
+            report.finish(a, &out.path, &logs[0], tuned.is_some())?;
+            bail!(
+                "no gain set to keep: the current gains faulted in the verification and no tuned gains did better; the rig keeps its configuration (see {})",
+                out.path.join("report.md").display()
+            );
         }
-        _ => ("current", plan.current, current.rte_percent),
     };
     OutFile::create(&out.file("gains.toml")?)?.finish_with(&format!(
         "# `pma-exo rig commission` ({kept} gains; RTE {rte_after:.3} % on the rig told the identified plant)\n{}",
@@ -435,6 +462,11 @@ fn commission(
     report.rte_after_percent = Some(rte_after);
     report.gains = Some(out.path.join("gains.toml"));
     report.finish(a, &out.path, &logs[0], tuned.is_some())
+}
+
+/// The RTE of a verification that ran.
+fn report_rte(run: &Option<RunResult>) -> f64 {
+    run.as_ref().map_or(f64::NAN, |r| r.rte_percent)
 }
 
 /// Stage 2: the excitation (and the second, with the added mass); their logs.

@@ -47,6 +47,19 @@ impl RunResult {
     }
 }
 
+/// What the robust tuning found (its mean over the plants).
+#[derive(Debug, Clone, serde::Serialize)]
+pub(super) struct Tuning {
+    /// Bench runs it took.
+    pub runs: usize,
+    /// IAE of the best gain set (m).
+    pub iae_m: f64,
+    /// Its command activity (bar/s).
+    pub variation_bar_per_s: f64,
+    /// Whether it keeps `--max-variation` (otherwise it is not verified).
+    pub within_budget: bool,
+}
+
 /// What `--json` prints and `report.md` tells, filled in stage by stage.
 #[derive(serde::Serialize)]
 pub(super) struct Report {
@@ -56,6 +69,8 @@ pub(super) struct Report {
     pub interrupted_at_stage: Option<u32>,
     /// Stage 1: the controller as configured (its fault, if any, is a result).
     pub before: Option<RunResult>,
+    /// Stage 4: the best gain set the robust tuning found.
+    pub tuning: Option<Tuning>,
     /// Stage 5: the same gains, told the identified plant.
     pub told: Option<RunResult>,
     /// Stage 5: the robustly tuned gains, told the identified plant (none if no gain set
@@ -88,6 +103,7 @@ impl Report {
             controller: plan.kind.as_str(),
             interrupted_at_stage: None,
             before: None,
+            tuning: None,
             told: None,
             tuned: None,
             rte_before_percent: None,
@@ -214,7 +230,7 @@ impl Report {
         let kept = match self.kept {
             Some("tuned") => "the robustly tuned gains (`gains.toml`)".to_owned(),
             Some(_) => format!("the gains that ran before, {} (`gains.toml`)", self.gain_source),
-            None => "nothing: no gain set completed the verification, the rig keeps its configuration (`gains.toml` not written)".into(),
+            None => "nothing: the current gains faulted in the verification and no tuned gains did better; the rig keeps its configuration (`gains.toml` not written)".into(),
         };
         let mut md = format!(
             "# Commissioning of {} on `{}`\n\n\
@@ -245,7 +261,16 @@ impl Report {
                 "after, tuned gains",
                 "after-tuned-gains.csv",
                 self.tuned.as_ref(),
-                "no gain set within the budget"
+                &match &self.tuning {
+                    Some(t) => format!(
+                        "not run: no gain set within {} bar/s (the best: {:.2} bar/s, IAE {:.2} mm, after {} runs)",
+                        a.max_variation,
+                        t.variation_bar_per_s,
+                        t.iae_m * 1e3,
+                        t.runs
+                    ),
+                    None => "not run".into(),
+                }
             ),
         );
         if let Some(id) = id {
