@@ -8,7 +8,7 @@ use std::process::{Command, Stdio};
 use std::sync::mpsc;
 use std::time::Duration;
 
-fn pma_exo(args: &[&str]) -> std::process::Output {
+fn pma_exo(args: &[impl AsRef<std::ffi::OsStr>]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_pma-exo"))
         .args(args)
         .env("RUST_BACKTRACE", "0")
@@ -63,6 +63,26 @@ fn realtime_config(dir: &Path, duration_s: u32) -> PathBuf {
     )
 }
 
+/// `rig commission --config CONFIG --out OUT --load-kg 2.5 EXTRA --json`.
+fn commission(config: &Path, out: &Path, extra: &[&str]) -> Vec<String> {
+    let mut args: Vec<String> = [
+        "rig",
+        "commission",
+        "--config",
+        &s(config),
+        "--out",
+        &s(out),
+    ]
+    .map(str::to_owned)
+    .to_vec();
+    if !extra.contains(&"--load-kg") {
+        args.extend(["--load-kg".into(), "2.5".into()]);
+    }
+    args.extend(extra.iter().map(|a| (*a).to_owned()));
+    args.push("--json".into());
+    args
+}
+
 /// What a process said and how it ended.
 struct Ended {
     code: Option<i32>,
@@ -74,7 +94,7 @@ struct Ended {
 /// (a stage's heading; the delay lets a rig run start), and waits for it to end. A process that does not end within 10 minutes of the signal is
 /// killed and fails the test (it ignored the signal).
 #[cfg(unix)]
-fn signal_at(args: &[&str], marker: &str, delay: Duration, signal: libc::c_int) -> Ended {
+fn signal_at(args: &[String], marker: &str, delay: Duration, signal: libc::c_int) -> Ended {
     let mut child = Command::new(env!("CARGO_BIN_EXE_pma-exo"))
         .args(args)
         .env("RUST_BACKTRACE", "0")
@@ -144,9 +164,15 @@ fn last_row(log: &Path) -> (String, String) {
 }
 
 /// Asserts a commissioning the operator stopped at `stage`: exit 130, the run under way
-/// (if any) vented and logged as interrupted, no later stage's file, no gains kept, and a
-/// report that says so (never "stopped by the supervisor").
-fn assert_interrupted_at(ended: &Ended, out: &Path, stage: u32, later: &[&str]) {
+/// (its log `running`, if one was) vented and logged as interrupted, no later stage's
+/// file, no gains kept, and a report that says so (never "stopped by the supervisor").
+fn assert_interrupted_at(
+    ended: &Ended,
+    out: &Path,
+    stage: u32,
+    running: Option<&str>,
+    later: &[&str],
+) {
     let all = format!("{}{}", ended.stdout, ended.stderr);
     assert_eq!(ended.code, Some(130), "{all}");
     let said = format!("interrupted at stage {stage} by the operator");
@@ -163,6 +189,13 @@ fn assert_interrupted_at(ended: &Ended, out: &Path, stage: u32, later: &[&str]) 
     let v: serde_json::Value = serde_json::from_str(&ended.stdout).expect("json");
     assert_eq!(v["interrupted_at_stage"], stage, "{v}");
     assert!(v["kept"].is_null(), "{v}");
+    if let Some(log) = running {
+        assert_eq!(
+            last_row(&out.join(log)),
+            ("vent".into(), "interrupted".into()),
+            "{log}"
+        );
+    }
 }
 
 /// Regression: SIGINT during the run before (stage 1) ended `rig commission` with status 1
@@ -174,25 +207,17 @@ fn commission_stops_on_sigint_during_the_run_before_with_status_130() {
     let config = realtime_config(&d, 60);
     let out = d.join("com");
     let ended = signal_at(
-        &[
-            "rig",
-            "commission",
-            "--config",
-            &s(&config),
-            "--out",
-            &s(&out),
-            "--load-kg",
-            "2.5",
-            "--json",
-        ],
+        &commission(&config, &out, &[]),
         "[1/5]",
         Duration::from_secs(1),
         libc::SIGINT,
     );
-    assert_interrupted_at(&ended, &out, 1, &["excite.csv", "plant.toml"]);
-    assert_eq!(
-        last_row(&out.join("before.csv")),
-        ("vent".into(), "interrupted".into())
+    assert_interrupted_at(
+        &ended,
+        &out,
+        1,
+        Some("before.csv"),
+        &["excite.csv", "plant.toml"],
     );
     std::fs::remove_dir_all(d).ok();
 }
@@ -205,27 +230,17 @@ fn commission_stops_on_sigterm_during_the_excitation_with_status_130() {
     let config = realtime_config(&d, 2);
     let out = d.join("com");
     let ended = signal_at(
-        &[
-            "rig",
-            "commission",
-            "--config",
-            &s(&config),
-            "--out",
-            &s(&out),
-            "--load-kg",
-            "2.5",
-            "--excite-duration",
-            "120",
-            "--json",
-        ],
+        &commission(&config, &out, &["--excite-duration", "120"]),
         "[2/5]",
         Duration::from_secs(1),
         libc::SIGTERM,
     );
-    assert_interrupted_at(&ended, &out, 2, &["plant.toml", "after-current-gains.csv"]);
-    assert_eq!(
-        last_row(&out.join("excite.csv")),
-        ("vent".into(), "interrupted".into())
+    assert_interrupted_at(
+        &ended,
+        &out,
+        2,
+        Some("excite.csv"),
+        &["plant.toml", "after-current-gains.csv"],
     );
     std::fs::remove_dir_all(d).ok();
 }
@@ -239,24 +254,18 @@ fn commission_stops_on_sigterm_during_identification() {
     let config = rig_config(&d, "rig.toml", &[]);
     let out = d.join("com");
     let ended = signal_at(
-        &[
-            "rig",
-            "commission",
-            "--config",
-            &s(&config),
-            "--out",
-            &s(&out),
-            "--load-kg",
-            "2.5",
-            "--excite-duration",
-            "300",
-            "--json",
-        ],
+        &commission(&config, &out, &["--excite-duration", "300"]),
         "[3/5]",
         Duration::ZERO,
         libc::SIGTERM,
     );
-    assert_interrupted_at(&ended, &out, 3, &["plant.toml", "after-current-gains.csv"]);
+    assert_interrupted_at(
+        &ended,
+        &out,
+        3,
+        None,
+        &["plant.toml", "after-current-gains.csv"],
+    );
     assert!(out.join("excite.csv").exists());
     std::fs::remove_dir_all(d).ok();
 }
@@ -270,27 +279,22 @@ fn commission_stops_on_sigint_during_tuning() {
     let config = rig_config(&d, "rig.toml", &[]);
     let out = d.join("com");
     let ended = signal_at(
-        &[
-            "rig",
-            "commission",
-            "--config",
-            &s(&config),
-            "--out",
-            &s(&out),
-            "--load-kg",
-            "2.5",
-            "--excite-duration",
-            "20",
-            "--generations",
-            "100000",
-            "--yes",
-            "--json",
-        ],
+        &commission(
+            &config,
+            &out,
+            &[
+                "--excite-duration",
+                "20",
+                "--generations",
+                "100000",
+                "--yes",
+            ],
+        ),
         "[4/5]",
         Duration::ZERO,
         libc::SIGINT,
     );
-    assert_interrupted_at(&ended, &out, 4, &["after-current-gains.csv"]);
+    assert_interrupted_at(&ended, &out, 4, None, &["after-current-gains.csv"]);
     assert!(out.join("plant.toml").exists());
     std::fs::remove_dir_all(d).ok();
 }
@@ -305,33 +309,30 @@ fn commission_runs_no_further_verification_after_sigint_in_stage_5() {
     let config = realtime_config(&d, 10);
     let out = d.join("com");
     let ended = signal_at(
-        &[
-            "rig",
-            "commission",
-            "--config",
-            &s(&config),
-            "--out",
-            &s(&out),
-            "--load-kg",
-            "2.5",
-            "--excite-duration",
-            "20",
-            "--robust",
-            "1",
-            "--population",
-            "2",
-            "--generations",
-            "1",
-            "--json",
-        ],
+        &commission(
+            &config,
+            &out,
+            &[
+                "--excite-duration",
+                "20",
+                "--robust",
+                "1",
+                "--population",
+                "2",
+                "--generations",
+                "1",
+            ],
+        ),
         "[5/5]",
         Duration::from_secs(1),
         libc::SIGINT,
     );
-    assert_interrupted_at(&ended, &out, 5, &["after-tuned-gains.csv"]);
-    assert_eq!(
-        last_row(&out.join("after-current-gains.csv")),
-        ("vent".into(), "interrupted".into())
+    assert_interrupted_at(
+        &ended,
+        &out,
+        5,
+        Some("after-current-gains.csv"),
+        &["after-tuned-gains.csv"],
     );
     std::fs::remove_dir_all(d).ok();
 }
@@ -500,27 +501,22 @@ fn the_commissioning_report_names_the_controller_and_gains_that_ran() {
     let d = dir("pid-labels");
     let config = rig_config(&d, "rig.toml", &[]);
     let out = d.join("com");
-    let run = pma_exo(&[
-        "rig",
-        "commission",
-        "--config",
-        &s(&config),
-        "--out",
-        &s(&out),
-        "--load-kg",
-        "2.5",
-        "--controller",
-        "pid",
-        "--excite-duration",
-        "20",
-        "--robust",
-        "1",
-        "--population",
-        "2",
-        "--generations",
-        "1",
-        "--json",
-    ]);
+    let run = pma_exo(&commission(
+        &config,
+        &out,
+        &[
+            "--controller",
+            "pid",
+            "--excite-duration",
+            "20",
+            "--robust",
+            "1",
+            "--population",
+            "2",
+            "--generations",
+            "1",
+        ],
+    ));
     let err = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(0), "{err}");
     let v: serde_json::Value = serde_json::from_slice(&run.stdout).expect("json");
@@ -587,25 +583,22 @@ fn commission_goes_on_when_the_configured_controller_faults_before() {
         )],
     );
     let out = d.join("com");
-    let run = pma_exo(&[
-        "rig",
-        "commission",
-        "--config",
-        &s(&config),
-        "--out",
-        &s(&out),
-        "--load-kg",
-        "3.6",
-        "--excite-duration",
-        "30",
-        "--robust",
-        "2",
-        "--population",
-        "4",
-        "--generations",
-        "1",
-        "--json",
-    ]);
+    let run = pma_exo(&commission(
+        &config,
+        &out,
+        &[
+            "--load-kg",
+            "3.6",
+            "--excite-duration",
+            "30",
+            "--robust",
+            "2",
+            "--population",
+            "4",
+            "--generations",
+            "1",
+        ],
+    ));
     let err = String::from_utf8_lossy(&run.stderr);
     let v: serde_json::Value = serde_json::from_slice(&run.stdout).expect("json");
     let before = &v["before"];
