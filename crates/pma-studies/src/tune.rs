@@ -471,8 +471,11 @@ pub fn tune_robust(
     // worst (one plant over it costs more than any IAE), on 90 % of them for the 90th
     // percentile; the search minimised exactly this, so the check agrees with it.
     let mut costs: Vec<f64> = scores.iter().map(|s| s.cost(objective)).collect();
+    // The rig's window holds on every plant whatever the aggregate: the rig's supervisor
+    // would stop the run on any of them.
+    let inside = scores.iter().all(|s| s.left_window_s.is_none());
     let unbounded = objective.max_variation_pa_per_s.is_none() && objective.rig.is_none();
-    let feasible = unbounded || aggregate.of(&mut costs) < INFEASIBLE_COST_M;
+    let feasible = inside && (unbounded || aggregate.of(&mut costs) < INFEASIBLE_COST_M);
     Some((
         TuneResult {
             config,
