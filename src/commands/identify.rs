@@ -46,7 +46,17 @@ pub fn run(a: Args) -> Result<i32> {
         .map(|l| read_log(l))
         .collect::<Result<Vec<_>, _>>()?;
     let load_kg = a.load_kg.or(logs[0].weighed_kg);
-    let id = identify_logs(&logs, load_kg, a.seed)?;
+    let stop = output::stop_flag()?;
+    let id = match identify_logs(&logs, load_kg, a.seed, &stop) {
+        Err(pma_studies::StudyError::Interrupted) => {
+            eprintln!(
+                "interrupted by the operator: `{}` was not written",
+                a.out.display()
+            );
+            return Ok(output::INTERRUPTED);
+        }
+        r => r?,
+    };
     if id.fit_percent < a.min_fit && !a.force {
         bail!(
             "the identified model fits the held-out quarter of the log at {:.1} % only (--min-fit {}): nothing written (--force writes it anyway)",

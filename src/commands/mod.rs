@@ -3,7 +3,6 @@ use anyhow::{bail, Context, Result};
 use pma_control::{ChirpReference, ControllerConfig, ControllerKind, Reference, SineReference};
 use std::path::{Path, PathBuf};
 
-pub mod commission;
 pub mod compare_leg;
 pub mod identify;
 pub mod pendulum;

@@ -82,9 +82,6 @@ impl From<ObjectiveArg> for pma_studies::tune::Aggregate {
 /// Evaluations done by this process's search (one search per process).
 static EVALUATED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
-/// Most plants a robust tuning takes.
-const MAX_ROBUST: usize = 1000;
-
 impl Args {
     /// The command line that reproduces a tuning (written into the gain file).
     fn command(&self, plant: &str) -> String {
@@ -114,14 +111,19 @@ impl Args {
     }
 }
 
-/// Largest firefly population accepted.
+/// Largest firefly population accepted (`tune`, `rig commission`).
 const MAX_POPULATION: usize = 10_000;
 /// Most generations accepted.
 const MAX_GENERATIONS: usize = 100_000;
+/// Most plants a robust tuning takes.
+const MAX_ROBUST: usize = 1000;
+/// Wall time of one control period of a tuning's bench run, per thread (s): an upper
+/// bound (a 20 s run takes about 6 ms on this project's 2-core machine, 0.3 us a period).
+const TUNING_PERIOD_S: f64 = 1e-6;
 
 /// Checks the search's size and returns its evaluations: the initial population, then one
 /// per firefly per generation at most (the tuner's own count is reported after the run).
-fn evaluations(population: usize, generations: usize) -> Result<f64> {
+pub(crate) fn evaluations(population: usize, generations: usize) -> Result<f64> {
     if !(2..=MAX_POPULATION).contains(&population) {
         bail!("--population must be 2..={MAX_POPULATION} (got {population})");
     }
@@ -135,6 +137,32 @@ fn evaluations(population: usize, generations: usize) -> Result<f64> {
     Ok(n as f64)
 }
 
+/// Checks `--robust`'s number of plants.
+pub(crate) fn check_robust(plants: usize) -> Result<()> {
+    if !(1..=MAX_ROBUST).contains(&plants) {
+        bail!("--robust must be 1..={MAX_ROBUST} plants (got {plants})");
+    }
+    Ok(())
+}
+
+/// Refuses a tuning of `evaluations` runs of `duration_s` on each of `plants` estimated
+/// over an hour unless `yes`; returns the estimate (s, one thread).
+pub(crate) fn check_tuning_wall_time(
+    duration_s: f64,
+    evaluations: f64,
+    plants: usize,
+    yes: bool,
+) -> Result<f64> {
+    let spec = pma_bench::RunSpec {
+        duration_s,
+        ..Default::default()
+    };
+    let runs = evaluations * plants as f64;
+    let periods = spec.periods()? as f64 * runs;
+    output::check_wall_time("this tuning", periods, TUNING_PERIOD_S, yes)?;
+    Ok(periods * TUNING_PERIOD_S)
+}
+
 /// Runs `tune`.
 pub fn run(a: Args) -> Result<i32> {
     check_duration(a.duration)?;
@@ -145,29 +173,21 @@ pub fn run(a: Args) -> Result<i32> {
         }
     }
     let plant = pma_bench::PlantConfig::load(&a.plant)?;
-    let spec = pma_bench::RunSpec {
-        duration_s: a.duration,
-        ..Default::default()
-    };
-    let periods = spec.periods()? as f64;
     let plants = match a.robust {
-        Some(n) if !(1..=MAX_ROBUST).contains(&n) => {
-            bail!("--robust must be 1..={MAX_ROBUST} plants (got {n})")
-        }
-        Some(n) => match &a.robust_from {
-            Some(sweep) => {
-                pma_studies::tune::population_plants(&pma_studies::sweep::load(sweep)?, n, a.seed)?
+        Some(n) => {
+            check_robust(n)?;
+            match &a.robust_from {
+                Some(sweep) => pma_studies::tune::population_plants(
+                    &pma_studies::sweep::load(sweep)?,
+                    n,
+                    a.seed,
+                )?,
+                None => pma_studies::tune::robust_plants(&plant, n, a.spread, a.seed)?,
             }
-            None => pma_studies::tune::robust_plants(&plant, n, a.spread, a.seed)?,
-        },
+        }
         None => vec![plant.clone()],
     };
-    output::check_wall_time(
-        "this tuning",
-        periods * evaluations * plants.len() as f64,
-        1e-6,
-        a.yes,
-    )?;
+    check_tuning_wall_time(a.duration, evaluations, plants.len(), a.yes)?;
     if let (Some(out), Some(plant)) = (&a.out, output::input_file(&a.plant)) {
         output::refuse_input_as_output(&[("plant file", plant)], &[("--out", out)])?;
     }
@@ -183,6 +203,7 @@ pub fn run(a: Args) -> Result<i32> {
     let objective = pma_studies::tune::Objective {
         duration_s: a.duration,
         max_variation_pa_per_s: a.max_variation.map(|v| v * 1e5),
+        rig: None,
     };
     let stop = output::stop_flag()?;
     let found = super::with_threads(a.threads, || {
@@ -192,6 +213,7 @@ pub fn run(a: Args) -> Result<i32> {
             a.objective.into(),
             &opts,
             &objective,
+            None,
             &stop,
         )
     })?;

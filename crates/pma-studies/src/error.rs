@@ -36,6 +36,9 @@ pub enum StudyError {
         /// What is wrong.
         message: String,
     },
+    /// The operator stopped the work (SIGINT/SIGTERM) before it had a result.
+    #[error("interrupted by the operator")]
+    Interrupted,
     /// A study's file could not be parsed or holds something it cannot run.
     #[error("{what} `{file}`: {message}")]
     Parse {

@@ -26,6 +26,7 @@ use pma_control::NominalSpec;
 use pma_model::{GaussianRng, LoadProfile, MuscleScale, SensorParams, ValveParams};
 use serde::Serialize;
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// A rig log reduced to what identification needs.
 #[derive(Debug, Clone, PartialEq)]
@@ -332,15 +333,20 @@ impl Part {
     }
 }
 
-/// The logs a fit runs against, counting the simulations it runs.
+/// The logs a fit runs against, counting the simulations it runs; once `stop` is raised
+/// no simulation runs (every cost is infinite, so every search ends at once).
 struct Problem<'a> {
     logs: &'a [IdLog],
     simulations: std::cell::Cell<usize>,
+    stop: &'a AtomicBool,
 }
 
 impl Problem<'_> {
     /// Residuals of `q` over `part` of every log, one after the other.
     fn residuals(&self, q: &Params, part: Part) -> Option<Vec<f64>> {
+        if self.stop.load(Ordering::Relaxed) {
+            return None;
+        }
         let mut out = Vec::new();
         for log in self.logs {
             self.simulations.set(self.simulations.get() + 1);
@@ -557,7 +563,12 @@ impl Identified {
 
 /// Identifies the plant behind `log` with the load `load_kg` (weighed).
 pub fn identify(log: &IdLog, load_kg: f64, seed: u64) -> Result<Identified, StudyError> {
-    identify_logs(std::slice::from_ref(log), Some(load_kg), seed)
+    identify_logs(
+        std::slice::from_ref(log),
+        Some(load_kg),
+        seed,
+        &AtomicBool::new(false),
+    )
 }
 
 fn id_error(message: impl Into<String>) -> StudyError {
@@ -571,10 +582,13 @@ fn id_error(message: impl Into<String>) -> StudyError {
 /// Identifies the plant behind `logs` (one muscle, one valve): with `load_kg` the load is
 /// the weighed one; without it, at least two logs with different added masses
 /// (`[load] added_mass_kg`) fix it, eq. (1) then being inhomogeneous in the forces.
+/// Raising `stop` (the operator's SIGINT/SIGTERM) ends it within one simulation:
+/// [`StudyError::Interrupted`].
 pub fn identify_logs(
     logs: &[IdLog],
     load_kg: Option<f64>,
     seed: u64,
+    stop: &AtomicBool,
 ) -> Result<Identified, StudyError> {
     let Some(first) = logs.first() else {
         return Err(id_error("no log"));
@@ -601,12 +615,13 @@ pub fn identify_logs(
     let problem = Problem {
         logs,
         simulations: std::cell::Cell::new(0),
+        stop,
     };
     let mut q: Params = [1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0];
     // Without a weighed load, the fit starts from a guess and the added mass moves it.
     q[LOAD] = load_kg.unwrap_or(START_LOADS_KG[1]);
     // With the pressure channel the valve is fitted on its own, and stays.
-    let valve_fit = fit_valve(logs);
+    let valve_fit = fit_valve(logs, stop);
     let (muscle_valve, valve_rms) = match valve_fit {
         Some((tau, theta, rms_pa)) => {
             q[TAU] = tau;
@@ -640,6 +655,7 @@ pub fn identify_logs(
     let starts = Problem {
         logs: if load_kg.is_some() { logs } else { &logs[..1] },
         simulations: std::cell::Cell::new(0),
+        stop,
     };
     let start_at = |load: f64| {
         let mut best = f64::INFINITY;
@@ -698,6 +714,9 @@ pub fn identify_logs(
         all.sort_unstable();
     }
     let (c, jac) = levenberg_marquardt(&mut q, &all, &problem, 10);
+    if stop.load(Ordering::Relaxed) {
+        return Err(StudyError::Interrupted);
+    }
     cost = cost.min(c);
     let jac =
         jac.ok_or_else(|| id_error("the model could not be simulated at the start values"))?;
@@ -881,11 +900,14 @@ const START_LOADS_KG: [f64; 3] = [0.75, 2.0, 5.5];
 /// log has the pressure channel): the valve simulated alone at the bench's substeps, the
 /// dead time on a grid of 0.25 ms (the bench's resolution), the time constant by golden
 /// section at each.
-fn fit_valve(logs: &[IdLog]) -> Option<(f64, f64, f64)> {
+fn fit_valve(logs: &[IdLog], stop: &AtomicBool) -> Option<(f64, f64, f64)> {
     if logs.iter().any(|l| l.pressure_pa.is_none()) {
         return None;
     }
     let cost = |tau: f64, theta: f64| -> f64 {
+        if stop.load(Ordering::Relaxed) {
+            return f64::INFINITY;
+        }
         let mut q: Params = [0.0; 11];
         q[TAU] = tau;
         q[THETA] = theta;
@@ -1141,6 +1163,13 @@ mod tests {
         let id = identify(&log, 2.5, 1).unwrap();
         assert!((id.valve_lag_s - 0.015).abs() < 0.1 * 0.015, "{id:?}");
         assert!(id.fit_percent > 99.0, "{id:?}");
+        // Regression (issue 26): `rig commission` could not stop an identification. The
+        // operator's stop, raised, ends it without a result.
+        let stopped = identify_logs(&[log], Some(2.5), 1, &AtomicBool::new(true));
+        assert!(
+            matches!(stopped, Err(StudyError::Interrupted)),
+            "{stopped:?}"
+        );
     }
 
     /// Regression: without a weighed load, the fit started from the anchored first stage
@@ -1170,7 +1199,7 @@ mod tests {
             log
         };
         let logs = [log_with(0.0), log_with(1.0)];
-        let id = identify_logs(&logs, None, 1).unwrap();
+        let id = identify_logs(&logs, None, 1, &AtomicBool::new(false)).unwrap();
         assert_eq!(id.load_source, "added-mass");
         // The issue's bound: the load within 10 %.
         assert!(
@@ -1179,6 +1208,6 @@ mod tests {
             id.load_mass_kg
         );
         assert!((id.valve_lag_s - 0.040).abs() < 0.1 * 0.040, "{id:?}");
-        assert!(identify_logs(&logs[..1], None, 1).is_err());
+        assert!(identify_logs(&logs[..1], None, 1, &AtomicBool::new(false)).is_err());
     }
 }

@@ -5,8 +5,10 @@
 //! runs in the unit cube, mapped to each gain's range (logarithmically for gains spanning
 //! decades), so that one step size suits every gain.
 
-use pma_bench::{run_single, PlantConfig, RunSpec};
-use pma_control::{ControllerConfig, ControllerKind, SineReference};
+use pma_bench::{run_single, MuscleBench, PlantConfig, RunSpec};
+use pma_control::gains::Search;
+use pma_control::{ControllerConfig, ControllerKind, SineReference, SmoothStart, Trajectory};
+use pma_loop::FnRecorder;
 use pma_model::GaussianRng;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
@@ -78,11 +80,26 @@ pub fn firefly(
     stop: &AtomicBool,
     objective: impl Fn(&[f64]) -> f64 + Sync,
 ) -> (Vec<f64>, f64, usize) {
+    firefly_from(dims, opts, None, stop, objective)
+}
+
+/// [`firefly`] with its first firefly at `first` (a known point of the cube) instead of a
+/// random one; the others as without it.
+pub fn firefly_from(
+    dims: usize,
+    opts: &FireflyOptions,
+    first: Option<&[f64]>,
+    stop: &AtomicBool,
+    objective: impl Fn(&[f64]) -> f64 + Sync,
+) -> (Vec<f64>, f64, usize) {
     let mut rng = GaussianRng::new(opts.seed);
     let n = opts.population.max(2);
     let mut pos: Vec<Vec<f64>> = (0..n)
         .map(|_| (0..dims).map(|_| rng.uniform()).collect())
         .collect();
+    if let Some(u) = first.filter(|u| u.len() == dims) {
+        pos[0] = u.iter().map(|x| x.clamp(0.0, 1.0)).collect();
+    }
     let mut cost = evaluate_all(&pos, stop, &objective, opts.progress);
     let mut evals = n;
     let decay = 0.1f64.powf(1.0 / opts.generations.max(1) as f64);
@@ -147,6 +164,24 @@ pub struct Objective {
     pub duration_s: f64,
     /// Budget on the command's mean |du/dt| (Pa/s); `None` for none.
     pub max_variation_pa_per_s: Option<f64>,
+    /// The run a rig makes instead of the paper's sine from rest on it; `None` for the
+    /// paper's.
+    pub rig: Option<RigScenario>,
+}
+
+/// The run a rig makes, for gains that are to hold on it: its reference entered from
+/// where the vented load rests (the rig's smooth start), and the position window outside
+/// which its supervisor stops the run; a run that leaves the window scores as failed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RigScenario {
+    /// The rig's reference.
+    pub trajectory: Trajectory,
+    /// Its blend from the rest position (s).
+    pub ramp_s: f64,
+    /// The window's lower edge (m).
+    pub position_min_m: f64,
+    /// Its upper edge (m).
+    pub position_max_m: f64,
 }
 
 /// One evaluated gain set.
@@ -156,24 +191,36 @@ pub struct Score {
     pub iae_m: f64,
     /// Mean |du/dt| of the command (Pa/s).
     pub variation_pa_per_s: f64,
+    /// When the measured position first left the rig's window (s), on the rig's run
+    /// ([`RigScenario`]): its supervisor would have stopped it there.
+    pub left_window_s: Option<f64>,
 }
+
+/// What leaving the rig's window adds to a run's cost, at the least (m).
+const WINDOW_COST_M: f64 = 10.0;
 
 /// The cost of a run over its budget, before the overshoot is added (m): above any
 /// tracking error on a muscle that contracts a few centimetres.
 pub const INFEASIBLE_COST_M: f64 = 1.0;
 
 impl Score {
-    /// Within the objective's budget.
+    /// Within the objective's budget (and the rig's window).
     pub fn feasible(&self, objective: &Objective) -> bool {
-        objective
-            .max_variation_pa_per_s
-            .is_none_or(|v| self.variation_pa_per_s <= v)
+        self.left_window_s.is_none()
+            && objective
+                .max_variation_pa_per_s
+                .is_none_or(|v| self.variation_pa_per_s <= v)
     }
 
     /// The value minimised: the IAE when feasible; otherwise [`INFEASIBLE_COST_M`] (worse
     /// than any feasible run) plus the budget overshoot, so the search still descends
-    /// towards it.
+    /// towards it. A run that left the rig's window costs more than one ten times over
+    /// the budget, the less the later it left: the search still sees which way is in.
     pub fn cost(&self, objective: &Objective) -> f64 {
+        if let Some(t) = self.left_window_s {
+            let early = (1.0 - t / objective.duration_s).clamp(0.0, 1.0);
+            return INFEASIBLE_COST_M + WINDOW_COST_M * (1.0 + early);
+        }
         match objective.max_variation_pa_per_s {
             Some(v) if !self.feasible(objective) => INFEASIBLE_COST_M + self.variation_pa_per_s / v,
             _ => self.iae_m,
@@ -191,11 +238,61 @@ pub fn sine_score(config: &ControllerConfig, plant: &PlantConfig, duration_s: f6
         Ok(r) if r.finite && r.stats.iae_m.is_finite() => Score {
             iae_m: r.stats.iae_m,
             variation_pa_per_s: r.command_variation_pa_per_s,
+            left_window_s: None,
         },
-        _ => Score {
-            iae_m: 1.0,
-            variation_pa_per_s: f64::INFINITY,
+        _ => FAILED,
+    }
+}
+
+/// The score of a failed or non-finite run.
+const FAILED: Score = Score {
+    iae_m: 1.0,
+    variation_pa_per_s: f64::INFINITY,
+    left_window_s: None,
+};
+
+/// Scores a gain set on the rig's run (`rig`) of `duration_s`: from the vented rest, the
+/// measured position inside the window throughout.
+pub fn rig_score(
+    config: &ControllerConfig,
+    plant: &PlantConfig,
+    duration_s: f64,
+    rig: &RigScenario,
+) -> Score {
+    let Ok(rest) = MuscleBench::vented(plant) else {
+        return FAILED;
+    };
+    let reference = SmoothStart {
+        trajectory: rig.trajectory,
+        start_m: rest.position(),
+        ramp_s: rig.ramp_s,
+    };
+    let spec = RunSpec {
+        duration_s,
+        ..RunSpec::default()
+    };
+    let mut left_window_s = None;
+    let mut window = FnRecorder(|p: &pma_loop::Period<'_, MuscleBench, _>| {
+        let x = p.reading.position_m;
+        if left_window_s.is_none() && !(x >= rig.position_min_m && x <= rig.position_max_m) {
+            left_window_s = Some(p.t_s);
+        }
+    });
+    match run_single(config, plant, &reference, &spec, &mut window) {
+        Ok(r) if r.finite && r.stats.iae_m.is_finite() => Score {
+            iae_m: r.stats.iae_m,
+            variation_pa_per_s: r.command_variation_pa_per_s,
+            left_window_s,
         },
+        _ => FAILED,
+    }
+}
+
+/// Scores a gain set as `objective` says: on the paper's sine or on the rig's run.
+pub fn score(config: &ControllerConfig, plant: &PlantConfig, objective: &Objective) -> Score {
+    match &objective.rig {
+        None => sine_score(config, plant, objective.duration_s),
+        Some(rig) => rig_score(config, plant, objective.duration_s, rig),
     }
 }
 
@@ -225,6 +322,11 @@ impl Aggregate {
     }
 }
 
+/// Refuses a robust tuning's spread outside 0..=0.5 (a factor of 1 - 0.5 halves a muscle).
+pub fn check_spread(spread: f64) -> Result<(), pma_model::Invalid> {
+    pma_model::error::within("spread", spread, 0.0, 0.5, "must be 0..=0.5").map(|_| ())
+}
+
 /// `n` plants around `base` for a robust tuning: each muscle scale, the load and the
 /// valve's time constant and dead time multiplied by independent factors uniform in
 /// `[1 - spread, 1 + spread]`, seeded; the nominal (what the controllers are told) and
@@ -235,7 +337,7 @@ pub fn robust_plants(
     spread: f64,
     seed: u64,
 ) -> Result<Vec<PlantConfig>, crate::StudyError> {
-    pma_model::error::within("spread", spread, 0.0, 0.5, "must be 0..=0.5")?;
+    check_spread(spread)?;
     (0..n)
         .map(|k| {
             let mut rng = GaussianRng::new(seed.wrapping_mul(0x9E37_79B9).wrapping_add(k as u64));
@@ -299,15 +401,40 @@ pub fn population_plants(
     (0..n).map(|k| population.plant(k)).collect()
 }
 
+/// Where `config`'s searched gains sit in its kind's unit cube (clamped to the box).
+fn cube_position(config: &ControllerConfig) -> Vec<f64> {
+    config
+        .kind()
+        .search_space()
+        .iter()
+        .map(|spec| {
+            let v = config.gains().get(spec.name).unwrap_or(f64::NAN);
+            let u = match spec.search {
+                Search::Log(lo, hi) => (v.ln() - lo.ln()) / (hi.ln() - lo.ln()),
+                Search::Lin(lo, hi) => (v - lo) / (hi - lo),
+                Search::Fixed => 0.5,
+            };
+            if u.is_finite() {
+                u.clamp(0.0, 1.0)
+            } else {
+                0.5
+            }
+        })
+        .collect()
+}
+
 /// Tunes `kind` for the aggregate of its scores over `plants` (the robust tuning): each
 /// plant's cost as in [`Score::cost`], combined by `aggregate`. `None` for a controller
-/// without a search space. Returns the result and its score on every plant.
+/// without a search space. With `start` (gains of `kind`, such as the ones that run now)
+/// one firefly starts from them, so the search keeps them unless it finds better.
+/// Returns the result and its score on every plant.
 pub fn tune_robust(
     kind: ControllerKind,
     plants: &[PlantConfig],
     aggregate: Aggregate,
     opts: &FireflyOptions,
     objective: &Objective,
+    start: Option<&ControllerConfig>,
     stop: &AtomicBool,
 ) -> Option<(TuneResult, Vec<Score>)> {
     let dims = kind.search_space().len();
@@ -317,28 +444,38 @@ pub fn tune_robust(
     let cost = |config: &ControllerConfig| {
         let mut costs: Vec<f64> = plants
             .iter()
-            .map(|p| sine_score(config, p, objective.duration_s).cost(objective))
+            .map(|p| score(config, p, objective).cost(objective))
             .collect();
         aggregate.of(&mut costs)
     };
-    let (u, _, evaluations) = firefly(dims, opts, stop, |u| cost(&ControllerConfig::at(kind, u)));
+    let first = start.filter(|c| c.kind() == kind).map(cube_position);
+    let (u, _, evaluations) = firefly_from(dims, opts, first.as_deref(), stop, |u| {
+        cost(&ControllerConfig::at(kind, u))
+    });
     let config = ControllerConfig::at(kind, &u);
     let scores: Vec<Score> = plants
         .iter()
-        .map(|p| sine_score(&config, p, objective.duration_s))
+        .map(|p| score(&config, p, objective))
         .collect();
     let mut iae: Vec<f64> = scores.iter().map(|s| s.iae_m).collect();
     let mut var: Vec<f64> = scores.iter().map(|s| s.variation_pa_per_s).collect();
     let score = Score {
         iae_m: aggregate.of(&mut iae),
         variation_pa_per_s: aggregate.of(&mut var),
+        left_window_s: scores
+            .iter()
+            .filter_map(|s| s.left_window_s)
+            .min_by(f64::total_cmp),
     };
     // The budget holds as the objective aggregates: on every plant for the mean and the
     // worst (one plant over it costs more than any IAE), on 90 % of them for the 90th
     // percentile; the search minimised exactly this, so the check agrees with it.
     let mut costs: Vec<f64> = scores.iter().map(|s| s.cost(objective)).collect();
-    let feasible =
-        objective.max_variation_pa_per_s.is_none() || aggregate.of(&mut costs) < INFEASIBLE_COST_M;
+    // The rig's window holds on every plant whatever the aggregate: the rig's supervisor
+    // would stop the run on any of them.
+    let inside = scores.iter().all(|s| s.left_window_s.is_none());
+    let unbounded = objective.max_variation_pa_per_s.is_none() && objective.rig.is_none();
+    let feasible = inside && (unbounded || aggregate.of(&mut costs) < INFEASIBLE_COST_M);
     Some((
         TuneResult {
             config,
@@ -377,10 +514,10 @@ pub fn tune(
         return None;
     }
     let (u, _, evaluations) = firefly(dims, opts, stop, |u| {
-        sine_score(&ControllerConfig::at(kind, u), plant, objective.duration_s).cost(objective)
+        score(&ControllerConfig::at(kind, u), plant, objective).cost(objective)
     });
     let config = ControllerConfig::at(kind, &u);
-    let score = sine_score(&config, plant, objective.duration_s);
+    let score = score(&config, plant, objective);
     Some(TuneResult {
         config,
         score,
@@ -404,6 +541,74 @@ mod tests {
         );
         assert_eq!(evals, 20 * 41);
         assert!(f < 1e-3, "f = {f}, x = {x:?}");
+    }
+
+    /// The search started from a known point keeps it unless it finds better: here the
+    /// known point is the minimum, which two random fireflies and one generation would not
+    /// find.
+    #[test]
+    fn the_search_started_from_known_gains_keeps_them_unless_it_finds_better() {
+        let target = [0.3, 0.7, 0.55];
+        let bowl = |u: &[f64]| -> f64 { u.iter().zip(&target).map(|(a, b)| (a - b).powi(2)).sum() };
+        let opts = FireflyOptions {
+            population: 2,
+            generations: 1,
+            ..FireflyOptions::default()
+        };
+        let stop = AtomicBool::new(false);
+        let (_, from_random, _) = firefly(3, &opts, &stop, bowl);
+        let (x, from_target, _) = firefly_from(3, &opts, Some(&target), &stop, bowl);
+        assert!(from_random > 1e-3, "{from_random}");
+        assert_eq!(from_target, 0.0, "{x:?}");
+        // The paper's gains sit inside APRC-NDO's search box: they map back onto themselves
+        // (to rounding).
+        let kind = ControllerKind::AprcNdo;
+        let paper = kind.default_config();
+        let back = ControllerConfig::at(kind, &cube_position(&paper));
+        for spec in kind.search_space() {
+            let (a, b) = (back.gains().get(spec.name), paper.gains().get(spec.name));
+            let (a, b) = (a.expect("gain"), b.expect("gain"));
+            assert!((a - b).abs() <= 1e-9 * b.abs(), "{}: {a} {b}", spec.name);
+        }
+    }
+
+    /// The rig's run: a window narrower than the paper's 30 mm sine is left, which makes
+    /// the gain set infeasible whatever its IAE, and the earlier it is left, the more it
+    /// costs; inside the rig's own window the same gains are scored on their IAE.
+    #[test]
+    fn a_run_that_leaves_the_rigs_window_is_infeasible_and_costs_more_the_earlier() {
+        let plant = PlantConfig::preset("realistic").unwrap();
+        let gains = ControllerKind::Pid.default_config();
+        let rig = |position_max_m| RigScenario {
+            trajectory: Trajectory::Sine(SineReference::paper()),
+            ramp_s: 2.0,
+            position_min_m: -0.018,
+            position_max_m,
+        };
+        let objective = |window| Objective {
+            duration_s: 8.0,
+            max_variation_pa_per_s: None,
+            rig: Some(rig(window)),
+        };
+        let inside = score(&gains, &plant, &objective(0.045));
+        assert_eq!(inside.left_window_s, None, "{inside:?}");
+        assert!(inside.feasible(&objective(0.045)));
+        assert!(inside.cost(&objective(0.045)) < 0.01, "{inside:?}");
+        let (narrow, narrower) = (
+            score(&gains, &plant, &objective(0.025)),
+            score(&gains, &plant, &objective(0.010)),
+        );
+        let (late, early) = (
+            narrow.left_window_s.expect("left at 25 mm"),
+            narrower.left_window_s.expect("left at 10 mm"),
+        );
+        assert!(early < late, "{early} {late}");
+        assert!(!narrow.feasible(&objective(0.025)));
+        assert!(
+            narrower.cost(&objective(0.010)) > narrow.cost(&objective(0.025)),
+            "{narrower:?} {narrow:?}"
+        );
+        assert!(narrow.cost(&objective(0.025)) > INFEASIBLE_COST_M + WINDOW_COST_M);
     }
 
     #[test]
@@ -459,6 +664,7 @@ mod tests {
         let objective = Objective {
             duration_s: 2.0,
             max_variation_pa_per_s: None,
+            rig: None,
         };
         let run = |threads| {
             rayon::ThreadPoolBuilder::new()

@@ -1,4 +1,7 @@
-//! `pma-exo rig`: the hardware backend (check, run, replay).
+//! `pma-exo rig`: the hardware backend (check, run, excite, commission, replay).
+pub mod commission;
+mod supervised;
+
 use super::{viz, RerunArgs};
 use crate::output;
 use crate::say;
@@ -7,12 +10,8 @@ use clap::Subcommand;
 use pma_control::ControllerKind;
 use pma_rig::config::ClockMode;
 use pma_rig::{Injection, RigConfig, RunOptions};
-use std::path::PathBuf;
-
-/// Wall time of one lockstep period of the virtual rig, log included (s): measured 4.7 us
-/// (600 s run) to 6.5 us (20 s run, start-up included) with a release build on the 2-core
-/// development VM (`docs/safety.md`).
-const LOCKSTEP_PERIOD_S: f64 = 6.5e-6;
+use std::path::{Path, PathBuf};
+use supervised::{check_rig_wall_time, warn_if_not_vented, with_added_mass};
 
 /// `rig` subcommands.
 #[derive(Subcommand)]
@@ -98,7 +97,7 @@ pub enum RigCommand {
     /// identification, a robust tuning on the identified plant, and a verification on
     /// the rig; a report in a new directory. A real board asks before each stage that
     /// moves the muscle (`--yes` skips).
-    Commission(super::commission::Args),
+    Commission(commission::Args),
     /// Feed a log's measurements, references and periods back through the same
     /// controller and report the largest difference from the logged commands.
     Replay {
@@ -167,7 +166,6 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
             yes,
         } => {
             let (cfg, dir) = RigConfig::load(&config)?;
-            let cfg = with_added_mass(cfg, added_mass_kg, yes)?;
             check_rig_wall_time(&cfg, duration, realtime, yes)?;
             let mut options = RunOptions {
                 duration_s: Some(duration),
@@ -179,12 +177,14 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
             };
             let rerun = RerunArgs::default();
             refuse_overwrites(&cfg, &config, &options, None, &rerun)?;
+            // Asked last: the user hangs the mass only for a run every check has passed.
+            let cfg = hang_added_mass(cfg, added_mass_kg, yes)?;
             let provenance = rig_provenance(&cfg, &config, &options, None)?;
             options.provenance = Some(provenance.line());
             run_rig(&cfg, &dir, &options, json, &rerun, &provenance)
                 .with_context(|| format!("rig configuration `{config}`"))
         }
-        RigCommand::Commission(a) => super::commission::run(a),
+        RigCommand::Commission(a) => commission::run(a),
         RigCommand::Replay { log, json } => {
             let r = pma_rig::replay(&log)?;
             if json {
@@ -206,12 +206,11 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
 
 /// The configuration with `added_kg` hung on the load (validated); a real rig asks the
 /// user to hang it first unless `yes`.
-pub(crate) fn with_added_mass(mut cfg: RigConfig, added_kg: f64, yes: bool) -> Result<RigConfig> {
+fn hang_added_mass(cfg: RigConfig, added_kg: f64, yes: bool) -> Result<RigConfig> {
     if added_kg == 0.0 {
         return Ok(cfg);
     }
-    cfg.load.added_mass_kg += added_kg;
-    cfg.validate().context("--added-mass-kg")?;
+    let cfg = with_added_mass(cfg, added_kg)?;
     let asked = cfg.virtual_rig.is_none() && !yes;
     if asked
         && !super::answered_yes(&format!(
@@ -221,28 +220,6 @@ pub(crate) fn with_added_mass(mut cfg: RigConfig, added_kg: f64, yes: bool) -> R
         bail!("the excitation with the added mass was not confirmed: nothing ran");
     }
     Ok(cfg)
-}
-
-/// Refuses a run over an hour of wall time unless `yes`; anything but a lockstep virtual
-/// run takes real time.
-pub(crate) fn check_rig_wall_time(
-    cfg: &RigConfig,
-    duration_s: f64,
-    realtime: bool,
-    yes: bool,
-) -> Result<()> {
-    super::check_duration(duration_s)?;
-    let lockstep = !realtime
-        && cfg
-            .virtual_rig
-            .as_ref()
-            .is_some_and(|v| v.clock == ClockMode::Lockstep);
-    let per_period_s = if lockstep {
-        LOCKSTEP_PERIOD_S
-    } else {
-        cfg.period_s
-    };
-    output::check_wall_time("this rig run", duration_s / cfg.period_s, per_period_s, yes)
 }
 
 fn check(config: &str) -> Result<()> {
@@ -360,16 +337,70 @@ fn run_rig(
         eprintln!("warning: Rerun: {e}");
     }
     warn_if_not_vented(&report);
+    // An open-loop excitation tracks nothing: its figures are what it spanned.
+    let span = options
+        .excitation
+        .is_some()
+        .then(|| excitation_span(Path::new(&report.log)));
+    let span = match span {
+        Some(Err(e)) => {
+            eprintln!("warning: cannot read the excitation's span from its log: {e:#}");
+            None
+        }
+        Some(Ok(s)) => Some(s),
+        None => None,
+    };
     if json {
-        say!("{}", provenance.attach(&report)?);
+        let mut v = provenance.attach(&report)?;
+        if let (true, Some(map)) = (options.excitation.is_some(), v.as_object_mut()) {
+            for tracking in ["mae_m", "iae_m", "rte_percent"] {
+                map.remove(tracking);
+            }
+            map.insert("excitation".into(), serde_json::to_value(&span)?);
+        }
+        say!("{v}");
     } else {
-        print_report(&report)?;
+        print_report(&report, span.as_ref())?;
         say!("  ({})", provenance.line());
     }
     if let Some(e) = &report.log_error {
         eprintln!("error: the log `{}` is incomplete: {e}", report.log);
     }
     Ok(report.exit_code())
+}
+
+/// What an open-loop excitation is judged by: the span of the commands the valve got and
+/// of the position they moved (what `identify` checks a log for), from its log.
+#[derive(serde::Serialize)]
+struct ExcitationSpan {
+    command_min_bar: f64,
+    command_max_bar: f64,
+    /// The commands' spread about their mean (bar RMS).
+    command_rms_bar: f64,
+    position_min_mm: f64,
+    position_max_mm: f64,
+}
+
+fn excitation_span(log: &Path) -> Result<ExcitationSpan> {
+    let (mut c_lo, mut c_hi, mut x_lo, mut x_hi) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    let (mut sum, mut sum2, mut n) = (0.0, 0.0, 0.0);
+    supervised::for_each_period(log, &["valve_cmd_pa", "position_m"], |_, v| {
+        let (c, x) = (v[0], v[1]);
+        (c_lo, c_hi) = (c_lo.min(c), c_hi.max(c));
+        (x_lo, x_hi) = (x_lo.min(x), x_hi.max(x));
+        (sum, sum2, n) = (sum + c, sum2 + c * c, n + 1.0);
+    })?;
+    if n == 0.0 {
+        bail!("`{}` has no period", log.display());
+    }
+    let mean = sum / n;
+    Ok(ExcitationSpan {
+        command_min_bar: c_lo / 1e5,
+        command_max_bar: c_hi / 1e5,
+        command_rms_bar: (sum2 / n - mean * mean).max(0.0).sqrt() / 1e5,
+        position_min_mm: x_lo * 1e3,
+        position_max_mm: x_hi * 1e3,
+    })
 }
 
 /// What a rig run runs: the rig (its file by path), its plant (virtual) or device, the
@@ -422,16 +453,7 @@ fn rig_provenance(
     })
 }
 
-/// The one message a run that could not vent must print, whatever else happens.
-pub(crate) fn warn_if_not_vented(report: &pma_rig::RigReport) {
-    if !report.vented {
-        eprintln!(
-            "DANGER: the valve could not be vented at the end of the run: dump the air by hand"
-        );
-    }
-}
-
-fn print_report(r: &pma_rig::RigReport) -> Result<()> {
+fn print_report(r: &pma_rig::RigReport, span: Option<&ExcitationSpan>) -> Result<()> {
     let status = match (&r.fault, r.completed) {
         (None, true) => "completed".to_owned(),
         (Some(f), _) => format!("stopped: {f}"),
@@ -450,7 +472,17 @@ fn print_report(r: &pma_rig::RigReport) -> Result<()> {
         say!("  {d}");
     }
     if r.controller == "excite" {
-        say!("  an open-loop excitation: no tracking figures (identify from the log)");
+        match span {
+            Some(s) => say!(
+                "  an open-loop excitation (no tracking figures; identify from the log): commands {:.2}..{:.2} bar ({:.2} bar RMS about their mean), position {:.2}..{:.2} mm",
+                s.command_min_bar,
+                s.command_max_bar,
+                s.command_rms_bar,
+                s.position_min_mm,
+                s.position_max_mm
+            ),
+            None => say!("  an open-loop excitation: no tracking figures (identify from the log)"),
+        }
     } else {
         say!(
             "  tracking (measured): MAE {:.3e} m, IAE {:.3e} m, RTE {:.3} %",
