@@ -1,6 +1,6 @@
 //! Scenario and muscle-geometry files (TOML, `deny_unknown_fields`, units in the names).
 use crate::error::{invalid, LegError};
-use crate::gait::GaitSpeed;
+use crate::gait::{GaitReference, GaitSpeed};
 use crate::ground::TreadmillSettings;
 use crate::patient::PatientSettings;
 use pma_control::AprcGains;
@@ -219,6 +219,14 @@ pub struct GaitSettings {
     pub stride_period_s: f64,
     /// Smooth start from standing (s).
     pub ramp_s: f64,
+}
+
+impl GaitSettings {
+    /// The reference these settings describe (the first leg's; see
+    /// [`GaitReference::for_leg`]).
+    pub fn reference(&self) -> Result<GaitReference, LegError> {
+        GaitReference::normative(self.speed, self.stride_period_s, self.ramp_s)
+    }
 }
 
 /// Joint angle sensor (encoder) of each joint; both muscles of a joint read their

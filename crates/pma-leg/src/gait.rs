@@ -145,6 +145,16 @@ pub struct GaitSample {
     pub hip: JointSample,
     /// Knee flexion.
     pub knee: JointSample,
+    /// Ankle dorsiflexion, where the reference has it (zero otherwise): the passive
+    /// ankle is not driven, its reference is only compared with.
+    pub ankle: JointSample,
+}
+
+impl GaitSample {
+    /// Hip, knee and ankle angles (rad).
+    pub fn angles_rad(&self) -> [f64; 3] {
+        [self.hip.angle_rad, self.knee.angle_rad, self.ankle.angle_rad]
+    }
 }
 
 /// Hip and knee flexion over time: the normative cycle of a speed class, stretched to
@@ -154,9 +164,13 @@ pub struct GaitSample {
 pub struct GaitReference {
     hip: FourierSeries,
     knee: FourierSeries,
+    /// The ankle's curve, where the data has one.
+    ankle: Option<FourierSeries>,
     toe_off: f64,
     stride_period_s: f64,
     ramp_s: f64,
+    /// Where in the cycle this leg is at `t = 0` (0, or 0.5 for the other leg).
+    phase_offset: f64,
 }
 
 /// Default stride period of a slow training gait (s).
@@ -191,9 +205,11 @@ impl GaitReference {
         Ok(Self {
             hip: curves.hip,
             knee: curves.knee,
+            ankle: None,
             toe_off: curves.toe_off,
             stride_period_s,
             ramp_s,
+            phase_offset: 0.0,
         })
     }
 
@@ -204,9 +220,9 @@ impl GaitReference {
         self.toe_off
     }
 
-    /// Phase of the cycle at `t_s` (0-1, 0 at each initial contact).
+    /// Phase of the cycle at `t_s` (0-1, 0 at each initial contact of this leg).
     pub fn phase(&self, t_s: f64) -> f64 {
-        (t_s / self.stride_period_s).rem_euclid(1.0)
+        (t_s / self.stride_period_s + self.phase_offset).rem_euclid(1.0)
     }
 
     /// Whether the reference's foot is in stance at `t_s` (after the start-up ramp: while
@@ -220,15 +236,24 @@ impl GaitReference {
         self.ramp_s
     }
 
+    /// The same reference for leg `leg` of a trainer: the second leg half a stride later,
+    /// started by the same ramp (both legs leave standing together).
+    pub fn for_leg(&self, leg: usize) -> Self {
+        Self {
+            phase_offset: (self.phase_offset + 0.5 * leg as f64).rem_euclid(1.0),
+            ..*self
+        }
+    }
+
+    /// Where in the cycle this leg is at `t = 0` (0, or 0.5 for a trainer's second leg).
+    pub fn phase_offset(&self) -> f64 {
+        self.phase_offset
+    }
+
     /// The other leg's references at `t_s`: the same cycle half a stride later, started by
     /// the same ramp (both legs leave standing together).
     pub fn sample_half_stride_later(&self, t_s: f64) -> GaitSample {
-        let ramp = self.ramp(t_s);
-        let harmonics = FourierSeries::harmonics(t_s / self.stride_period_s + 0.5);
-        GaitSample {
-            hip: self.joint(&self.hip, &harmonics, ramp),
-            knee: self.joint(&self.knee, &harmonics, ramp),
-        }
+        self.for_leg(1).sample(t_s)
     }
 
     /// Stride period (s).
@@ -270,10 +295,13 @@ impl GaitReference {
     pub fn sample(&self, t_s: f64) -> GaitSample {
         let ramp = self.ramp(t_s);
         // Both joints at the same phase: one set of sines for the two.
-        let harmonics = FourierSeries::harmonics(t_s / self.stride_period_s);
+        let harmonics = FourierSeries::harmonics(t_s / self.stride_period_s + self.phase_offset);
         GaitSample {
             hip: self.joint(&self.hip, &harmonics, ramp),
             knee: self.joint(&self.knee, &harmonics, ramp),
+            ankle: self
+                .ankle
+                .map_or_else(JointSample::default, |a| self.joint(&a, &harmonics, ramp)),
         }
     }
 }

@@ -1,11 +1,10 @@
 //! What a run did to the patient and to the hardware: the patient's torques, each spasm's
 //! effect on tracking, time beyond the joint limits, muscle forces against their rating and
 //! valve saturation; accumulated by a [`Recorder`] whose buffers are sized before the run.
-use crate::control::LegOutput;
-use crate::leg::JOINT_NAMES;
+use crate::exoskeleton::JOINT_NAMES;
+use crate::metrics::{LegPeriod, LegRecorder, LegStart};
 use crate::patient::{SpasmDirection, SpasmEvent};
-use crate::plant::{LegPlant, SupervisedLeg};
-use pma_loop::{Period, Recorder, Start};
+use crate::plant::LegPlant;
 use std::collections::BTreeMap;
 
 /// Error within which a joint counts as recovered after a spasm (deg).
@@ -33,12 +32,11 @@ pub struct PatientJointStats {
 }
 
 /// The patient's torques, hip and knee.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
+#[serde(transparent)]
 pub struct PatientReport {
-    /// Hip.
-    pub hip: PatientJointStats,
-    /// Knee.
-    pub knee: PatientJointStats,
+    /// Per joint (`hip`, `knee`; `right/hip`, ... on a two-leg trainer).
+    pub joints: BTreeMap<String, PatientJointStats>,
 }
 
 /// One spasm and what it did.
@@ -165,9 +163,9 @@ pub struct PatientMetrics {
 #[derive(Debug, Default)]
 pub struct BaselineTrace(pub Vec<[f64; 4]>);
 
-impl Recorder<SupervisedLeg, LegOutput> for BaselineTrace {
-    fn record(&mut self, p: &Period<'_, SupervisedLeg, LegOutput>) {
-        let s = p.truth;
+impl LegRecorder for BaselineTrace {
+    fn record(&mut self, p: &LegPeriod<'_>) {
+        let s = p.state;
         let e = |j: usize| (p.output.reference_rad[j] - s.angle_rad[j]).to_degrees();
         let w = |j: usize| s.velocity_rad_s[j].to_degrees();
         self.0.push([e(0), e(1), w(0), w(1)]);
@@ -179,14 +177,16 @@ impl PatientMetrics {
     /// spasms of the run); each muscle against its own rating.
     pub fn new(
         plant: &LegPlant,
+        leg: usize,
         events: &[SpasmEvent],
         end_s: f64,
         pressure_max_pa: f64,
         baseline: Option<Vec<[f64; 4]>>,
     ) -> Self {
-        let joint_of = std::array::from_fn(|i| plant.muscles().get(i).map_or(0, |m| m.joint));
+        let muscles = plant.leg_muscles(leg);
+        let joint_of = std::array::from_fn(|i| muscles.get(i).map_or(0, |m| m.joint));
         let rated_force_n =
-            std::array::from_fn(|i| plant.muscles().get(i).map_or(f64::NAN, |m| m.rated_force_n));
+            std::array::from_fn(|i| muscles.get(i).map_or(f64::NAN, |m| m.rated_force_n));
         let spasms = events
             .iter()
             .enumerate()
@@ -211,7 +211,7 @@ impl PatientMetrics {
             .collect();
         Self {
             joint_of,
-            limits_rad: plant.leg().limits_rad(),
+            limits_rad: plant.exo().limits_rad(leg),
             pressure_max_pa,
             rated_force_n,
             n: 0,
@@ -276,8 +276,11 @@ impl PatientMetrics {
             torque_peak_nm: self.torque_peak[j],
         };
         PatientReport {
-            hip: stats(0),
-            knee: stats(1),
+            joints: JOINT_NAMES
+                .iter()
+                .enumerate()
+                .map(|(j, n)| ((*n).to_owned(), stats(j)))
+                .collect(),
         }
     }
 
@@ -350,13 +353,13 @@ impl PatientMetrics {
     }
 }
 
-impl Recorder<SupervisedLeg, LegOutput> for PatientMetrics {
-    fn start(&mut self, s: &Start<'_, SupervisedLeg>) {
-        self.previous_p = s.truth.pressure_pa;
+impl LegRecorder for PatientMetrics {
+    fn start(&mut self, s: &LegStart<'_>) {
+        self.previous_p = s.state.pressure_pa;
     }
 
-    fn record(&mut self, p: &Period<'_, SupervisedLeg, LegOutput>) {
-        let s = p.truth;
+    fn record(&mut self, p: &LegPeriod<'_>) {
+        let s = p.state;
         let dt = p.dt_s;
         let tau = s.patient.total();
         self.n += 1;

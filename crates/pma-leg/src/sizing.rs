@@ -15,7 +15,7 @@
 //! the range where it is longest (a DMSP must not be stretched beyond its nominal length).
 use crate::config::{MuscleGeometry, Side};
 use crate::demand::Demand;
-use crate::leg::JOINT_NAMES;
+use crate::exoskeleton::JOINT_NAMES;
 use pma_model::festo::{DmspSize, FestoMuscle, REST_LENGTH_RANGE_M};
 use pma_model::DampingMode;
 
@@ -514,12 +514,17 @@ mod tests {
                     let q = 0.4 * (f64::from(k) * 0.05).sin();
                     DemandSample {
                         t_s: f64::from(k) * 1e-3,
+                        leg: 0,
+                        phase: 0.0,
                         angle_rad: [q, 0.3 + q],
                         velocity_rad_s: [0.2, 0.2],
                         torque_nm: [20.0 * q, 5.0],
+                        grf_n: [f64::NAN; 2],
+                        ankle_rad: f64::NAN,
                     }
                 })
                 .collect(),
+            legs: 1,
             max_error_deg: [0.0; 2],
             treadmill: None,
         };

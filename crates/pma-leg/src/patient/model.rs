@@ -3,7 +3,7 @@
 use super::settings::*;
 use crate::error::LegError;
 use crate::gait::GaitReference;
-use crate::leg::LegInertia;
+use crate::exoskeleton::LegInertia;
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
