@@ -818,13 +818,15 @@ pub struct LegTrace {
     pub rated_force_n: f64,
     /// On a treadmill: the ground's side of the run.
     pub ground: Option<GroundTrace>,
+    /// Legs of the trainer (the joints and muscles drawn are the first's).
+    pub legs: usize,
 }
 
 /// The treadmill's side of a leg run, every 10th period as [`LegTrace`].
 #[derive(Debug, Clone, Default)]
 pub struct GroundTrace {
-    /// Vertical ground reaction under this foot (N).
-    pub foot_n: Vec<f64>,
+    /// Vertical ground reaction under each foot (N), leg by leg.
+    pub foot_n: Vec<Vec<f64>>,
     /// The virtual other leg's force on the pelvis (N).
     pub other_leg_n: Vec<f64>,
     /// Height of the pelvis above the belt (m).
@@ -1005,12 +1007,30 @@ pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawRe
         },
     ];
     if let Some(g) = &tr.ground {
+        let mut lines: Vec<(String, &[f64], RGBColor, bool)> = g
+            .foot_n
+            .iter()
+            .enumerate()
+            .map(|(leg, f)| {
+                let name = if tr.legs > 1 {
+                    format!("{} foot", pma_leg::SIDES[leg])
+                } else {
+                    "this foot".into()
+                };
+                (name, &f[..], colour(leg), false)
+            })
+            .collect();
+        if g.other_leg_n.iter().any(|f| *f != 0.0) {
+            lines.push((
+                "the virtual other leg".into(),
+                &g.other_leg_n[..],
+                colour(2),
+                false,
+            ));
+        }
         panels.push(LinePanel {
             y_desc: "vertical ground reaction (N)",
-            lines: vec![
-                ("this foot".into(), &g.foot_n[..], colour(0), false),
-                ("the other leg".into(), &g.other_leg_n[..], colour(1), false),
-            ],
+            lines,
             marks: vec![(g.unsupported_n, "(1 - bws) m g".into())],
             spasms: spasms(None),
         });

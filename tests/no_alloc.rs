@@ -156,7 +156,7 @@ fn the_patient_model_allocates_nothing_per_substep() {
         let loaded = pma_leg::Scenario::load(scenario).expect("scenario");
         let sim = pma_leg::LegSim::new(&loaded).expect("sim");
         let mut patient = sim.plant().patient().expect("a patient").clone();
-        let h = sim.leg().substep_s();
+        let h = sim.exo().substep_s();
         let substeps = (60.0 / h) as u64;
         // As a run does: every spasm drawn before the loop.
         patient.plan(60.0);
@@ -180,8 +180,11 @@ fn the_patient_model_allocates_nothing_per_substep() {
     }
 }
 
-impl Recorder<pma_leg::SupervisedLeg, pma_leg::LegOutput> for Counter {
-    fn record(&mut self, _: &Period<'_, pma_leg::SupervisedLeg, pma_leg::LegOutput>) {
+impl Recorder<pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutput>> for Counter {
+    fn record(
+        &mut self,
+        _: &Period<'_, pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutput>>,
+    ) {
         self.tick();
     }
 }
@@ -192,8 +195,11 @@ struct Attributing {
     periods: u64,
 }
 
-impl Recorder<pma_leg::SupervisedLeg, pma_leg::LegOutput> for Attributing {
-    fn record(&mut self, _: &Period<'_, pma_leg::SupervisedLeg, pma_leg::LegOutput>) {
+impl Recorder<pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutput>> for Attributing {
+    fn record(
+        &mut self,
+        _: &Period<'_, pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutput>>,
+    ) {
         self.periods += 1;
         if self.periods == 100 {
             CLASSIFY.with(|c| c.set(true));

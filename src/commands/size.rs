@@ -104,15 +104,17 @@ fn print_summary(s: &Sizing, demand: &pma_leg::demand::Demand, scenario: &str) -
         demand.max_error_deg[1]
     );
     if let Some(t) = &demand.treadmill {
-        say!(
-            "  on the belt at {:.3} m/s with {:.0} % support: GRF loading peak {:.2} BW, stance {:.1} % (reference {:.1} %), slip {:.1} mm per stride",
-            t.belt_speed_m_s,
-            100.0 * t.bws_fraction,
-            t.peak_grf_bw.mean,
-            100.0 * t.stance_fraction.mean,
-            100.0 * t.reference_stance_fraction,
-            1e3 * t.slip_per_stride_m.mean
-        );
+        for (side, f) in &t.feet {
+            say!(
+                "  on the belt at {:.3} m/s with {:.0} % support, {side} foot: GRF loading peak {:.2} BW, stance {:.1} % (reference {:.1} %), slip {:.1} mm per stride",
+                t.belt_speed_m_s,
+                100.0 * t.bws_fraction,
+                f.peak_grf_bw.mean,
+                100.0 * f.stance_fraction.mean,
+                100.0 * f.reference_stance_fraction,
+                1e3 * f.slip_per_stride_m.mean
+            );
+        }
     }
     for j in &s.joints {
         print_joint(j)?;

@@ -10,7 +10,10 @@ fn main() {
     let bws: f64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(0.3);
     let stiffness: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(100.0);
     let text = include_str!("../models/exo_trainer.urdf");
-    let j = JointSettings { damping_nm_s_per_rad: 0.5, friction_nm: 0.0 };
+    let j = JointSettings {
+        damping_nm_s_per_rad: 0.5,
+        friction_nm: 0.0,
+    };
     let mut t = TreadmillSettings::new(bws, 75.0);
     t.speed_m_per_s = args.get(5).and_then(|s| s.parse().ok());
     t.legs = legs;
@@ -29,7 +32,10 @@ fn main() {
     let gaits: Vec<GaitReference> = (0..legs).map(|l| gait.for_leg(l)).collect();
     let v = exo.ground().unwrap().settings().belt_speed_m_s();
     let mass = 75.0;
-    eprintln!("belt {v:.3} m/s, system {:.1} kg", exo.ground().unwrap().total_mass_kg());
+    eprintln!(
+        "belt {v:.3} m/s, system {:.1} kg",
+        exo.ground().unwrap().total_mass_kg()
+    );
     let (k, c) = (20000.0, 150.0);
     let periods = (1.6 * 8.0 / 1e-3) as usize;
     let start = (1.6 * 3.0 / 1e-3) as usize;
@@ -66,9 +72,24 @@ fn main() {
             for l in 0..legs {
                 let a = exo.ankle(l).map_or(f64::NAN, |a| a.0.to_degrees());
                 let q = exo.angles(l);
-                row.extend([sum[l][0], sum[l][1], r.feet[l].vertical_n, r.feet[l].fore_aft_n, r.feet[l].slip_m_s, a, q[0].to_degrees(), q[1].to_degrees()]);
+                row.extend([
+                    sum[l][0],
+                    sum[l][1],
+                    r.feet[l].vertical_n,
+                    r.feet[l].fore_aft_n,
+                    r.feet[l].slip_m_s,
+                    a,
+                    q[0].to_degrees(),
+                    q[1].to_degrees(),
+                ]);
             }
-            row.extend([r.contralateral_n, r.support_n, r.harness_fore_aft_n, exo.pelvis_position_m().unwrap()[0], exo.pelvis_position_m().unwrap()[1]]);
+            row.extend([
+                r.contralateral_n,
+                r.support_n,
+                r.harness_fore_aft_n,
+                exo.pelvis_position_m().unwrap()[0],
+                exo.pelvis_position_m().unwrap()[1],
+            ]);
             rows.push(row);
         }
     }
@@ -84,7 +105,12 @@ fn main() {
     if let Some(path) = args.get(4) {
         let mut out = String::new();
         for r in rows {
-            out.push_str(&r.iter().map(|v| format!("{v:.5}")).collect::<Vec<_>>().join(","));
+            out.push_str(
+                &r.iter()
+                    .map(|v| format!("{v:.5}"))
+                    .collect::<Vec<_>>()
+                    .join(","),
+            );
             out.push('\n');
         }
         std::fs::write(path, out).unwrap();

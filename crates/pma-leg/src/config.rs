@@ -14,9 +14,10 @@ use std::path::{Path, PathBuf};
 
 /// The embedded leg model (`crates/pma-leg/models/exo_leg.urdf`).
 pub const EMBEDDED_URDF: &str = include_str!("../models/exo_leg.urdf");
-/// The embedded treadmill leg (`crates/pma-leg/models/exo_leg_foot.urdf`): pelvis on a
-/// vertical slide, foot with contact spheres.
-pub const EMBEDDED_FOOT_URDF: &str = include_str!("../models/exo_leg_foot.urdf");
+/// The embedded trainer (`crates/pma-leg/models/exo_trainer.urdf`): the pelvis on fore-aft
+/// and vertical slides, two legs with passive ankles and feet with contact spheres (a
+/// one-leg treadmill keeps the right leg).
+pub const EMBEDDED_TRAINER_URDF: &str = include_str!("../models/exo_trainer.urdf");
 /// The embedded muscle geometry (`crates/pma-leg/models/muscles.toml`).
 pub const EMBEDDED_MUSCLES: &str = include_str!("../models/muscles.toml");
 /// The embedded treadmill muscles (`crates/pma-leg/models/muscles_treadmill.toml`): Festo
@@ -367,7 +368,7 @@ pub struct Scenario {
     /// The foot on a treadmill belt and the pelvis on body-weight support (absent: the leg
     /// swings in the air from a fixed pelvis). Its URDF needs a `foot` link and a
     /// `pelvis_z` slide; absent `urdf` and `muscle_geometry` are then the embedded
-    /// `exo_leg_foot.urdf` and `muscles_treadmill.toml`.
+    /// `exo_trainer.urdf` and `muscles_treadmill.toml`.
     #[serde(default)]
     pub treadmill: Option<TreadmillSettings>,
 }
@@ -539,8 +540,8 @@ impl Scenario {
         if self.treadmill.is_some() {
             [
                 (
-                    EMBEDDED_FOOT_URDF,
-                    "crates/pma-leg/models/exo_leg_foot.urdf",
+                    EMBEDDED_TRAINER_URDF,
+                    "crates/pma-leg/models/exo_trainer.urdf",
                 ),
                 (
                     EMBEDDED_TREADMILL_MUSCLES,

@@ -2,8 +2,8 @@
 //! muscle, a co-contraction regulator per joint, and the gait reference.
 use crate::config::{MuscleGeometry, Scenario};
 use crate::error::{invalid, LegError};
-use crate::gait::{GaitReference, GaitSample, JointSample};
 use crate::exoskeleton::LegInertia;
+use crate::gait::{GaitReference, GaitSample, JointSample};
 use crate::legs::PerLeg;
 use crate::plant::MuscleActuator;
 use pma_control::{
@@ -219,7 +219,13 @@ impl LegControllers {
 impl LegControllers {
     /// Resets every controller on the measured pose and the first reference and acts on
     /// that reading at once (the leg's valves get their first command at `t_0`).
-    fn start(&mut self, t_s: f64, angles: &[f64; 2], resting: &[f64; 4], period_s: f64) -> LegOutput {
+    fn start(
+        &mut self,
+        t_s: f64,
+        angles: &[f64; 2],
+        resting: &[f64; 4],
+        period_s: f64,
+    ) -> LegOutput {
         self.commands = *resting;
         self.cocontraction = [self.regulator_at_rest; 2];
         let g = self.reference(t_s);

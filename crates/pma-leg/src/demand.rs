@@ -103,8 +103,7 @@ pub fn stride_demand(loaded: &LoadedScenario, strides: usize) -> Result<Demand, 
         .collect();
     let mut ground = TrainerGroundMetrics::new(&exo, stride_s);
     let h = exo.substep_s();
-    let mut samples =
-        Vec::with_capacity(legs * (((end_s - start_s) / sc.period_s) as usize + 2));
+    let mut samples = Vec::with_capacity(legs * (((end_s - start_s) / sc.period_s) as usize + 2));
     let mut max_error = [0.0f64; 2];
     for k in 0..periods {
         let t0 = k as f64 * sc.period_s;

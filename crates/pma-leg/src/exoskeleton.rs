@@ -279,15 +279,13 @@ fn keep_legs(raw: &mut urdf_rs::Robot, prefixes: &mut Vec<String>, legs: usize) 
 }
 
 /// The leg's `foot` link's `<collision>` spheres: the treadmill's contact geometry.
-fn foot_spheres(
-    raw: &urdf_rs::Robot,
-    file: &str,
-    foot: &str,
-) -> Result<Vec<FootSphere>, LegError> {
+fn foot_spheres(raw: &urdf_rs::Robot, file: &str, foot: &str) -> Result<Vec<FootSphere>, LegError> {
     let link = raw.links.iter().find(|l| l.name == foot).ok_or_else(|| {
         urdf_err(
             file,
-            format!("no link named `{foot}`: a treadmill needs a foot (see models/exo_trainer.urdf)"),
+            format!(
+                "no link named `{foot}`: a treadmill needs a foot (see models/exo_trainer.urdf)"
+            ),
         )
     })?;
     let spheres: Vec<FootSphere> = link
@@ -392,7 +390,11 @@ fn leg_inertia(
     if let (Some(foot), Some(ankle)) = (foot, ankle) {
         let (o, f) = (ankle.origin.xyz, &foot.inertial);
         let (mass, com, inertia) = combined([
-            (shank.mass_kg, [0.0, -shank.com_below_joint_m], shank.inertia_kg_m2),
+            (
+                shank.mass_kg,
+                [0.0, -shank.com_below_joint_m],
+                shank.inertia_kg_m2,
+            ),
             (
                 f.mass.value,
                 [o[0] + f.origin.xyz[0], o[2] + f.origin.xyz[2]],
@@ -1269,7 +1271,8 @@ mod tests {
             pelvis_pitch_rad: std::f64::consts::FRAC_PI_2,
             knee_limits_rad: None,
         };
-        let mut l = Exoskeleton::mounted(EMBEDDED_URDF, "exo_leg.urdf", [j, j], 1e-3, 2, mount).unwrap();
+        let mut l =
+            Exoskeleton::mounted(EMBEDDED_URDF, "exo_leg.urdf", [j, j], 1e-3, 2, mount).unwrap();
         let i = *l.inertia();
         let g = i.gravity_torques(0.0, 0.0);
         let static_moment = G

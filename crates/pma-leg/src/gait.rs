@@ -153,7 +153,11 @@ pub struct GaitSample {
 impl GaitSample {
     /// Hip, knee and ankle angles (rad).
     pub fn angles_rad(&self) -> [f64; 3] {
-        [self.hip.angle_rad, self.knee.angle_rad, self.ankle.angle_rad]
+        [
+            self.hip.angle_rad,
+            self.knee.angle_rad,
+            self.ankle.angle_rad,
+        ]
     }
 }
 

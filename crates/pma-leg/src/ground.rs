@@ -195,7 +195,11 @@ impl AnkleSettings {
             "must be 0..=20 N m s/rad",
         )?;
         let [lo, hi] = self.range_deg;
-        if !(lo.is_finite() && hi.is_finite() && (-45.0..0.0).contains(&lo) && hi > 0.0 && hi <= 40.0)
+        if !(lo.is_finite()
+            && hi.is_finite()
+            && (-45.0..0.0).contains(&lo)
+            && hi > 0.0
+            && hi <= 40.0)
         {
             return Err(LegError::Range {
                 name: "treadmill.ankle.range_deg".into(),

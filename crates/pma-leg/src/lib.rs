@@ -10,10 +10,10 @@ pub mod config;
 pub mod control;
 pub mod demand;
 mod error;
+pub mod exoskeleton;
 pub mod gains;
 pub mod gait;
 pub mod ground;
-pub mod exoskeleton;
 pub mod legs;
 pub mod metrics;
 pub mod patient;
@@ -32,5 +32,7 @@ pub use metrics::{JointStats, LegMetrics, LegPeriod, LegRecorder, LegReport, Mus
 pub use patient::{Patient, PatientSettings, PatientTorques, SpasmEvent};
 pub use plant::{LegPlant, LegState, MuscleActuator, SupervisedLeg, TrainerState};
 pub use safety::{PatientMetrics, PatientReport, SafetyReport, SpasmReport};
-pub use sim::{balanced_pressures, FootSample, GroundSample, LegFault, LegSample, LegSim, TrainerSample};
+pub use sim::{
+    balanced_pressures, FootSample, GroundSample, LegFault, LegSample, LegSim, TrainerSample,
+};
 pub use stance::{FootMetrics, FootReport, TreadmillReport};

@@ -7,7 +7,11 @@ use crate::plant::{leg_label, LegPlant, LegState, SupervisedLeg, TrainerState};
 use crate::safety::{PatientMetrics, PatientReport, SafetyReport, SpasmReport};
 
 /// `map`'s keys as outputs name them on leg `leg` of a trainer of `legs` legs.
-fn labelled<V>(legs: usize, leg: usize, map: BTreeMap<String, V>) -> impl Iterator<Item = (String, V)> {
+fn labelled<V>(
+    legs: usize,
+    leg: usize,
+    map: BTreeMap<String, V>,
+) -> impl Iterator<Item = (String, V)> {
     map.into_iter()
         .map(move |(k, v)| (leg_label(legs, leg, &k), v))
 }
@@ -51,9 +55,13 @@ impl LegReport {
             }));
             let safety = p.safety(muscle_names);
             all.safety.joints.extend(labelled(legs, leg, safety.joints));
-            all.safety.muscles.extend(labelled(legs, leg, safety.muscles));
+            all.safety
+                .muscles
+                .extend(labelled(legs, leg, safety.muscles));
         }
-        let mut report = out.unwrap_or_else(|| LegMetrics::new(1.0, 1.0).report(scenario, muscle_names, duration_s, wall_s));
+        let mut report = out.unwrap_or_else(|| {
+            LegMetrics::new(1.0, 1.0).report(scenario, muscle_names, duration_s, wall_s)
+        });
         let n = legs.max(1) as f64;
         report.cocontraction_pa = CoContractionStats {
             start: sums.0 / n,

@@ -276,15 +276,16 @@ impl LegPlant {
 
     fn command(&mut self, commands_pa: &PerLeg<[f64; 4]>) -> PerLeg<[f64; 4]> {
         for m in &mut self.muscles {
-            let u = commands_pa
-                .get(m.leg)
-                .map_or(0.0, |c| c[m.index_in_leg()]);
+            let u = commands_pa.get(m.leg).map_or(0.0, |c| c[m.index_in_leg()]);
             m.valve.command(u);
         }
         let muscles = &self.muscles;
         PerLeg::from_fn(self.exo.leg_count(), |leg| {
             std::array::from_fn(|i| match muscles.get(leg * MUSCLES_PER_LEG + i) {
-                Some(m) => m.valve.params().clamp(commands_pa.get(leg).map_or(0.0, |c| c[i])),
+                Some(m) => m
+                    .valve
+                    .params()
+                    .clamp(commands_pa.get(leg).map_or(0.0, |c| c[i])),
                 None => f64::NAN,
             })
         })

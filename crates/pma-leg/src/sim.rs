@@ -183,50 +183,58 @@ impl LegSample {
                 );
         }
         if treadmill {
-            s.push_part(
-                "ground",
-                "foot",
-                "grf_vertical_n",
-                "vertical ground reaction force (N)",
-            )
-            .push_part(
-                "ground",
-                "foot",
-                "grf_fore_aft_n",
-                "fore-aft ground reaction force (N, forward +)",
-            )
-            .push_part(
-                "ground",
-                "foot",
-                "stance",
-                "in stance (1, from contact) or swing (0)",
-            )
-            .push_part(
-                "ground",
-                "foot",
-                "reference_stance",
-                "in the reference's stance (1) or swing (0)",
-            )
-            .push_part("ground", "foot", "slip_m_s", "slip on the belt (m/s)")
-            .push_part(
-                "ground",
-                "foot",
-                "penetration_m",
-                "deepest sphere penetration (m)",
-            )
-            .push_part(
-                "joints",
-                "ankle",
-                "angle_deg",
-                "angle (deg, dorsiflexion +; passive)",
-            )
-            .push_part(
-                "joints",
-                "ankle",
-                "orthosis_torque_nm",
-                "orthosis torque (N m, dorsiflexion +)",
-            );
+            s.channels.extend(Self::foot_schema().channels);
         }
+        s
+    }
+
+    /// The foot's and the passive ankle's channels of a leg on a treadmill (after the
+    /// joints' and the muscles' in [`Self::schema`]).
+    pub fn foot_schema() -> Schema {
+        let mut s = Schema::new();
+        s.push_part(
+            "ground",
+            "foot",
+            "grf_vertical_n",
+            "vertical ground reaction force (N)",
+        )
+        .push_part(
+            "ground",
+            "foot",
+            "grf_fore_aft_n",
+            "fore-aft ground reaction force (N, forward +)",
+        )
+        .push_part(
+            "ground",
+            "foot",
+            "stance",
+            "in stance (1, from contact) or swing (0)",
+        )
+        .push_part(
+            "ground",
+            "foot",
+            "reference_stance",
+            "in the reference's stance (1) or swing (0)",
+        )
+        .push_part("ground", "foot", "slip_m_s", "slip on the belt (m/s)")
+        .push_part(
+            "ground",
+            "foot",
+            "penetration_m",
+            "deepest sphere penetration (m)",
+        )
+        .push_part(
+            "joints",
+            "ankle",
+            "angle_deg",
+            "angle (deg, dorsiflexion +; passive)",
+        )
+        .push_part(
+            "joints",
+            "ankle",
+            "orthosis_torque_nm",
+            "orthosis torque (N m, dorsiflexion +)",
+        );
         s
     }
 
@@ -328,7 +336,12 @@ impl TrainerSample {
             "fore_aft_n",
             "fore-aft force on the pelvis (N, forward +)",
         )
-        .push_part("ground", "pelvis", "x_m", "fore-aft position (m, forward +)")
+        .push_part(
+            "ground",
+            "pelvis",
+            "x_m",
+            "fore-aft position (m, forward +)",
+        )
         .push_part("ground", "pelvis", "height_m", "height above the belt (m)");
         s
     }
@@ -340,7 +353,11 @@ impl TrainerSample {
         let leg = LegSample::schema(muscles, treadmill);
         let mut s = Schema::new();
         for side in SIDES.iter().take(legs) {
-            let part = if legs > 1 { leg.prefixed(side) } else { leg.clone() };
+            let part = if legs > 1 {
+                leg.prefixed(side)
+            } else {
+                leg.clone()
+            };
             s.channels.extend(part.channels);
         }
         if treadmill {

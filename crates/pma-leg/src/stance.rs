@@ -629,8 +629,14 @@ impl TrainerGroundMetrics {
         self.time_s += dt;
         self.belt_impulse_n_s += g.belt_load_n() * dt;
         self.other_impulse_n_s += g.contralateral_n * dt;
-        self.pelvis_x_m = [self.pelvis_x_m[0].min(pelvis[0]), self.pelvis_x_m[1].max(pelvis[0])];
-        self.pelvis_z_m = [self.pelvis_z_m[0].min(pelvis[1]), self.pelvis_z_m[1].max(pelvis[1])];
+        self.pelvis_x_m = [
+            self.pelvis_x_m[0].min(pelvis[0]),
+            self.pelvis_x_m[1].max(pelvis[0]),
+        ];
+        self.pelvis_z_m = [
+            self.pelvis_z_m[0].min(pelvis[1]),
+            self.pelvis_z_m[1].max(pelvis[1]),
+        ];
         let h = g.harness_fore_aft_n;
         self.harness = (
             self.harness.0 + h * dt,

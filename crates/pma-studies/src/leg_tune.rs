@@ -13,15 +13,16 @@ pub const VARIATION_WEIGHT_DEG_PER_BAR_S: f64 = 0.01;
 pub const FAILED_RUN: f64 = 1000.0;
 
 /// Objective of a run of `config` on every muscle: hip RMS + knee RMS (deg, after the
-/// first stride) plus [`VARIATION_WEIGHT_DEG_PER_BAR_S`] times the command variation; a
+/// first stride; the legs' mean on a two-leg trainer) plus [`VARIATION_WEIGHT_DEG_PER_BAR_S`] times the command variation; a
 /// failed or non-finite run scores [`FAILED_RUN`].
 pub fn objective(loaded: &LoadedScenario, config: &ControllerConfig, duration_s: f64) -> f64 {
     let run = || -> Option<f64> {
         let mut sim = LegSim::with_controller(loaded, config).ok()?;
         let r = sim.run(duration_s, &mut ()).ok()?;
-        let j = |n: &str| r.joints.get(n).map(|s| s.rms_deg);
-        let v =
-            j("hip")? + j("knee")? + VARIATION_WEIGHT_DEG_PER_BAR_S * r.command_variation_bar_per_s;
+        // Every leg's mean for each joint (one leg: its own).
+        let v = r.joint_rms_deg("hip")
+            + r.joint_rms_deg("knee")
+            + VARIATION_WEIGHT_DEG_PER_BAR_S * r.command_variation_bar_per_s;
         (r.finite && v.is_finite()).then_some(v)
     };
     run().unwrap_or(FAILED_RUN)
