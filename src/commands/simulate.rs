@@ -101,7 +101,7 @@ pub fn run(a: Args) -> Result<i32> {
         sc.name,
         provenance.line(),
         sc.description,
-        sc.gait.speed,
+        sc.gait.speed_label(),
         sc.gait.stride_period_s,
         sc.control.cocontraction_pa / 1e5,
         config.kind(),

@@ -1,118 +1,96 @@
-//! TEMPORARY probe: both legs servo-driven on the belt; prints per-leg demands and GRF.
-use pma_leg::config::JointSettings;
-use pma_leg::gait::{GaitReference, GaitSpeed};
-use pma_leg::ground::TreadmillSettings;
-use pma_leg::{Exoskeleton, PerLeg};
+//! TEMPORARY probe: a scenario's servo-driven demand, per leg, and its ground figures.
+use pma_leg::demand::stride_demand;
+use pma_leg::Scenario;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let legs: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(2);
-    let bws: f64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(0.3);
-    let stiffness: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(100.0);
-    let text = include_str!("../models/exo_trainer.urdf");
-    let j = JointSettings {
-        damping_nm_s_per_rad: 0.5,
-        friction_nm: 0.0,
-    };
-    let mut t = TreadmillSettings::new(bws, 75.0);
-    t.speed_m_per_s = args.get(5).and_then(|s| s.parse().ok());
-    t.legs = legs;
-    t.ankle.stiffness_nm_per_rad = stiffness;
-    t.ankle.rest_deg = args.get(6).and_then(|s| s.parse().ok()).unwrap_or(0.0);
-    let gait = GaitReference::normative(GaitSpeed::Slow, 1.6, 1.6).unwrap();
-    let mut exo = Exoskeleton::on_treadmill(text, "exo_trainer.urdf", [j, j], 1e-3, 1, &t).unwrap();
-    if t.speed_m_per_s.is_none() {
-        exo.belt_at_reference_speed(&gait);
-    }
-    exo.ramp_belt(gait.ramp_s());
-    if legs == 1 {
-        exo.add_other_leg(gait);
-    }
-    exo.rest_on_belt();
-    let gaits: Vec<GaitReference> = (0..legs).map(|l| gait.for_leg(l)).collect();
-    let v = exo.ground().unwrap().settings().belt_speed_m_s();
-    let mass = 75.0;
-    eprintln!(
-        "belt {v:.3} m/s, system {:.1} kg",
-        exo.ground().unwrap().total_mass_kg()
-    );
-    let (k, c) = (20000.0, 150.0);
-    let periods = (1.6 * 8.0 / 1e-3) as usize;
-    let start = (1.6 * 3.0 / 1e-3) as usize;
-    let mut peak = vec![[0.0f64; 4]; legs]; // hip min, hip max, knee min, knee max
-    let mut grf_peak = vec![0.0f64; legs];
-    let mut rows = Vec::new();
-    for p in 0..periods {
-        let t0 = p as f64 * 1e-3;
-        let mut sum = vec![[0.0; 2]; legs];
-        exo.step(|e, _| {
-            PerLeg::from_fn(legs, |l| {
-                let g = gaits[l].sample(t0);
-                let (q, qd) = (e.angles(l), e.velocities(l));
-                let tau = [
-                    k * (g.hip.angle_rad - q[0]) + c * (g.hip.velocity_rad_s - qd[0]),
-                    k * (g.knee.angle_rad - q[1]) + c * (g.knee.velocity_rad_s - qd[1]),
-                ];
-                sum[l] = tau;
-                tau
-            })
-        });
-        let r = exo.ground_reaction().unwrap();
-        if p >= start {
-            for l in 0..legs {
-                let s = sum[l];
-                peak[l][0] = peak[l][0].min(s[0]);
-                peak[l][1] = peak[l][1].max(s[0]);
-                peak[l][2] = peak[l][2].min(s[1]);
-                peak[l][3] = peak[l][3].max(s[1]);
-                grf_peak[l] = grf_peak[l].max(r.feet[l].vertical_n);
-            }
-            let phase = gaits[0].phase(t0 + 1e-3);
-            let mut row = vec![t0 + 1e-3, phase];
-            for l in 0..legs {
-                let a = exo.ankle(l).map_or(f64::NAN, |a| a.0.to_degrees());
-                let q = exo.angles(l);
-                row.extend([
-                    sum[l][0],
-                    sum[l][1],
-                    r.feet[l].vertical_n,
-                    r.feet[l].fore_aft_n,
-                    r.feet[l].slip_m_s,
-                    a,
-                    q[0].to_degrees(),
-                    q[1].to_degrees(),
-                ]);
-            }
-            row.extend([
-                r.contralateral_n,
-                r.support_n,
-                r.harness_fore_aft_n,
-                exo.pelvis_position_m().unwrap()[0],
-                exo.pelvis_position_m().unwrap()[1],
-            ]);
-            rows.push(row);
+    let mut loaded = Scenario::load(&args[1]).expect("scenario");
+    for kv in &args[3..] {
+        let (k, v) = kv.split_once('=').expect("k=v");
+        let v: f64 = v.parse().expect("number");
+        if k == "substeps" {
+            loaded.scenario.physics_substeps = v as u32;
+            continue;
+        }
+        if k == "stride" {
+            loaded.scenario.gait.stride_period_s = v;
+            continue;
+        }
+        let t = loaded.scenario.treadmill.as_mut().expect("treadmill");
+        match k {
+            "speed" => t.speed_m_per_s = Some(v),
+            "stiffness" => t.ankle.stiffness_nm_per_rad = v,
+            "rest" => t.ankle.rest_deg = v,
+            "damping" => t.ankle.damping_nm_s_per_rad = v,
+            "bws" => t.bws_fraction = v,
+            "fore_aft" => t.pelvis_fore_aft_n_per_m = v,
+            "fore_damp" => t.pelvis_fore_aft_damping_n_s_per_m = v,
+            "stride" => loaded.scenario.gait.stride_period_s = v,
+            "substeps" => loaded.scenario.physics_substeps = v as u32,
+            "friction" => t.contact.friction = v,
+            "e" => t.contact.stiffness_n_per_m2 = v,
+            _ => panic!("unknown {k}"),
         }
     }
-    let bw = mass * 9.80665;
-    for l in 0..legs {
+    let d = stride_demand(&loaded, 4).expect("demand");
+    let mass = loaded.scenario.treadmill.map_or(75.0, |t| t.body_mass_kg);
+    for leg in 0..d.legs {
+        let s: Vec<_> = d.of_leg(leg).collect();
+        let r = |j: usize| {
+            s.iter()
+                .fold([f64::INFINITY, f64::NEG_INFINITY], |[a, b], x| {
+                    [a.min(x.torque_nm[j]), b.max(x.torque_nm[j])]
+                })
+        };
+        let (h, k) = (r(0), r(1));
         println!(
-            "leg {l}: hip {:.1}..{:.1} N m ({:.2} N m/kg), knee {:.1}..{:.1} N m ({:.2} N m/kg), GRF peak {:.2} BW",
-            peak[l][0], peak[l][1], peak[l][0].abs().max(peak[l][1]) / mass,
-            peak[l][2], peak[l][3], peak[l][2].abs().max(peak[l][3]) / mass,
-            grf_peak[l] / bw
+            "leg {leg}: hip {:.1}..{:.1} N m ({:.2} N m/kg), knee {:.1}..{:.1} N m ({:.2} N m/kg)",
+            h[0],
+            h[1],
+            h[0].abs().max(h[1]) / mass,
+            k[0],
+            k[1],
+            k[0].abs().max(k[1]) / mass
         );
     }
-    if let Some(path) = args.get(4) {
-        let mut out = String::new();
-        for r in rows {
-            out.push_str(
-                &r.iter()
-                    .map(|v| format!("{v:.5}"))
-                    .collect::<Vec<_>>()
-                    .join(","),
+    println!("max servo error {:?} deg", d.max_error_deg);
+    if let Some(t) = &d.treadmill {
+        println!(
+            "belt {:.3} m/s, belt load {:.3} vs {:.3} BW, harness fore-aft {:.0} ({:.0}..{:.0}) N, pelvis dz {:.1} mm dx {:.1} mm",
+            t.belt_speed_m_s, t.mean_belt_load_bw, t.expected_belt_load_bw, t.harness_fore_aft_n.mean,
+            t.harness_fore_aft_n.min, t.harness_fore_aft_n.max, 1e3 * t.pelvis_excursion_m, 1e3 * t.pelvis_fore_aft_excursion_m
+        );
+        for (side, f) in &t.feet {
+            println!(
+                "  {side}: {} strides, GRF peak {:.3} BW ({:.3}..{:.3}), rate {:.1} BW/s, stance {:.1} % (ref {:.1}), slip {:.1} mm, ankle {:.1}..{:.1}",
+                f.strides, f.peak_grf_bw.mean, f.peak_grf_bw.min, f.peak_grf_bw.max, f.loading_rate_bw_s.mean,
+                100.0 * f.stance_fraction.mean, 100.0 * f.reference_stance_fraction, 1e3 * f.slip_per_stride_m.mean,
+                f.ankle_range_deg[0], f.ankle_range_deg[1]
             );
-            out.push('\n');
         }
-        std::fs::write(path, out).unwrap();
+    }
+    if let Some(path) = args.get(2).filter(|p| *p != "-") {
+        let mut out = String::from(
+            "t,leg,phase,hip_tau,knee_tau,fz,fx,ankle_deg,hip_deg,knee_deg,px,pz,slip\n",
+        );
+        for s in &d.samples {
+            out.push_str(&format!(
+                "{:.4},{},{:.4},{:.3},{:.3},{:.2},{:.2},{:.3},{:.3},{:.3},{:.5},{:.5},{:.4}\n",
+                s.t_s,
+                s.leg,
+                s.phase,
+                s.torque_nm[0],
+                s.torque_nm[1],
+                s.grf_n[0],
+                s.grf_n[1],
+                s.ankle_rad.to_degrees(),
+                s.angle_rad[0].to_degrees(),
+                s.angle_rad[1].to_degrees(),
+                s.pelvis_m[0],
+                s.pelvis_m[1],
+                s.slip_m_s
+            ));
+        }
+        std::fs::write(path, out).expect("write");
     }
 }

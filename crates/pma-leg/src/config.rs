@@ -1,6 +1,6 @@
 //! Scenario and muscle-geometry files (TOML, `deny_unknown_fields`, units in the names).
 use crate::error::{invalid, LegError};
-use crate::gait::{GaitReference, GaitSpeed};
+use crate::gait::{GaitData, GaitReference, GaitSpeed};
 use crate::ground::TreadmillSettings;
 use crate::patient::PatientSettings;
 use pma_control::AprcGains;
@@ -213,9 +213,16 @@ pub struct Joints {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GaitSettings {
-    /// Normative speed class whose curve shape is used.
+    /// The normative data: `schwartz2008` (children, the default) or `fukuchi2018`
+    /// (adults on a treadmill).
     #[serde(default)]
-    pub speed: GaitSpeed,
+    pub data: GaitData,
+    /// Speed class of the children's data whose curve shape is used (default `slow`).
+    #[serde(default)]
+    pub speed: Option<GaitSpeed>,
+    /// Treadmill speed of the adults' data (m/s): one of its conditions.
+    #[serde(default)]
+    pub speed_m_per_s: Option<f64>,
     /// Stride period (s).
     pub stride_period_s: f64,
     /// Smooth start from standing (s).
@@ -223,10 +230,43 @@ pub struct GaitSettings {
 }
 
 impl GaitSettings {
+    /// The reference's name as outputs show it (`slow`, `adult 0.50 m/s`).
+    pub fn speed_label(&self) -> String {
+        match (self.data, self.speed_m_per_s) {
+            (GaitData::Fukuchi2018, Some(v)) => format!("adult {v:.2} m/s"),
+            _ => self.speed.unwrap_or_default().to_string(),
+        }
+    }
+
     /// The reference these settings describe (the first leg's; see
     /// [`GaitReference::for_leg`]).
     pub fn reference(&self) -> Result<GaitReference, LegError> {
-        GaitReference::normative(self.speed, self.stride_period_s, self.ramp_s)
+        match (self.data, self.speed, self.speed_m_per_s) {
+            (GaitData::Schwartz2008, _, Some(_)) => Err(invalid(
+                "gait.speed_m_per_s",
+                self.speed_m_per_s.unwrap_or(f64::NAN),
+                "is for gait.data = \"fukuchi2018\" (adults); the children's data takes gait.speed (very-slow ... very-fast)",
+            )),
+            (GaitData::Schwartz2008, speed, None) => GaitReference::normative(
+                speed.unwrap_or_default(),
+                self.stride_period_s,
+                self.ramp_s,
+            ),
+            (GaitData::Fukuchi2018, Some(s), _) => Err(pma_model::Invalid::new(
+                "gait.speed",
+                f64::NAN,
+                format!("(`{s}`) is a speed class of the children's data: the adults' (fukuchi2018) takes gait.speed_m_per_s"),
+            )
+            .into()),
+            (GaitData::Fukuchi2018, None, None) => Err(invalid(
+                "gait.speed_m_per_s",
+                f64::NAN,
+                "is missing: gait.data = \"fukuchi2018\" needs one of its treadmill speeds",
+            )),
+            (GaitData::Fukuchi2018, None, Some(v)) => {
+                GaitReference::adult(v, self.stride_period_s, self.ramp_s)
+            }
+        }
     }
 }
 
@@ -466,7 +506,14 @@ impl Scenario {
             10.0,
             "must be 0.5..=10 s (normal strides last about 1 s, training strides 1.4-3 s)",
         )?;
-        non_negative("gait.ramp_s", self.gait.ramp_s)?;
+        within(
+            "gait.ramp_s",
+            self.gait.ramp_s,
+            0.0,
+            10.0,
+            "must be 0..=10 s (a start-up from standing over a few strides)",
+        )?;
+        self.gait.reference()?;
         for (n, j) in [("hip", self.joints.hip), ("knee", self.joints.knee)] {
             non_negative(
                 format!("joints.{n}.damping_nm_s_per_rad"),

@@ -16,6 +16,13 @@ use crate::stance::{FootMetrics, GroundPeriod, TrainerGroundMetrics, TreadmillRe
 pub const SERVO_STIFFNESS_NM_PER_RAD: f64 = 20_000.0;
 /// Damping of the joint servos (N m s/rad): about critical for the knee's inertia.
 pub const SERVO_DAMPING_NM_S_PER_RAD: f64 = 150.0;
+/// The servos' torques are averaged over this window (s) before they count as the
+/// stride's demand: a muscle behind a valve cannot deliver a transient shorter than the
+/// valve's lag (tens of milliseconds), and the compliant contact's stick-slip makes
+/// one-period spikes on the belt (a heel rolling off while the other foot swings: +228 then
+/// -246 N m at the knee in successive periods, docs/treadmill.md). The raw extremes are
+/// kept in [`Demand::raw_torque_range_nm`].
+pub const DEMAND_WINDOW_S: f64 = 0.01;
 
 /// One period of one leg of the servo-driven stride.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -30,12 +37,17 @@ pub struct DemandSample {
     pub angle_rad: [f64; 2],
     /// Joint velocities (rad/s).
     pub velocity_rad_s: [f64; 2],
-    /// Torque the joints need (N m, flexion positive), averaged over the period's substeps.
+    /// Torque the joints need (N m, flexion positive): the servos' averaged over
+    /// [`DEMAND_WINDOW_S`] about the period.
     pub torque_nm: [f64; 2],
     /// The leg's foot's vertical and fore-aft ground reaction (N; NaN in the air).
     pub grf_n: [f64; 2],
     /// The passive ankle's angle (rad; NaN without one).
     pub ankle_rad: f64,
+    /// The pelvis frame `[fore-aft, height]` (m; NaN in the air).
+    pub pelvis_m: [f64; 2],
+    /// The foot's slip on the belt (m/s; NaN in the air).
+    pub slip_m_s: f64,
 }
 
 /// The joints' demand over whole strides.
@@ -48,6 +60,9 @@ pub struct Demand {
     pub legs: usize,
     /// Largest tracking error of the servos over them (deg), hip and knee, of any leg.
     pub max_error_deg: [f64; 2],
+    /// The servos' own extremes, period by period before the averaging, per joint
+    /// `[extension, flexion]` (N m).
+    pub raw_torque_range_nm: [[f64; 2]; 2],
     /// The treadmill's figures of the servo-driven run (`None` in the air).
     pub treadmill: Option<TreadmillReport>,
 }
@@ -162,6 +177,8 @@ pub fn stride_demand(loaded: &LoadedScenario, strides: usize) -> Result<Demand, 
                     torque_nm: [sum[leg][0] / n, sum[leg][1] / n],
                     grf_n: foot.map_or([f64::NAN; 2], |f| [f.vertical_n, f.fore_aft_n]),
                     ankle_rad,
+                    pelvis_m: exo.pelvis_position_m().unwrap_or([f64::NAN; 2]),
+                    slip_m_s: foot.map_or(f64::NAN, |f| f.slip_m_s),
                 });
                 for j in 0..2 {
                     max_error[j] = max_error[j].max(error_deg[j].abs());
@@ -169,12 +186,44 @@ pub fn stride_demand(loaded: &LoadedScenario, strides: usize) -> Result<Demand, 
             }
         }
     }
+    let raw_torque_range_nm = [0, 1].map(|j| {
+        samples
+            .iter()
+            .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], s| {
+                [lo.min(s.torque_nm[j]), hi.max(s.torque_nm[j])]
+            })
+    });
+    let half = ((0.5 * DEMAND_WINDOW_S / sc.period_s).round() as usize).max(0);
+    average_per_leg(&mut samples, legs, half);
     Ok(Demand {
         samples,
         legs,
         max_error_deg: max_error,
+        raw_torque_range_nm,
         treadmill: ground.report(feet.iter().map(FootMetrics::report).collect()),
     })
+}
+
+/// Each leg's torques replaced by their centred moving average over `2 half + 1` periods
+/// (fewer at the ends); `samples` are period after period, `legs` per period.
+fn average_per_leg(samples: &mut [DemandSample], legs: usize, half: usize) {
+    if half == 0 || legs == 0 {
+        return;
+    }
+    for leg in 0..legs {
+        let raw: Vec<[f64; 2]> = samples
+            .iter()
+            .filter(|s| s.leg == leg)
+            .map(|s| s.torque_nm)
+            .collect();
+        let n = raw.len();
+        for (k, s) in samples.iter_mut().filter(|s| s.leg == leg).enumerate() {
+            let (a, b) = (k.saturating_sub(half), (k + half + 1).min(n));
+            let window = &raw[a..b];
+            s.torque_nm =
+                [0, 1].map(|j| window.iter().map(|t| t[j]).sum::<f64>() / window.len() as f64);
+        }
+    }
 }
 
 /// Leg `leg`'s servos' torques at `t_s` (N m): stiff springs and dampers to its reference.

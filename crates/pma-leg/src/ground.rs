@@ -165,17 +165,25 @@ impl Default for AnkleSettings {
         Self {
             stiffness_nm_per_rad: ANKLE_STIFFNESS_NM_PER_RAD,
             damping_nm_s_per_rad: ANKLE_DAMPING_NM_S_PER_RAD,
-            rest_deg: 0.0,
+            rest_deg: ANKLE_REST_DEG,
             range_deg: ANKLE_RANGE_DEG,
         }
     }
 }
 
-/// Default orthosis stiffness (N m/rad): see docs/treadmill.md.
+/// Default orthosis stiffness (N m/rad): the middle of 13 commercial carbon-composite
+/// ankle-foot orthoses, 0.58-3.66 N m/deg (33-210 N m/rad; Shuman & Russell Esposito 2021,
+/// J Biomech Eng 144(1):011004, abstract).
 pub const ANKLE_STIFFNESS_NM_PER_RAD: f64 = 100.0;
-/// Default orthosis damping (N m s/rad).
+/// Default orthosis damping (N m s/rad): no measured value was found; 1.0 damps the
+/// unloaded foot at about half of critical.
 pub const ANKLE_DAMPING_NM_S_PER_RAD: f64 = 1.0;
-/// Default stops (deg).
+/// Default rest angle (deg): 5 deg of dorsiflexion, the orthosis as a foot lifter. In
+/// swing the adult reference's ankle is at +3..+7 deg (Fukuchi et al. 2018); at neutral
+/// the toes of the compliant foot scuff the belt at 82-88 % of the cycle (docs/treadmill.md).
+pub const ANKLE_REST_DEG: f64 = 5.0;
+/// Default stops (deg): the adult reference's ankle spans -3..+14 deg at 0.5 m/s, children's
+/// at slow speed -14..+14 (Schwartz et al. 2008).
 pub const ANKLE_RANGE_DEG: [f64; 2] = [-15.0, 15.0];
 
 impl AnkleSettings {
@@ -261,13 +269,14 @@ pub struct TreadmillSettings {
     #[serde(default)]
     pub contralateral: Option<Contralateral>,
     /// Stiffness of the harness's hold on the pelvis fore-aft (N/m), if the URDF lets the
-    /// pelvis slide fore-aft (`pelvis_x`). Default 2000: it keeps the pelvis within a few
-    /// centimetres of its place over a stride (docs/treadmill.md) while the stance foot
-    /// carries the body over itself.
+    /// pelvis slide fore-aft (`pelvis_x`). Default 200: the pelvis is nearly free fore-aft
+    /// (as LOPES's in its zero-force mode), so the stance legs carry the body over the feet
+    /// and the body's speed swings as it does in walking; the spring only keeps it from
+    /// drifting. A stiff hold (the Lokomat holds the pelvis) keeps whatever offset the
+    /// start leaves, held by the feet's static friction: docs/treadmill.md.
     #[serde(default = "default_fore_aft_stiffness")]
     pub pelvis_fore_aft_n_per_m: f64,
-    /// Damping of that hold (N s/m). Default 600: about 0.7 of critical for the 88 kg the
-    /// default patient and exoskeleton weigh.
+    /// Damping of that hold (N s/m). Default 200.
     #[serde(default = "default_fore_aft_damping")]
     pub pelvis_fore_aft_damping_n_s_per_m: f64,
 }
@@ -277,11 +286,11 @@ fn one_leg() -> usize {
 }
 
 fn default_fore_aft_stiffness() -> f64 {
-    2000.0
+    200.0
 }
 
 fn default_fore_aft_damping() -> f64 {
-    600.0
+    200.0
 }
 
 /// Plausible patients' masses (kg): a small child to a heavy adult (gait trainers are

@@ -521,11 +521,14 @@ mod tests {
                         torque_nm: [20.0 * q, 5.0],
                         grf_n: [f64::NAN; 2],
                         ankle_rad: f64::NAN,
+                        pelvis_m: [f64::NAN; 2],
+                        slip_m_s: f64::NAN,
                     }
                 })
                 .collect(),
             legs: 1,
             max_error_deg: [0.0; 2],
+            raw_torque_range_nm: [[0.0; 2]; 2],
             treadmill: None,
         };
         let sizing = size_joints(&demand, 6e5, 0.4);
