@@ -52,8 +52,9 @@ enum Command {
     /// The Wartenberg pendulum test: thigh horizontal, knee released, muscles vented;
     /// R2, first swing, oscillations of the scenario's patient.
     Pendulum(pendulum::Args),
-    /// A grid of bench runs (controllers x gains x plants x references x events x seeds)
-    /// in parallel, one JSON line per run; `--shard I/N` for job arrays; `sweep merge`.
+    /// Grids of bench runs (controllers x gains x plants x references x events x seeds)
+    /// and leg runs (scenarios x controllers x gains x patients x seeds) in parallel, one
+    /// JSON line per run; `--shard I/N` for job arrays; `sweep merge`.
     Sweep(sweep::Args),
     /// Identify the muscle, its valve and the sensor noise from a rig log (`rig excite`):
     /// a plant file for `single`, `tune` and the virtual rig, with intervals and a
@@ -67,7 +68,7 @@ enum Command {
 }
 
 fn main() {
-    let cli = match Cli::try_parse() {
+    let cli = match Cli::try_parse_from(rerun_save_joined(std::env::args_os())) {
         Ok(c) => c,
         Err(e) => exit_on_cli_error(&e),
     };
@@ -85,6 +86,40 @@ fn main() {
             std::process::exit(1);
         }
     }
+}
+
+/// The command line with `--rerun save FILE` read as `--rerun save=FILE`: both spellings
+/// are accepted (`save` alone means nothing, so the next argument can only be its file).
+fn rerun_save_joined(
+    args: impl IntoIterator<Item = std::ffi::OsString>,
+) -> Vec<std::ffi::OsString> {
+    let mut out: Vec<std::ffi::OsString> = Vec::new();
+    let mut args = args.into_iter().peekable();
+    while let Some(arg) = args.next() {
+        let save_follows = match arg.to_str() {
+            Some("--rerun") => args.peek().is_some_and(|a| a == "save"),
+            Some("--rerun=save") => true,
+            _ => false,
+        };
+        if !save_follows {
+            out.push(arg);
+            continue;
+        }
+        if arg == "--rerun" {
+            args.next();
+        }
+        match args.peek() {
+            Some(file) if !file.to_string_lossy().starts_with('-') => {
+                let mut joined = std::ffi::OsString::from("save=");
+                joined.push(file);
+                args.next();
+                out.extend(["--rerun".into(), joined]);
+            }
+            // No file: left to the parser, which says how to give one.
+            _ => out.extend(["--rerun".into(), "save".into()]),
+        }
+    }
+    out
 }
 
 /// One line: the error and its causes, a cause left out when the message before it
@@ -149,6 +184,37 @@ fn run(cli: Cli) -> Result<i32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Regression: `--rerun save FILE` failed with a bare "unexpected argument"; both
+    /// spellings now record into FILE, and `save` without a file says how to give one.
+    #[test]
+    fn rerun_save_with_a_space_is_read_as_save_equals() {
+        let joined = |args: &[&str]| -> Vec<String> {
+            rerun_save_joined(args.iter().map(std::ffi::OsString::from))
+                .into_iter()
+                .map(|a| a.to_string_lossy().into_owned())
+                .collect()
+        };
+        assert_eq!(
+            joined(&["pma-exo", "single", "--rerun", "save", "x.rrd", "--json"]),
+            ["pma-exo", "single", "--rerun", "save=x.rrd", "--json"]
+        );
+        assert_eq!(
+            joined(&["pma-exo", "single", "--rerun=save", "x.rrd"]),
+            ["pma-exo", "single", "--rerun", "save=x.rrd"]
+        );
+        assert_eq!(
+            joined(&["pma-exo", "simulate", "--rerun", "spawn", "gait_spastic"]),
+            ["pma-exo", "simulate", "--rerun", "spawn", "gait_spastic"]
+        );
+        let e = Cli::try_parse_from(joined(&["pma-exo", "single", "--rerun", "save"]))
+            .err()
+            .expect("no file");
+        assert!(
+            cli_error_line(&e.to_string()).contains("--rerun save=PATH.rrd"),
+            "{e}"
+        );
+    }
 
     #[test]
     fn clap_errors_keep_their_content_on_one_line() {

@@ -1,6 +1,14 @@
 //! What the commands write: stdout that a closed pipe ends quietly, output files opened
 //! (and named in every error) before a run starts, CSV streamed row by row, a progress
 //! bar with an ETA, a refusal of runs that would take hours, and Ctrl-C.
+//!
+//! Every file a command writes goes through here: results written beside their path and
+//! renamed onto it when complete ([`OutFile`], [`CsvOut`], [`write_file`], [`StagedPath`]
+//! for libraries that write by path: plots, Rerun recordings), a sweep's growing
+//! `runs.jsonl` ([`AppendFile`]) and its lock ([`DirLock`]), output directories
+//! ([`create_dir`]). A new file gets the mode the umask gives (`0666 & !umask`, as any
+//! program's), a replaced file keeps its own; no output may be an input or another output
+//! of the same command ([`refuse_input_as_output`]).
 use anyhow::{bail, Context, Result};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -41,6 +49,9 @@ enum Staged {
     Temp {
         temp: tempfile::NamedTempFile,
         path: PathBuf,
+        /// The mode of the file it replaces (set on the temporary file when it is
+        /// renamed, so that a writer reopening it by path can still write it).
+        replaced: Option<std::fs::Permissions>,
     },
     /// Straight into something that is not a regular file (`/dev/stdout`, a pipe,
     /// `/dev/null`): it holds no earlier result to protect, and renaming over it would
@@ -54,7 +65,7 @@ impl Staged {
     /// its target is replaced, not the link.
     fn new(path: &Path, keep_extension: bool) -> Result<Self> {
         let context = || format!("cannot create `{}`", path.display());
-        let path = match std::fs::metadata(path) {
+        let (path, replaced) = match std::fs::metadata(path) {
             Ok(meta) if !meta.is_file() => {
                 let file = std::fs::OpenOptions::new()
                     .write(true)
@@ -62,8 +73,11 @@ impl Staged {
                     .with_context(context)?;
                 return Ok(Staged::Direct(file));
             }
-            Ok(_) => std::fs::canonicalize(path).with_context(context)?,
-            Err(_) => path.to_path_buf(),
+            Ok(meta) => (
+                std::fs::canonicalize(path).with_context(context)?,
+                Some(meta.permissions()),
+            ),
+            Err(_) => (path.to_path_buf(), None),
         };
         let dir = match path.parent() {
             Some(d) if !d.as_os_str().is_empty() => d,
@@ -74,12 +88,17 @@ impl Staged {
             Some(ext) if keep_extension => format!(".{}", ext.to_string_lossy()),
             _ => ".part".to_owned(),
         };
-        let temp = tempfile::Builder::new()
-            .prefix(&format!(".{name}."))
-            .suffix(&suffix)
-            .tempfile_in(dir)
-            .with_context(context)?;
-        Ok(Staged::Temp { temp, path })
+        let prefix = format!(".{name}.");
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(&prefix).suffix(&suffix);
+        #[cfg(unix)]
+        builder.permissions(new_file_permissions());
+        let temp = builder.tempfile_in(dir).with_context(context)?;
+        Ok(Staged::Temp {
+            temp,
+            path,
+            replaced,
+        })
     }
 
     /// The path a writer that opens files itself (plotters) writes to.
@@ -95,7 +114,14 @@ impl Staged {
     fn commit(self, shown: &Path) -> Result<()> {
         let context = || format!("cannot write `{}`", shown.display());
         match self {
-            Staged::Temp { temp, path } => {
+            Staged::Temp {
+                temp,
+                path,
+                replaced,
+            } => {
+                if let Some(mode) = replaced {
+                    temp.as_file().set_permissions(mode).with_context(context)?;
+                }
                 temp.as_file().sync_all().with_context(context)?;
                 temp.persist(&path)
                     .map(drop)
@@ -122,16 +148,83 @@ impl Write for Staged {
     }
 }
 
+/// The mode of a new file: what `open(2)` gives `0666` under the process's umask (a
+/// temporary file is otherwise created `0600`, and colleagues could not read the results).
+#[cfg(unix)]
+fn new_file_permissions() -> std::fs::Permissions {
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::Permissions::from_mode(0o666)
+}
+
+/// An output that another library writes by its path (plotters, Rerun's file sink): a
+/// temporary file beside `path`, with `path`'s extension, to write to, renamed onto `path`
+/// by [`StagedPath::commit`]. Dropped uncommitted (the run failed), it is removed and the
+/// previous file at `path` stays as it was.
+pub struct StagedPath {
+    staged: Staged,
+    path: PathBuf,
+}
+
+impl StagedPath {
+    /// Prepares `path`: a temporary file beside it, now (a bad path fails before any work).
+    pub fn create(path: &Path) -> Result<Self> {
+        Ok(Self {
+            staged: Staged::new(path, true)?,
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// The path it is for.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Where the writer writes until the commit.
+    pub fn write_path(&self) -> PathBuf {
+        self.staged.write_path(&self.path)
+    }
+
+    /// The output is complete: renamed onto its path.
+    pub fn commit(self) -> Result<()> {
+        self.staged.commit(&self.path)
+    }
+}
+
 /// Draws or writes a file through `write(path to write)` and renames it onto `path` when
 /// `write` succeeds (plots: plotters writes the file itself, by its extension).
 pub fn write_via_temp<E: std::fmt::Display>(
     path: &Path,
     write: impl FnOnce(&Path) -> std::result::Result<(), E>,
 ) -> Result<()> {
-    let staged = Staged::new(path, true)?;
-    write(&staged.write_path(path))
+    let staged = StagedPath::create(path)?;
+    write(&staged.write_path())
         .map_err(|e| anyhow::anyhow!("cannot write `{}`: {e}", path.display()))?;
-    staged.commit(path)
+    staged.commit()
+}
+
+/// Says on stderr that `path` was written (every output file of a command is named once).
+pub fn wrote(path: &Path) {
+    eprintln!("wrote {}", path.display());
+}
+
+/// Creates the output directory `dir` if it does not exist: one level, in an existing
+/// parent (a mistyped parent is an error, not a new tree of directories).
+pub fn create_dir(dir: &Path) -> Result<()> {
+    if dir.is_dir() {
+        return Ok(());
+    }
+    let parent = match dir.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !parent.is_dir() {
+        bail!(
+            "cannot create `{}`: its parent `{}` is not a directory (one directory level is created; create the parent first)",
+            dir.display(),
+            parent.display()
+        );
+    }
+    std::fs::create_dir(dir).with_context(|| format!("cannot create `{}`", dir.display()))
 }
 
 /// A result file written in full or not at all: it is created now as a temporary file
@@ -204,6 +297,11 @@ impl CsvOut {
         })
     }
 
+    /// The path it is for.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
     /// One row of numbers.
     pub fn row(&mut self, values: &[f64]) {
         if self.error.is_some() {
@@ -238,6 +336,101 @@ impl CsvOut {
     }
 }
 
+/// A file that grows by whole lines and is never rewritten (a sweep's `runs.jsonl`): a kill
+/// tears at most the line being written. Created with the mode the umask gives.
+pub struct AppendFile {
+    path: PathBuf,
+    file: std::sync::Mutex<std::fs::File>,
+}
+
+impl AppendFile {
+    /// Opens `path` for appending (creating it), cut to its first `keep_bytes` when given (a
+    /// torn last line, left by a kill, is removed so that its run is redone).
+    pub fn open(path: &Path, keep_bytes: Option<u64>) -> Result<Self> {
+        let context = || format!("cannot write `{}`", path.display());
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+            .with_context(context)?;
+        if let Some(len) = keep_bytes {
+            file.set_len(len).with_context(context)?;
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            file: std::sync::Mutex::new(file),
+        })
+    }
+
+    /// Appends `line` and a newline, in one write (from any thread).
+    pub fn line(&self, line: &str) -> Result<()> {
+        let mut text = String::with_capacity(line.len() + 1);
+        text.push_str(line);
+        text.push('\n');
+        let mut file = self.file.lock().unwrap_or_else(|e| e.into_inner());
+        file.write_all(text.as_bytes())
+            .with_context(|| format!("cannot write `{}`", self.path.display()))
+    }
+}
+
+/// Holds a directory for one command at a time: an advisory lock on `DIR/.lock`, released
+/// when the process ends, even by a kill (the file a killed command leaves is stale: the
+/// next command takes it). The holder removes the file when it ends normally.
+pub struct DirLock {
+    path: PathBuf,
+    _file: std::fs::File,
+}
+
+/// Attempts at taking a lock whose file a finishing holder removed meanwhile.
+const LOCK_ATTEMPTS: usize = 10;
+
+impl DirLock {
+    /// Takes the lock of `dir`, or fails at once with `busy` if another process holds it.
+    pub fn take(dir: &Path, busy: &str) -> Result<Self> {
+        let path = dir.join(".lock");
+        let context = || format!("cannot lock `{}`", path.display());
+        for _ in 0..LOCK_ATTEMPTS {
+            let file = std::fs::OpenOptions::new()
+                .create(true)
+                .truncate(false)
+                .write(true)
+                .open(&path)
+                .with_context(context)?;
+            match file.try_lock() {
+                // A holder that ended may have removed the file between our open and our
+                // lock: a lock on a removed file holds nothing, so try again.
+                Ok(()) if is_at(&file, &path) => return Ok(Self { path, _file: file }),
+                Ok(()) => continue,
+                Err(std::fs::TryLockError::WouldBlock) => bail!("`{}`: {busy}", dir.display()),
+                Err(std::fs::TryLockError::Error(e)) => return Err(e).with_context(context),
+            }
+        }
+        bail!("`{}`: {busy}", dir.display())
+    }
+}
+
+impl Drop for DirLock {
+    /// Removes the lock file while still holding the lock (the lock goes with the handle).
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// Whether the open `file` is the file at `path` now.
+#[cfg(unix)]
+fn is_at(file: &std::fs::File, path: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (file.metadata(), std::fs::metadata(path)) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
+}
+
+#[cfg(not(unix))]
+fn is_at(_: &std::fs::File, path: &Path) -> bool {
+    path.exists()
+}
+
 /// A path given on the command line that a command reads: a `--plant`, `--gains`,
 /// `--config`, scenario or sweep file. Names of embedded presets are not files.
 pub fn input_file(arg: &str) -> Option<&Path> {
@@ -246,10 +439,11 @@ pub fn input_file(arg: &str) -> Option<&Path> {
 }
 
 /// Refuses to write an output onto one of the inputs (`single --plant P --csv P` would
-/// destroy the plant file): compares file identities, so links and `./` spellings are
-/// caught too.
+/// destroy the plant file) or two outputs onto one path (`simulate --plot . --csv leg.png`
+/// would keep only one of them): compares file identities, so links and `./` spellings are
+/// caught too. Every command passes all its inputs and outputs, before it writes anything.
 pub fn refuse_input_as_output(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<()> {
-    for (out_what, out) in outputs {
+    for (i, (out_what, out)) in outputs.iter().enumerate() {
         for (in_what, input) in inputs {
             if same_file(input, out) {
                 bail!(
@@ -258,8 +452,33 @@ pub fn refuse_input_as_output(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)
                 );
             }
         }
+        for (other_what, other) in &outputs[..i] {
+            if same_file(other, out) || output_identity(other) == output_identity(out) {
+                bail!(
+                    "{out_what} `{}` and {other_what} `{}` are one path: two outputs of this command cannot share a file (choose another path)",
+                    out.display(),
+                    other.display()
+                );
+            }
+        }
     }
     Ok(())
+}
+
+/// The file `path` names, for comparing outputs that may not exist yet: its canonical path
+/// if it exists, else its directory's canonical path and its name.
+fn output_identity(path: &Path) -> PathBuf {
+    if let Ok(p) = std::fs::canonicalize(path) {
+        return p;
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    match (std::fs::canonicalize(dir), path.file_name()) {
+        (Ok(dir), Some(name)) => dir.join(name),
+        _ => std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()),
+    }
 }
 
 #[cfg(unix)]

@@ -2,7 +2,7 @@
 //! `report.md` (tables in the paper's layout) and one PNG plot per experiment.
 use crate::output::OutFile;
 use crate::say;
-use anyhow::{Context, Result};
+use anyhow::Result;
 use pma_bench::{PlantConfig, RunSpec};
 use pma_studies::experiments::paper::{compute, PaperResults, MP_SWEEP_GAIN};
 use pma_studies::experiments::ComparisonRow;
@@ -14,7 +14,7 @@ pub fn run(out: &Path) -> Result<()> {
     let plant = PlantConfig::preset("mismatch")?;
     let spec = RunSpec::default();
     // The outputs exist and are writable before the experiments run.
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create `{}`", out.display()))?;
+    crate::output::create_dir(out)?;
     let json_file = OutFile::create(&out.join("results.json"))?;
     let report_file = OutFile::create(&out.join("report.md"))?;
     let stop = crate::output::stop_flag()?;

@@ -1,8 +1,10 @@
 //! What ran: every JSON object, summary, CSV header comment, report and Rerun recording
 //! names the program and its version, the command line, and the run's inputs (scenario or
-//! plant, controller, gain source, patient preset, seed), so that an output found later
-//! says how to make it again.
+//! plant, controller, gain source, patient, every seed), so that an output found later
+//! says how to make it again. A file is named by its path and the name written inside it
+//! (two files may carry one inner name).
 use serde::Serialize;
+use std::collections::BTreeMap;
 
 /// The provenance of one run; `None` where a field does not apply (a bench run has no
 /// patient).
@@ -12,7 +14,7 @@ pub struct Provenance {
     pub program: String,
     /// The command line, quoted for a POSIX shell.
     pub command: String,
-    /// Scenario (leg runs).
+    /// Scenario (leg runs): an embedded name, or a file's path and inner name.
     pub scenario: Option<String>,
     /// Plant preset or file (bench and rig runs).
     pub plant: Option<String>,
@@ -20,17 +22,78 @@ pub struct Provenance {
     pub controller: Option<String>,
     /// Where the gains came from: a file, `paper`, `scenario`, `shipped leg gains`, ...
     pub gains: Option<String>,
-    /// Patient preset (`passive`, the scenario's, a spasticity preset).
+    /// Patient: per joint `passive` or its parts (spasticity, spasms, effort, stiffness).
     pub patient: Option<String>,
-    /// Seed of the run's random parts (noise, spasms), if any.
-    pub seed: Option<u64>,
+    /// The seed of each random part that ran (noise, spasms, a bootstrap), by part.
+    pub seeds: Seeds,
 }
 
-/// `arg` quoted for a POSIX shell when it needs it.
+/// The seeds of a run's random parts, by part (`encoder noise`, `hip spasms`, ...); empty
+/// when nothing random ran.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[serde(transparent)]
+pub struct Seeds(pub BTreeMap<String, u64>);
+
+impl Seeds {
+    /// One part's seed.
+    pub fn of(part: &str, seed: u64) -> Self {
+        Self::default().with(part, seed)
+    }
+
+    /// These and `part`'s seed.
+    pub fn with(mut self, part: &str, seed: u64) -> Self {
+        self.0.insert(part.to_owned(), seed);
+        self
+    }
+
+    /// The scenario's: the encoders' noise (the knee's is `seed + 1`) and each joint's
+    /// random spasms, those that are on.
+    pub fn of_scenario(sc: &pma_leg::Scenario) -> Self {
+        let mut seeds = Self::default();
+        let encoder = &sc.plant.encoder;
+        if encoder.noise_rms_rad > 0.0 {
+            seeds = seeds.with("encoder noise", encoder.seed);
+        }
+        for (joint, p) in [("hip", &sc.patient.hip), ("knee", &sc.patient.knee)] {
+            if let Some(s) = p.spasms.as_ref().filter(|s| s.rate_per_min > 0.0) {
+                seeds = seeds.with(&format!("{joint} spasms"), s.seed);
+            }
+        }
+        seeds
+    }
+}
+
+/// How an input given as `arg` is named: an embedded preset by its name, a file (`*.toml`)
+/// by its path and the `name` written inside it.
+pub fn named(arg: &str, inner_name: &str) -> String {
+    if arg.ends_with(".toml") {
+        format!("{arg} (name \"{inner_name}\")")
+    } else {
+        arg.to_owned()
+    }
+}
+
+/// `arg` quoted for a POSIX shell when it needs it; one with control characters (a
+/// newline) in the `$'...'` form, so that the provenance stays one line.
 fn quoted(arg: &str) -> String {
     let plain = |c: char| c.is_ascii_alphanumeric() || "-_./=:,@+%".contains(c);
     if !arg.is_empty() && arg.chars().all(plain) {
         arg.to_owned()
+    } else if arg.chars().any(char::is_control) {
+        let mut out = String::from("$'");
+        for c in arg.chars() {
+            match c {
+                '\n' => out.push_str("\\n"),
+                '\t' => out.push_str("\\t"),
+                '\r' => out.push_str("\\r"),
+                '\\' => out.push_str("\\\\"),
+                '\'' => out.push_str("\\'"),
+                c if c.is_control() => out.push_str(&format!("\\x{:02x}", u32::from(c))),
+                c => out.push(c),
+            }
+        }
+        out.push('\'');
+        out
     } else {
         format!("'{}'", arg.replace('\'', r"'\''"))
     }
@@ -65,8 +128,14 @@ impl Provenance {
         push("controller", &self.controller);
         push("gains", &self.gains);
         push("patient", &self.patient);
-        if let Some(s) = self.seed {
-            parts.push(format!("seed {s}"));
+        if !self.seeds.0.is_empty() {
+            let seeds: Vec<String> = self
+                .seeds
+                .0
+                .iter()
+                .map(|(part, seed)| format!("{part} {seed}"))
+                .collect();
+            parts.push(format!("seeds ({})", seeds.join(", ")));
         }
         format!(
             "{}, `{}`: {}",
@@ -110,16 +179,36 @@ mod tests {
             scenario: Some("s".into()),
             controller: Some("pid".into()),
             gains: Some("shipped leg gains".into()),
-            seed: Some(7),
+            seeds: Seeds::of("hip spasms", 7).with("encoder noise", 3),
             ..Provenance::default()
         };
         assert_eq!(
             p.line(),
-            "pma-exo 0.1.0, `pma-exo simulate 'my scenario.toml' --controller pid`: scenario s, controller pid, gains shipped leg gains, seed 7"
+            "pma-exo 0.1.0, `pma-exo simulate 'my scenario.toml' --controller pid`: scenario s, controller pid, gains shipped leg gains, seeds (encoder noise 3, hip spasms 7)"
         );
         let v = p.attach(&serde_json::json!({"a": 1})).unwrap();
         assert_eq!(v["provenance"]["controller"], "pid");
         assert_eq!(v["provenance"]["patient"], serde_json::Value::Null);
+        assert_eq!(v["provenance"]["seeds"]["hip spasms"], 7);
         assert_eq!(quoted("it's"), r"'it'\''s'");
+    }
+
+    /// Regression: an argument with a newline split the provenance line, which starts
+    /// every CSV as one `#` line.
+    #[test]
+    fn an_argument_with_a_newline_stays_on_one_line() {
+        assert_eq!(quoted("a\nb's"), r"$'a\nb\'s'");
+        assert!(!quoted("x\ry\u{1}").contains(['\r', '\u{1}']));
+    }
+
+    /// Regression: `single --plant myplant.toml` (named "realistic" inside) was reported as
+    /// plant "realistic"; a file is now named by its path and its inner name.
+    #[test]
+    fn a_file_is_named_by_its_path_and_inner_name() {
+        assert_eq!(named("realistic", "realistic"), "realistic");
+        assert_eq!(
+            named("my/plant.toml", "realistic"),
+            "my/plant.toml (name \"realistic\")"
+        );
     }
 }

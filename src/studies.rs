@@ -24,17 +24,30 @@ pub struct Studies {
 /// Runs one shipped sweep into `out/sweeps/<name>` (resuming what is there).
 fn run_sweep(name: &str, out: &Path, stop: &AtomicBool) -> Result<(Sweep, Summary, sweep::Runs)> {
     let s = sweep::load(name)?;
-    let dir = out.join("sweeps").join(name);
+    let sweeps = out.join("sweeps");
+    crate::output::create_dir(&sweeps)?;
+    let dir = sweeps.join(name);
     let bar = crate::output::progress_bar(s.jobs.len() as u64, &format!("runs of `{name}`"));
-    let progress = |done: usize, _total: usize| bar.set_position(done as u64);
-    let executed = sweep::execute(&s, &dir, Shard::default(), &progress, stop);
+    let progress = |done: usize| bar.set_position(done as u64);
+    let executed = crate::commands::sweep::execute(&s, &dir, Shard::default(), &progress, stop);
     bar.finish_and_clear();
     executed?;
     if stop.load(Ordering::Relaxed) {
         bail!(Interrupted);
     }
-    let (manifest, runs, missing) = sweep::merge(&[dir])?;
+    let (manifest, runs, missing) = sweep::merge(std::slice::from_ref(&dir))?;
     let summary = sweep::summarise(&manifest.name, &runs, missing.len());
+    // The paper's figures come from every run: a failed one (now or recorded before) is an
+    // error here, not a gap in a table.
+    if let Some(f) = summary.failed_runs.first() {
+        bail!(
+            "run {} of the shipped sweep `{name}` ({}) failed: {} (in `{}`)",
+            f.run,
+            f.ran,
+            f.failed,
+            dir.display()
+        );
+    }
     Ok((s, summary, runs))
 }
 

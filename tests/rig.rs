@@ -420,37 +420,35 @@ impl Daq for Recording {
     }
 }
 
-#[test]
-fn nothing_reaches_the_board_before_the_configuration_is_sound() {
-    let mut bad = virtual_config();
-    bad.calibration.valve_pa_per_v = 0.0;
+/// `cfg` configured on a board that records its writes: the error, nothing written.
+fn refused_before_any_write(cfg: &RigConfig) -> String {
     let daq = Recording::default();
     let writes = Arc::clone(&daq.0);
     let e = RigBackend::configure(
-        &bad,
-        Box::new(daq),
-        pma_rig::Pacing::Realtime(std::time::Duration::from_millis(1)),
-    );
-    assert!(e.is_err());
-    assert!(
-        writes.lock().unwrap().is_empty(),
-        "{:?}",
-        writes.lock().unwrap()
-    );
-    // A vent value outside the output's range is caught before the first write, too.
-    let mut outside = virtual_config();
-    outside.calibration.valve_offset_v = -1.0;
-    let daq = Recording::default();
-    let writes = Arc::clone(&daq.0);
-    let e = RigBackend::configure(
-        &outside,
+        cfg,
         Box::new(daq),
         pma_rig::Pacing::Realtime(std::time::Duration::from_millis(1)),
     )
     .err()
     .expect("refused");
-    assert!(e.to_string().contains("valve_offset_v"), "{e}");
-    assert!(writes.lock().unwrap().is_empty());
+    assert!(
+        writes.lock().unwrap().is_empty(),
+        "{:?}",
+        writes.lock().unwrap()
+    );
+    e.to_string()
+}
+
+#[test]
+fn nothing_reaches_the_board_before_the_configuration_is_sound() {
+    let mut bad = virtual_config();
+    bad.calibration.valve_pa_per_v = 0.0;
+    refused_before_any_write(&bad);
+    // A vent value outside the output's range is caught before the first write, too.
+    let mut outside = virtual_config();
+    outside.calibration.valve_offset_v = -1.0;
+    let e = refused_before_any_write(&outside);
+    assert!(e.contains("valve_offset_v"), "{e}");
     // A sound configuration vents first and resets the charge pump.
     let daq = Recording::default();
     let writes = Arc::clone(&daq.0);
@@ -835,5 +833,206 @@ fn a_pressure_reading_above_the_limit_stops_the_run_and_vents() {
     );
     assert!(r.vented, "{r:?}");
     assert_eq!(r.periods, 2999, "{r:?}");
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// The pressure channel wired on AI 0/1 with `extra` added to the calibration and its range
+/// index `range`.
+fn with_pressure_channel(range: u32, calibration: &str) -> String {
+    let text = EMBEDDED_VIRTUAL
+        .replace(
+            "# pressure = { subdevice = 0, channel = 1, range = 0, aref = \"ground\" }",
+            &format!(
+                "pressure = {{ subdevice = 0, channel = 1, range = {range}, aref = \"ground\" }}"
+            ),
+        )
+        .replace(
+            "valve_offset_v = 0.0\n",
+            &format!("valve_offset_v = 0.0\n{calibration}\n"),
+        );
+    assert!(
+        text.contains(&format!("channel = 1, range = {range}")),
+        "the channel"
+    );
+    text
+}
+
+/// Regression: `pressure_pa_per_v = 1e4` with the pressure channel on AI range 3 (+-1 V)
+/// passed `rig check`, and every run then faulted ("the valve reports NaN bar", at period
+/// 288 on the shipped virtual rig) once the muscle passed 0.1 bar, the top of the channel. The channel must read 0
+/// to the limit + 10 % strictly inside its range, checked before anything is written to the
+/// board; a negative scale, which hides an over-pressure, is refused too.
+#[test]
+fn rig_check_refuses_a_pressure_channel_that_cannot_read_the_limit() {
+    let dir = temp_dir("pressure-channel");
+    let narrow = with_pressure_channel(3, "pressure_pa_per_v = 1.0e4");
+    let cfg = RigConfig::from_toml_str(&narrow, "narrow.toml").expect("valid as a file");
+    // At configure, before anything reaches the board.
+    let e = refused_before_any_write(&cfg);
+    assert!(e.contains("signals.pressure"), "{e}");
+    // 0 Pa at 0 V is the bottom of a unipolar range, where the converter reads NaN.
+    let unipolar = with_pressure_channel(9, "");
+    let cases = [
+        ("range 3", narrow, "signals.pressure"),
+        ("unipolar", unipolar, "signals.pressure"),
+        (
+            "negative scale",
+            with_pressure_channel(0, "pressure_pa_per_v = -1.0e5"),
+            "calibration.pressure_pa_per_v",
+        ),
+    ];
+    for (what, text, needle) in cases {
+        let p = config_file(&dir, &what.replace(' ', "_"), &text);
+        assert_refused(&["rig", "check", "--config", &p], needle);
+        let log = dir.join(format!("{}.csv", what.replace(' ', "_")));
+        assert_refused(
+            &[
+                "rig",
+                "run",
+                "--config",
+                &p,
+                "--log",
+                log.to_str().expect("utf-8"),
+            ],
+            needle,
+        );
+        assert!(!log.exists(), "{what}: a run started");
+    }
+    // The channel as the shipped file suggests it (+-10 V, the valve's scale) passes and a
+    // run with it completes.
+    let p = config_file(&dir, "bipolar", &with_pressure_channel(0, ""));
+    let out = pma_exo(&["rig", "check", "--config", &p]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("above 6.60 bar (6.6000 V)"), "{text}");
+    let log = dir.join("bipolar.csv");
+    let out = pma_exo(&[
+        "rig",
+        "run",
+        "--config",
+        &p,
+        "--duration",
+        "3",
+        "--log",
+        log.to_str().expect("utf-8"),
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// The shipped virtual rig at `period_s`, its watchdog at 0.2 s.
+fn virtual_at_period(period_s: f64) -> String {
+    let watchdog = (0.2 / period_s).round() as u32;
+    let text = EMBEDDED_VIRTUAL
+        .replace("period_s = 0.001", &format!("period_s = {period_s}"))
+        .replace(
+            "watchdog_periods = 50",
+            &format!(
+                "watchdog_periods = {watchdog}\noverrun_max_consecutive_periods = {}",
+                watchdog / 2
+            ),
+        );
+    assert_ne!(text, EMBEDDED_VIRTUAL);
+    text
+}
+
+/// Regression: `rig excite` at `period_s = 0.01` or `0.005` on the shipped virtual rig went
+/// `position-out` (at 2.6 s and 29 s) despite the back-off: the lockstep plant's
+/// integration step grew with the period and rang. The excitation now holds inside the
+/// window at every period, its commands at the slew rate per second whatever the period.
+#[test]
+fn rig_excite_holds_its_back_off_at_10_and_5_ms_periods() {
+    let dir = temp_dir("excite-periods");
+    for period_s in [0.01, 0.005] {
+        let p = config_file(&dir, &format!("p{period_s}"), &virtual_at_period(period_s));
+        let log = dir.join(format!("p{period_s}.csv"));
+        let out = pma_exo(&[
+            "rig",
+            "excite",
+            "--config",
+            &p,
+            "--duration",
+            "60",
+            "--out",
+            log.to_str().expect("utf-8"),
+            "--json",
+        ]);
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+        assert_eq!(out.status.code(), Some(0), "{period_s} s: {v}");
+        assert_eq!(v["completed"], true, "{v}");
+        let highest = log_column(&log, "position_m")
+            .into_iter()
+            .fold(f64::MIN, f64::max);
+        assert!(highest < 0.045, "{period_s} s: reached {highest} m");
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// A run of `config` with a recorder that holds the loop 100 ms of wall time at periods
+/// 200 and 400, as a loaded machine does.
+fn run_with_slow_periods(cfg: &RigConfig, log: &Path) -> pma_rig::RigReport {
+    let stop = AtomicBool::new(false);
+    let slow = FnRecorder(|p: &Period<'_, Rig, MuscleStep>| {
+        if p.index == 200 || p.index == 400 {
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+    });
+    let options = RunOptions {
+        duration_s: Some(1.0),
+        log_path: Some(log.to_path_buf()),
+        ..RunOptions::default()
+    };
+    pma_rig::run::run(cfg, Path::new("."), &options, &stop, slow).expect("run")
+}
+
+/// Regression: under CPU load, lockstep virtual runs with a 10 ms watchdog faulted with
+/// `stall` at random: the watchdog measured silence on the wall clock, where a lockstep
+/// run's periods take no defined time. A lockstep run's watchdog follows the simulated
+/// clock (two 100 ms holds of the loop are no stall there), while a real-time run keeps
+/// the wall clock and still finds the same hold a stall; an injected (simulated) hang
+/// still trips the lockstep watchdog.
+#[test]
+fn a_slow_period_is_no_stall_in_lockstep_but_a_stall_in_real_time() {
+    let dir = temp_dir("slow-period");
+    let lockstep = run_with_slow_periods(&virtual_config(), &dir.join("lockstep.csv"));
+    assert!(
+        lockstep.completed && lockstep.fault.is_none(),
+        "{lockstep:?}"
+    );
+    assert_eq!(lockstep.periods, 1000);
+    // What is tested is the watchdog, not the machine's timing: the overrun limits at
+    // their loosest (the hold misses 100 deadlines; the watchdog sees it first).
+    let text = EMBEDDED_VIRTUAL.replace(
+        "watchdog_periods = 50",
+        "watchdog_periods = 50\noverrun_max_consecutive_periods = 49\noverrun_max_share = 0.5",
+    );
+    let mut realtime = RigConfig::from_toml_str(&text, "loose-timing.toml").expect("config");
+    let v = realtime.virtual_rig.as_mut().expect("virtual");
+    v.clock = ClockMode::Realtime;
+    realtime.realtime.fifo = false;
+    let r = run_with_slow_periods(&realtime, &dir.join("realtime.csv"));
+    assert_eq!(r.fault.as_deref(), Some("stall"), "{r:?}");
+    assert!(r.watchdog_vented && r.vented, "{r:?}");
+    let stalled = run_virtual(
+        &virtual_config(),
+        &RunOptions {
+            duration_s: Some(1.0),
+            injections: vec!["stall@0.5".parse().expect("injection")],
+            log_path: Some(dir.join("injected.csv")),
+            ..RunOptions::default()
+        },
+    );
+    assert_eq!(stalled.fault.as_deref(), Some("stall"), "{stalled:?}");
+    assert!(stalled.watchdog_vented, "{stalled:?}");
+    assert_eq!(stalled.periods, 499, "{stalled:?}");
     std::fs::remove_dir_all(dir).ok();
 }

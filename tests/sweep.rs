@@ -4,6 +4,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
+
 const SMALL: &str = r#"
 name = "small"
 duration_s = 3.0
@@ -421,5 +423,160 @@ fn a_foreign_record_in_runs_jsonl_is_refused() {
     let merged = dir.join("merged").display().to_string();
     let m = pma_exo(&["sweep", "merge", &o, "--out", &merged]);
     assert_eq!(m.status.code(), Some(1));
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// A bench grid of two quick runs.
+const TWO_RUNS: &str = r#"
+name = "two"
+duration_s = 1.0
+[[grid]]
+controllers = ["aprc-ndo", "pid"]
+gains = ["default"]
+references = ["sine"]
+[grid.plants]
+presets = ["ideal"]
+"#;
+
+/// Regression: a leg sweep stopped at the first run that failed (a scenario that leaves
+/// physical bounds ended the whole sweep, exit 1, on every resume, naming neither run,
+/// scenario nor sweep file). The run is recorded as failed with its scenario and message,
+/// the others run, the summary counts it, and a resume does not run it again.
+#[test]
+fn a_leg_sweep_records_a_run_that_fails_and_goes_on() {
+    let dir = temp("failed-run");
+    let diverging = common::diverging_scenario(&dir);
+    let file = write_sweep(
+        &dir,
+        &format!(
+            "name = \"fails\"\nduration_s = 3.2\n[[leg]]\nscenarios = [\"gait_training\", \"{diverging}\", \"gait_training\"]\ncontrollers = [\"pid\"]\ngains = [\"leg\"]\n"
+        ),
+    );
+    let out = dir.join("out");
+    let o = out.display().to_string();
+    let first = pma_exo(&["sweep", &file, "--out", &o]);
+    let err = String::from_utf8_lossy(&first.stderr);
+    assert!(first.status.success(), "{err}");
+    let warning = err
+        .lines()
+        .find(|l| l.contains("failed"))
+        .unwrap_or_else(|| panic!("no warning: {err}"));
+    for needle in ["run 1", "diverging.toml", "physical bounds", "sweep.toml"] {
+        assert!(warning.contains(needle), "{needle}: {warning}");
+    }
+    let lines = sorted_lines(&out.join("runs.jsonl"));
+    assert_eq!(lines.len(), 3, "{lines:?}");
+    let failed: serde_json::Value = serde_json::from_str(&lines[1]).expect("json");
+    assert_eq!(failed["run"], 1);
+    assert_eq!(failed["scenario"], diverging.as_str());
+    assert!(
+        failed["failed"]
+            .as_str()
+            .is_some_and(|m| m.contains("physical bounds")),
+        "{failed}"
+    );
+    for good in [&lines[0], &lines[2]] {
+        let v: serde_json::Value = serde_json::from_str(good).expect("json");
+        assert_eq!(v["finite"], true, "{good}");
+    }
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).expect("summary"))
+            .expect("json");
+    assert_eq!(summary["runs"], 3);
+    assert_eq!(summary["failed"], 1);
+    assert_eq!(summary["failed_runs"][0]["run"], 1);
+    let md = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");
+    assert!(
+        md.contains("Runs that failed: 1") && md.contains("diverging.toml"),
+        "{md}"
+    );
+    // A resume runs nothing again: the failed run is a result of the sweep.
+    let again = pma_exo(&["sweep", &file, "--out", &o]);
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(again.status.success(), "{err}");
+    assert!(
+        err.contains("0 runs now") && !err.contains("warning"),
+        "{err}"
+    );
+    assert_eq!(sorted_lines(&out.join("runs.jsonl")), lines);
+    // A merge carries it too.
+    let merged = dir.join("merged").display().to_string();
+    ok(&["sweep", "merge", &o, "--out", &merged]);
+    assert_eq!(sorted_lines(&dir.join("merged").join("runs.jsonl")), lines);
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// Regression: a sweep directory kept its `.lock` file after the run. It is removed when
+/// the sweep ends (a killed sweep's stale lock is still taken over, as
+/// `a_killed_sweep_resumes_and_loses_nothing` shows).
+#[test]
+fn a_sweep_directory_keeps_no_lock_after_the_run() {
+    let dir = temp("no-lock");
+    let file = write_sweep(&dir, TWO_RUNS);
+    let out = dir.join("out");
+    ok(&["sweep", &file, "--out", &out.display().to_string()]);
+    assert!(out.join("runs.jsonl").is_file());
+    assert!(!out.join(".lock").exists());
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// Regression: `sweep merge sh1 sh2 --out sh1` rewrote its input shard. An --out that is
+/// one of the shards is refused, before anything is written.
+#[test]
+fn sweep_merge_refuses_to_write_into_one_of_its_shards() {
+    let dir = temp("merge-in-out");
+    let file = write_sweep(&dir, TWO_RUNS);
+    let s = |p: &Path| p.display().to_string();
+    let (a, b) = (dir.join("a"), dir.join("b"));
+    ok(&["sweep", &file, "--out", &s(&a), "--shard", "1/2"]);
+    ok(&["sweep", &file, "--out", &s(&b), "--shard", "2/2"]);
+    let before = std::fs::read_to_string(a.join("runs.jsonl")).expect("shard");
+    let a_again = format!("{}/", s(&a));
+    let out = pma_exo(&["sweep", "merge", &s(&a), &s(&b), "--out", &a_again]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--out") && err.contains("shard directory"),
+        "{err}"
+    );
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert_eq!(
+        std::fs::read_to_string(a.join("runs.jsonl")).expect("shard"),
+        before
+    );
+    assert!(!a.join("summary.json").exists());
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// Regression: `sweep merge` with a shard missing wrote a summary and then exited 1. The
+/// shards are checked first, and nothing is written.
+#[test]
+fn sweep_merge_with_missing_shards_writes_nothing() {
+    let dir = temp("merge-missing");
+    let file = write_sweep(&dir, TWO_RUNS);
+    let a = dir.join("a");
+    ok(&[
+        "sweep",
+        &file,
+        "--out",
+        &a.display().to_string(),
+        "--shard",
+        "1/2",
+    ]);
+    let merged = dir.join("merged");
+    let out = pma_exo(&[
+        "sweep",
+        "merge",
+        &a.display().to_string(),
+        "--out",
+        &merged.display().to_string(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("missing") && err.contains("nothing written"),
+        "{err}"
+    );
+    assert!(!merged.exists());
     std::fs::remove_dir_all(dir).ok();
 }

@@ -18,5 +18,7 @@ out=${2:?usage: sbatch --array=0-(N-1) sweep-array.sh SWEEP.toml OUT_DIR}
 bin=${PMA_EXO:-pma-exo}
 parts=${SLURM_ARRAY_TASK_COUNT:?run me with sbatch --array}
 part=$((SLURM_ARRAY_TASK_ID + 1))
+# pma-exo creates one directory level (the shard's): the parent is made here.
+mkdir -p "$out"
 exec "$bin" sweep "$sweep" --out "$out/shard-$SLURM_ARRAY_TASK_ID" \
     --shard "$part/$parts" --threads "${SLURM_CPUS_PER_TASK:-1}" --yes

@@ -291,7 +291,7 @@ pub fn run(a: Args) -> Result<i32> {
         plant: Some(format!("rig `{}` ({})", cfg.name, a.config)),
         controller: Some(kind.as_str().to_owned()),
         gains: Some(format!("{kept} (gains.toml)")),
-        seed: Some(a.seed),
+        seeds: crate::provenance::Seeds::of("bootstrap and tuning", a.seed),
         ..crate::provenance::Provenance::of_this_run()
     };
     let md = format!(

@@ -2,7 +2,7 @@
 //! on `gait_training` by the same search and budget, on the patient scenarios.
 use crate::output::OutFile;
 use crate::say;
-use anyhow::{Context, Result};
+use anyhow::Result;
 use pma_control::{ControllerConfig, ControllerKind};
 use pma_leg::Scenario;
 use pma_studies::compare::{compare, CompareRow};
@@ -72,24 +72,45 @@ pub fn run(a: Args) -> Result<i32> {
         super::simulate::LEG_PERIOD_S,
         a.yes,
     )?;
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("cannot create `{}`", a.out.display()))?;
+    let mut inputs = Vec::new();
+    for (arg, loaded) in a.scenarios.iter().zip(&scenarios) {
+        inputs.extend(super::scenario_inputs(arg, loaded, None));
+    }
+    let outputs = ["compare-leg.json", "compare-leg.md", "compare-leg.png"].map(|f| a.out.join(f));
+    crate::output::refuse_input_as_output(
+        &inputs,
+        &outputs
+            .iter()
+            .map(|p| ("--out", p.as_path()))
+            .collect::<Vec<_>>(),
+    )?;
+    crate::output::create_dir(&a.out)?;
     let json_file = OutFile::create(&a.out.join("compare-leg.json"))?;
     let md_file = OutFile::create(&a.out.join("compare-leg.md"))?;
     static DONE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let bar =
         crate::output::follow_progress(&DONE, (scenarios.len() * controllers.len()) as u64, "runs");
-    let rows = super::with_threads(a.threads, || {
+    let mut rows = super::with_threads(a.threads, || {
         compare(&scenarios, &controllers, a.duration, Some(&DONE))
     })??;
     drop(bar);
+    // Each scenario as the command line names it: two files may carry one inner name.
+    // The rows come scenario by scenario, a row per controller.
+    for (row, label) in rows.iter_mut().zip(
+        a.scenarios
+            .iter()
+            .flat_map(|s| std::iter::repeat_n(s, controllers.len())),
+    ) {
+        row.scenario.clone_from(label);
+    }
     let provenance = crate::provenance::Provenance {
         scenario: Some(
-            scenarios
+            a.scenarios
                 .iter()
-                .map(|s| s.scenario.name.clone())
+                .zip(&scenarios)
+                .map(|(arg, s)| crate::provenance::named(arg, &s.scenario.name))
                 .collect::<Vec<_>>()
-                .join(","),
+                .join(", "),
         ),
         controller: Some(
             COMPARED

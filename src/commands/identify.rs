@@ -68,7 +68,7 @@ pub fn run(a: Args) -> Result<i32> {
     if a.json {
         let provenance = crate::provenance::Provenance {
             plant: Some(format!("identified into {}", a.out.display())),
-            seed: Some(a.seed),
+            seeds: crate::provenance::Seeds::of("bootstrap", a.seed),
             ..crate::provenance::Provenance::of_this_run()
         };
         say!("{}", provenance.attach(&id)?);

@@ -47,14 +47,29 @@ pub struct RunOutput {
     pub rerun: RerunArgs,
 }
 
+impl RunOutput {
+    /// The files it writes, each named by its flag (for [`crate::output::refuse_input_as_output`]).
+    pub fn files(&self) -> Vec<(&'static str, &Path)> {
+        let mut files: Vec<(&'static str, &Path)> = Vec::new();
+        if let Some(csv) = &self.csv {
+            files.push(("--csv", csv));
+        }
+        if let Some(rrd) = self.rerun.save_path() {
+            files.push(("--rerun save", rrd));
+        }
+        files
+    }
+}
+
 /// Where a run's state goes in Rerun (every command that runs a control loop).
 #[derive(clap::Args, Clone)]
 pub struct RerunArgs {
-    /// Rerun: off, spawn, connect, connect=URL or save=PATH.rrd.
+    /// Rerun: off, spawn, connect, connect=URL or save=PATH.rrd (the file after `=`).
     #[arg(
         long = "rerun",
         default_value = "off",
-        value_name = "off|spawn|connect[=URL]|save=PATH.rrd"
+        value_name = "off|spawn|connect[=URL]|save=PATH.rrd",
+        value_parser = rerun_mode
     )]
     pub mode: String,
     /// Log to Rerun at this rate (Hz) instead of every control period.
@@ -71,7 +86,26 @@ impl Default for RerunArgs {
     }
 }
 
+/// `--rerun`'s value, checked as it is parsed: `--rerun save FILE` then says how to give
+/// the file instead of failing on FILE as an unexpected argument.
+fn rerun_mode(mode: &str) -> Result<String, String> {
+    let with_value = |prefix: &str| mode.strip_prefix(prefix).is_some_and(|v| !v.is_empty());
+    match mode {
+        "off" | "spawn" | "connect" => Ok(mode.to_owned()),
+        _ if with_value("save=") || with_value("connect=") => Ok(mode.to_owned()),
+        "save" | "save=" => {
+            Err("`save` takes its file after `=`, in one argument: --rerun save=PATH.rrd".into())
+        }
+        _ => Err("expected off, spawn, connect, connect=URL or save=PATH.rrd".into()),
+    }
+}
+
 impl RerunArgs {
+    /// The recording's file, with `save=PATH`.
+    pub fn save_path(&self) -> Option<&Path> {
+        self.mode.strip_prefix("save=").map(Path::new)
+    }
+
     /// Whether anything is to be logged; warns about a rate given without a sink.
     pub fn enabled(&self) -> Result<bool> {
         if let Some(hz) = self.rerun_hz {
@@ -136,6 +170,12 @@ pub fn load_gains(kind: ControllerKind, path: Option<&Path>) -> Result<Controlle
     })
 }
 
+/// A Rerun recording's description of the gains: the gain file's TOML, as `--gains` reads
+/// it (never Rust's debug form).
+pub fn gains_block(config: &ControllerConfig) -> String {
+    format!("```toml\n{}```\n", config.to_toml_string())
+}
+
 /// Most worker threads per core accepted: more only slow a run down.
 const THREADS_PER_CORE_MAX: usize = 4;
 
@@ -185,9 +225,12 @@ impl<F> SampleCsv<F> {
         })
     }
 
-    /// Completes the file.
+    /// Completes the file, and says so.
     pub fn finish(self) -> Result<u64> {
-        self.out.finish()
+        let path = self.out.path().to_path_buf();
+        let rows = self.out.finish()?;
+        crate::output::wrote(&path);
+        Ok(rows)
     }
 }
 
@@ -298,15 +341,67 @@ pub fn conclude<R: serde::Serialize, F>(
 #[cfg(feature = "rerun")]
 pub mod viz {
     use super::RerunArgs;
+    use crate::output::{self, StagedPath};
     use anyhow::{Context, Result};
-    pub use pma_exo::viz::VizRecorder as Recorder;
+    use pma_exo::viz::VizRecorder;
+    use pma_loop::{Backend, End, Period, Start};
 
-    fn open(args: &RerunArgs, app: &'static str, period_s: f64) -> Result<Option<pma_viz::Viz>> {
+    /// A run's recording, and with `--rerun save=PATH` the file it goes to: written beside
+    /// PATH and renamed onto it only when the recording is complete, so that a run that
+    /// fails leaves the previous recording as it was.
+    pub struct Recorder {
+        // Dropped first: the Rerun stream closes its file before the staged file goes.
+        rec: VizRecorder,
+        file: Option<StagedPath>,
+    }
+
+    impl<B: Backend, O> pma_loop::Recorder<B, O> for Recorder
+    where
+        VizRecorder: pma_loop::Recorder<B, O>,
+    {
+        fn start(&mut self, start: &Start<'_, B>) {
+            self.rec.start(start);
+        }
+        fn record(&mut self, period: &Period<'_, B, O>) {
+            self.rec.record(period);
+        }
+        fn end(&mut self, end: &End<B::Error>, t_s: f64) {
+            self.rec.end(end, t_s);
+        }
+    }
+
+    impl Recorder {
+        /// Ends the recording and, with a file, renames it onto its path.
+        pub fn finish(self) -> Result<()> {
+            self.rec.finish()?;
+            if let Some(file) = self.file {
+                let path = file.path().to_path_buf();
+                file.commit()?;
+                output::wrote(&path);
+            }
+            Ok(())
+        }
+    }
+
+    /// The sink, with `save=PATH` a temporary file beside PATH to record into.
+    fn open(
+        args: &RerunArgs,
+        app: &'static str,
+        period_s: f64,
+    ) -> Result<Option<(pma_viz::Viz, Option<StagedPath>)>> {
         if !args.enabled()? {
             return Ok(None);
         }
         let sink: pma_viz::Sink = args.mode.parse().context("--rerun")?;
-        pma_exo::viz::open(&sink, app, period_s, args.rerun_hz)
+        let (sink, file) = match sink {
+            pma_viz::Sink::Save(path) => {
+                let file = StagedPath::create(&path)?;
+                (pma_viz::Sink::Save(file.write_path()), Some(file))
+            }
+            other => (other, None),
+        };
+        let viz = pma_exo::viz::open(&sink, app, period_s, args.rerun_hz)?;
+        Ok(viz.map(|v| (v, file)))
     }
 
     /// The bench's (and the rig's) layout, with `meta` as the recording's description.
@@ -316,20 +411,26 @@ pub mod viz {
         period_s: f64,
         meta: &str,
     ) -> Result<Option<Recorder>> {
-        let Some(mut v) = open(args, app, period_s)? else {
+        let Some((mut v, file)) = open(args, app, period_s)? else {
             return Ok(None);
         };
         let channels = pma_exo::viz::bench_layout(&mut v, meta)?;
-        Ok(Some(Recorder::new(v, channels)))
+        Ok(Some(Recorder {
+            rec: VizRecorder::new(v, channels),
+            file,
+        }))
     }
 
     /// The leg's layout.
     pub fn leg(args: &RerunArgs, sim: &pma_leg::LegSim, meta: &str) -> Result<Option<Recorder>> {
-        let Some(mut v) = open(args, "pma-exo simulate", sim.scenario().period_s)? else {
+        let Some((mut v, file)) = open(args, "pma-exo simulate", sim.scenario().period_s)? else {
             return Ok(None);
         };
         let channels = pma_exo::viz::leg_layout(&mut v, sim, meta)?;
-        Ok(Some(Recorder::new(v, channels)))
+        Ok(Some(Recorder {
+            rec: VizRecorder::new(v, channels),
+            file,
+        }))
     }
 
     /// The pendulum test's layout; `knee_damping_nm_s_per_rad` is the knee's damping.
@@ -339,15 +440,14 @@ pub mod viz {
         meta: &str,
         knee_damping_nm_s_per_rad: f64,
     ) -> Result<Option<Recorder>> {
-        let Some(mut v) = open(args, "pma-exo pendulum", sim.scenario().period_s)? else {
+        let Some((mut v, file)) = open(args, "pma-exo pendulum", sim.scenario().period_s)? else {
             return Ok(None);
         };
         let channels = pma_exo::viz::pendulum_layout(&mut v, sim, meta)?;
-        Ok(Some(Recorder::pendulum(
-            v,
-            channels,
-            knee_damping_nm_s_per_rad,
-        )))
+        Ok(Some(Recorder {
+            rec: VizRecorder::pendulum(v, channels, knee_damping_nm_s_per_rad),
+            file,
+        }))
     }
 
     /// Ends the recording, if there was one.
@@ -400,6 +500,48 @@ pub mod viz {
         match r {
             None => Ok(()),
             Some(never) => match never {},
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Regression: `simulate`'s Rerun metadata printed the gains in Rust's debug form
+    /// (`AprcNdo(AprcGains { .. })`); it is now the gain file's TOML.
+    #[test]
+    fn rerun_metadata_prints_the_gains_as_a_gain_file() {
+        let block = gains_block(&ControllerKind::AprcNdo.default_config());
+        assert!(block.starts_with("```toml\n"), "{block}");
+        assert!(block.contains("controller = \"aprc-ndo\""), "{block}");
+        assert!(
+            !block.contains('{') && !block.contains("AprcNdo"),
+            "{block}"
+        );
+        let back = block
+            .trim_start_matches("```toml\n")
+            .trim_end_matches("```\n");
+        assert_eq!(
+            ControllerConfig::from_toml_str(back).expect("a gain file"),
+            ControllerKind::AprcNdo.default_config()
+        );
+    }
+
+    /// Regression: `--rerun save` without its file was accepted by the parser and failed
+    /// later (or, followed by the file, as a bare "unexpected argument").
+    #[test]
+    fn rerun_save_without_its_file_says_how_to_give_it() {
+        assert!(rerun_mode("save").unwrap_err().contains("save=PATH.rrd"));
+        assert!(rerun_mode("save=").is_err() && rerun_mode("connect=").is_err());
+        for ok in [
+            "off",
+            "spawn",
+            "connect",
+            "connect=rerun+http://h:1/proxy",
+            "save=x.rrd",
+        ] {
+            assert_eq!(rerun_mode(ok).as_deref(), Ok(ok));
         }
     }
 }

@@ -1,7 +1,7 @@
 //! `pma-exo pendulum`: the Wartenberg pendulum test on the leg's patient model.
 use super::{viz, RunOutput, SampleCsv};
 use crate::output;
-use crate::provenance::Provenance;
+use crate::provenance::{Provenance, Seeds};
 use crate::say;
 use anyhow::Result;
 use pma_leg::patient::{SpasticityPreset, SpasticitySettings};
@@ -90,20 +90,23 @@ pub fn run(a: Args) -> Result<i32> {
         hip_rad: a.hip_deg.to_radians(),
         knee_rad: a.knee_deg.to_radians(),
     };
-    if let Some(csv) = &a.output.csv {
-        output::refuse_input_as_output(
-            &super::scenario_inputs(&a.scenario, &loaded, None),
-            &[("--csv", csv)],
-        )?;
+    let plot_file = a.plot.as_ref().map(|dir| dir.join("pendulum.png"));
+    let mut outputs = a.output.files();
+    if let Some(png) = &plot_file {
+        outputs.push(("--plot", png));
     }
+    output::refuse_input_as_output(
+        &super::scenario_inputs(&a.scenario, &loaded, None),
+        &outputs,
+    )?;
     let provenance = Provenance {
-        scenario: Some(loaded.scenario.name.clone()),
+        scenario: Some(crate::provenance::named(&a.scenario, &loaded.scenario.name)),
         controller: Some("none (muscles vented and unhooked)".into()),
         patient: Some(match a.spasticity {
             Some(s) => format!("spasticity {} at hip and knee", s.name()),
             None => super::simulate::patient_name(&loaded),
         }),
-        seed: super::simulate::spasm_seed(&loaded),
+        seeds: Seeds::of_scenario(&loaded.scenario),
         ..Provenance::of_this_run()
     };
     let sim = pendulum::seated(&loaded, setup)?;
@@ -135,8 +138,7 @@ pub fn run(a: Args) -> Result<i32> {
     let stop = output::stop_flag()?;
     let settings = settings.with_stop_flag(&stop);
     if let Some(dir) = &a.plot {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| anyhow::anyhow!("cannot create `{}`: {e}", dir.display()))?;
+        output::create_dir(dir)?;
     }
     let periods = (a.duration / loaded.scenario.period_s) as u64;
     let trace = a
@@ -146,7 +148,7 @@ pub fn run(a: Args) -> Result<i32> {
     let mut recorders = (csv, viz, trace);
     let report = pendulum::run(sim, setup, &settings, &mut recorders)?;
     let (csv, viz, trace) = recorders;
-    if let (Some(dir), Some(trace)) = (&a.plot, trace) {
+    if let (Some(path), Some(trace)) = (&plot_file, trace) {
         let marks = crate::plot::PendulumMarks {
             start_deg: report.knee_start_deg,
             first_peak_deg: report.first_peak_deg,
@@ -154,15 +156,14 @@ pub fn run(a: Args) -> Result<i32> {
             r2: report.r2,
         };
         crate::plot::register_font()?;
-        let path = dir.join("pendulum.png");
         let title = format!(
             "Pendulum test: {}",
             provenance.patient.as_deref().unwrap_or("-")
         );
-        output::write_via_temp(&path, |tmp| {
+        output::write_via_temp(path, |tmp| {
             crate::plot::pendulum_run(tmp, &title, &provenance.command, &trace.0, &marks)
         })?;
-        eprintln!("wrote {}", path.display());
+        output::wrote(path);
     }
     let non_finite =
         (!report.finite).then(|| format!("the pendulum test (scenario {})", report.scenario));

@@ -35,7 +35,7 @@ pub enum RigCommand {
         /// Controller instead of the configuration's.
         #[arg(long, value_name = ControllerKind::NAMES)]
         controller: Option<ControllerKind>,
-        /// Gain file for the controller.
+        /// Gain file for the controller (without --controller: the file's controller).
         #[arg(long)]
         gains: Option<PathBuf>,
         /// Inject a fault into the virtual rig at T seconds (0 < T < the duration):
@@ -133,23 +133,27 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
                 (kind, path) => {
                     let kind = match kind {
                         Some(k) => k,
-                        None => cfg.control_kind()?,
+                        // A gain file says which controller it is (as for `single`).
+                        None => super::kind_of_gains(path, cfg.control_kind()?)?,
                     };
                     Some(super::load_gains(kind, path)?)
                 }
             };
-            let options = RunOptions {
+            let mut options = RunOptions {
                 duration_s: duration,
                 controller: controller_cfg,
                 injections: inject,
                 clock: realtime.then_some(ClockMode::Realtime),
                 log_path: log,
                 fifo: no_fifo.then_some(false),
-                excitation: None,
+                ..RunOptions::default()
             };
+            refuse_overwrites(&cfg, &config, &options, gains.as_deref(), &rerun)?;
             let duration = options.duration_s.unwrap_or(cfg.duration_s);
             check_rig_wall_time(&cfg, duration, realtime, yes)?;
-            run_rig(&cfg, &dir, &options, json, &rerun)
+            let provenance = rig_provenance(&cfg, &config, &options, gains.as_deref())?;
+            options.provenance = Some(provenance.line());
+            run_rig(&cfg, &dir, &options, json, &rerun, &provenance)
                 .with_context(|| format!("rig configuration `{config}`"))
         }
         RigCommand::Excite {
@@ -165,7 +169,7 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
             let (cfg, dir) = RigConfig::load(&config)?;
             let cfg = with_added_mass(cfg, added_mass_kg, yes)?;
             check_rig_wall_time(&cfg, duration, realtime, yes)?;
-            let options = RunOptions {
+            let mut options = RunOptions {
                 duration_s: Some(duration),
                 clock: realtime.then_some(ClockMode::Realtime),
                 log_path: Some(out),
@@ -173,7 +177,11 @@ pub fn run(cmd: RigCommand) -> Result<i32> {
                 excitation: Some(cfg.default_excitation(duration)),
                 ..RunOptions::default()
             };
-            run_rig(&cfg, &dir, &options, json, &RerunArgs::default())
+            let rerun = RerunArgs::default();
+            refuse_overwrites(&cfg, &config, &options, None, &rerun)?;
+            let provenance = rig_provenance(&cfg, &config, &options, None)?;
+            options.provenance = Some(provenance.line());
+            run_rig(&cfg, &dir, &options, json, &rerun, &provenance)
                 .with_context(|| format!("rig configuration `{config}`"))
         }
         RigCommand::Commission(a) => super::commission::run(a),
@@ -258,12 +266,14 @@ fn check(config: &str) -> Result<()> {
         c.position_offset_v
     );
     if let Some(p) = backend.pressure_reading_pa() {
+        let highest_pa = (1.0 + pma_rig::backend::PRESSURE_FAULT_MARGIN) * l.pressure_max_pa;
         say!(
-            "  pressure channel: {:.3} bar ({} Pa/V, {:.4} V at 0 Pa); a reading above {:.2} bar stops a run",
+            "  pressure channel: {:.3} bar ({} Pa/V, {:.4} V at 0 Pa); a reading above {:.2} bar ({:.4} V) stops a run",
             p / 1e5,
-            c.pressure_pa_per_v.unwrap_or(c.valve_pa_per_v),
-            c.pressure_offset_v.unwrap_or(c.valve_offset_v),
-            (1.0 + pma_rig::backend::PRESSURE_FAULT_MARGIN) * l.pressure_max_pa / 1e5
+            c.pressure_scale_pa_per_v(),
+            c.pressure_zero_v(),
+            highest_pa / 1e5,
+            c.pressure_v(highest_pa)
         );
     }
     say!(
@@ -286,15 +296,44 @@ fn check(config: &str) -> Result<()> {
     Ok(())
 }
 
+/// Refuses a run whose log would be one of its inputs or its Rerun recording (up front:
+/// the log is created by the run, and the recording renamed onto its path at the end).
+fn refuse_overwrites(
+    cfg: &RigConfig,
+    config: &str,
+    options: &RunOptions,
+    gains: Option<&std::path::Path>,
+    rerun: &RerunArgs,
+) -> Result<()> {
+    let log = options.log_path.as_ref().unwrap_or(&cfg.log_path);
+    let flag = if options.excitation.is_some() {
+        "--out"
+    } else {
+        "--log"
+    };
+    let mut outputs = vec![(flag, log.as_path())];
+    if let Some(rrd) = rerun.save_path() {
+        outputs.push(("--rerun save", rrd));
+    }
+    let mut inputs = Vec::new();
+    if let Some(c) = output::input_file(config) {
+        inputs.push(("rig configuration", c));
+    }
+    if let Some(g) = gains {
+        inputs.push(("gain file", g));
+    }
+    output::refuse_input_as_output(&inputs, &outputs)
+}
+
 fn run_rig(
     cfg: &RigConfig,
     dir: &std::path::Path,
     options: &RunOptions,
     json: bool,
     rerun: &RerunArgs,
+    provenance: &crate::provenance::Provenance,
 ) -> Result<i32> {
     let stop = output::stop_flag()?;
-    let provenance = rig_provenance(cfg, options);
     let meta = format!(
         "# rig `{}`\n\n{}\n\n{}\n",
         cfg.name,
@@ -333,9 +372,14 @@ fn run_rig(
     Ok(report.exit_code())
 }
 
-/// What a rig run runs: the rig, its plant (virtual) or device, the controller and where
-/// its gains come from.
-fn rig_provenance(cfg: &RigConfig, options: &RunOptions) -> crate::provenance::Provenance {
+/// What a rig run runs: the rig (its file by path), its plant (virtual) or device, the
+/// controller, where its gains come from, and the virtual sensor's noise seed.
+fn rig_provenance(
+    cfg: &RigConfig,
+    config: &str,
+    options: &RunOptions,
+    gains_file: Option<&std::path::Path>,
+) -> Result<crate::provenance::Provenance> {
     let controller = if options.excitation.is_some() {
         "excitation (open loop)".to_owned()
     } else {
@@ -346,19 +390,36 @@ fn rig_provenance(cfg: &RigConfig, options: &RunOptions) -> crate::provenance::P
     };
     let gains = match (&options.controller, &cfg.control.gains) {
         _ if options.excitation.is_some() => None,
-        (Some(_), _) => Some("command line (--controller, --gains)".to_owned()),
+        (Some(_), _) => Some(match gains_file {
+            Some(path) => path.display().to_string(),
+            None => "the controller's defaults (--controller)".to_owned(),
+        }),
         (None, Some(path)) => Some(path.display().to_string()),
         (None, None) => Some("the controller's defaults (APRC-NDO: the paper's)".to_owned()),
     };
-    crate::provenance::Provenance {
-        plant: Some(match &cfg.virtual_rig {
-            Some(v) => format!("virtual rig `{}`, plant {}", cfg.name, v.plant),
-            None => format!("rig `{}` on {}", cfg.name, cfg.device.path),
-        }),
+    let rig = crate::provenance::named(config, &cfg.name);
+    let (plant, seeds) = match &cfg.virtual_rig {
+        Some(v) => {
+            let seeds = if v.sensor_noise_rms_m > 0.0 {
+                let plant = pma_bench::PlantConfig::load(&v.plant)?;
+                crate::provenance::Seeds::of("virtual sensor noise", plant.sensor.seed)
+            } else {
+                crate::provenance::Seeds::default()
+            };
+            (format!("virtual rig {rig} with plant {}", v.plant), seeds)
+        }
+        None => (
+            format!("rig {rig} on {}", cfg.device.path),
+            crate::provenance::Seeds::default(),
+        ),
+    };
+    Ok(crate::provenance::Provenance {
+        plant: Some(plant),
         controller: Some(controller),
         gains,
+        seeds,
         ..crate::provenance::Provenance::of_this_run()
-    }
+    })
 }
 
 /// The one message a run that could not vent must print, whatever else happens.

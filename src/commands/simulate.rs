@@ -1,7 +1,7 @@
 //! `pma-exo simulate`: the gait-training simulation of the exoskeleton leg.
 use super::{viz, RunOutput, SampleCsv};
 use crate::output::{self, INTERRUPTED};
-use crate::provenance::Provenance;
+use crate::provenance::{Provenance, Seeds};
 use crate::say;
 use anyhow::Result;
 use pma_control::{ControllerConfig, ControllerKind};
@@ -21,7 +21,7 @@ pub struct Args {
     /// Controller on every muscle (default: APRC-NDO with the scenario's gains).
     #[arg(long, value_name = ControllerKind::NAMES)]
     controller: Option<ControllerKind>,
-    /// Gain file of the controller (default: its shipped leg gains, see crates/pma-control/models/gains/leg).
+    /// Gain file of the controller (default: its shipped leg gains, see crates/pma-leg/models/gains).
     #[arg(long, requires = "controller")]
     gains: Option<PathBuf>,
     /// Simulated seconds (default: the scenario's); at least two strides.
@@ -63,11 +63,11 @@ pub fn run(a: Args) -> Result<i32> {
     sc.check_run_duration(duration)?;
     let config = leg_config(a.controller, a.gains.as_deref(), &loaded)?;
     let provenance = Provenance {
-        scenario: Some(sc.name.clone()),
+        scenario: Some(crate::provenance::named(&a.scenario, &sc.name)),
         controller: Some(config.kind().as_str().to_owned()),
         gains: Some(gain_source(a.controller, a.gains.as_deref())),
         patient: Some(patient_name(&loaded)),
-        seed: spasm_seed(&loaded),
+        seeds: Seeds::of_scenario(sc),
         ..Provenance::of_this_run()
     };
     let mut sim = LegSim::with_controller(&loaded, &config)?;
@@ -80,12 +80,15 @@ pub fn run(a: Args) -> Result<i32> {
         .iter()
         .map(|m| m.geometry.name.clone())
         .collect();
-    if let Some(csv) = &a.output.csv {
-        output::refuse_input_as_output(
-            &super::scenario_inputs(&a.scenario, &loaded, a.gains.as_deref()),
-            &[("--csv", csv)],
-        )?;
+    let plot_file = a.plot.as_ref().map(|dir| dir.join("leg.png"));
+    let mut outputs = a.output.files();
+    if let Some(png) = &plot_file {
+        outputs.push(("--plot", png));
     }
+    output::refuse_input_as_output(
+        &super::scenario_inputs(&a.scenario, &loaded, a.gains.as_deref()),
+        &outputs,
+    )?;
     let csv = a
         .output
         .csv
@@ -97,7 +100,7 @@ pub fn run(a: Args) -> Result<i32> {
         })
         .transpose()?;
     let meta = format!(
-        "# {}\n\n{}\n\n{}\n\ngait `{}` at a {} s stride; co-contraction {} bar; {} gains:\n\n```\n{:#?}\n```\n",
+        "# {}\n\n{}\n\n{}\n\ngait `{}` at a {} s stride; co-contraction {} bar; {} gains:\n\n{}",
         sc.name,
         provenance.line(),
         sc.description,
@@ -105,14 +108,13 @@ pub fn run(a: Args) -> Result<i32> {
         sc.gait.stride_period_s,
         sc.control.cocontraction_pa / 1e5,
         config.kind(),
-        config
+        super::gains_block(&config)
     );
     let viz = viz::leg(&a.output.rerun, &sim, &meta)?;
     let progress = super::Progress::new(periods);
     let bar = progress.bar.clone();
     if let Some(dir) = &a.plot {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| anyhow::anyhow!("cannot create `{}`: {e}", dir.display()))?;
+        output::create_dir(dir)?;
     }
     let trace = a.plot.as_ref().map(|_| {
         let mut t = Trace::with_capacity(periods);
@@ -136,7 +138,7 @@ pub fn run(a: Args) -> Result<i32> {
     bar.finish_and_clear();
     let report = report?;
     let (csv, viz, _, trace) = recorders;
-    if let (Some(dir), Some(mut trace)) = (&a.plot, trace) {
+    if let (Some(path), Some(mut trace)) = (&plot_file, trace) {
         trace.0.muscles = names.clone();
         trace.0.legs = sim.leg_count();
         trace.0.pressure_max_bar = sc.plant.valve.pressure_max_pa / 1e5;
@@ -159,12 +161,11 @@ pub fn run(a: Args) -> Result<i32> {
             })
             .collect();
         crate::plot::register_font()?;
-        let path = dir.join("leg.png");
         let title = format!("{}: {} on every muscle", sc.name, config.kind());
-        output::write_via_temp(&path, |tmp| {
+        output::write_via_temp(path, |tmp| {
             crate::plot::leg_run(tmp, &title, &provenance.command, &trace.0)
         })?;
-        eprintln!("wrote {}", path.display());
+        output::wrote(path);
     }
     let non_finite =
         (!report.finite).then(|| format!("the simulation (scenario {})", report.scenario));
@@ -246,14 +247,6 @@ pub fn gain_source(kind: Option<ControllerKind>, gains: Option<&std::path::Path>
     }
 }
 
-/// The seed of the scenario's random spasms, if it has any.
-pub fn spasm_seed(loaded: &pma_leg::LoadedScenario) -> Option<u64> {
-    let p = &loaded.scenario.patient;
-    [&p.hip, &p.knee]
-        .iter()
-        .find_map(|j| j.spasms.as_ref().map(|s| s.seed))
-}
-
 /// The patient of a scenario, as a name: `passive`, or its parts.
 pub fn patient_name(loaded: &pma_leg::LoadedScenario) -> String {
     let p = &loaded.scenario.patient;
@@ -270,6 +263,12 @@ pub fn patient_name(loaded: &pma_leg::LoadedScenario) -> String {
         }
         if j.effort.is_some() {
             parts.push("effort".into());
+        }
+        if let Some(s) = &j.stiffness {
+            parts.push(match s.preset {
+                Some(preset) => format!("stiffness {preset:?}").to_lowercase(),
+                None => "stiffness".into(),
+            });
         }
         if parts.is_empty() {
             "passive".into()

@@ -1,7 +1,7 @@
 //! `pma-exo single`: one controller on the single-muscle bench.
 use super::{check_duration, load_gains, viz, RefName, RunOutput, SampleCsv};
 use crate::output::{self, INTERRUPTED};
-use crate::provenance::Provenance;
+use crate::provenance::{Provenance, Seeds};
 use crate::say;
 use anyhow::{bail, Result};
 use pma_bench::{run_single_until, PlantConfig, RunSpec, Sample};
@@ -47,14 +47,18 @@ pub fn run(a: Args) -> Result<i32> {
     let config = load_gains(kind, a.gains.as_deref())?;
     let (ref_name, reference) = a.reference.build();
     let provenance = Provenance {
-        plant: Some(plant.name.clone()),
+        plant: Some(crate::provenance::named(&a.plant, &plant.name)),
         controller: Some(kind.as_str().to_owned()),
         gains: Some(
             a.gains
                 .as_ref()
                 .map_or("default".to_owned(), |g| g.display().to_string()),
         ),
-        seed: (plant.sensor.noise_rms_m > 0.0).then_some(plant.sensor.seed),
+        seeds: if plant.sensor.noise_rms_m > 0.0 {
+            Seeds::of("sensor noise", plant.sensor.seed)
+        } else {
+            Seeds::default()
+        },
         ..Provenance::of_this_run()
     };
     let spec = RunSpec {
@@ -63,16 +67,14 @@ pub fn run(a: Args) -> Result<i32> {
     };
     spec.validate()?;
     output::check_wall_time("this run", spec.periods()? as f64, BENCH_PERIOD_S, a.yes)?;
-    if let Some(csv) = &a.output.csv {
-        let mut inputs = Vec::new();
-        if let Some(p) = output::input_file(&a.plant) {
-            inputs.push(("plant file", p));
-        }
-        if let Some(g) = &a.gains {
-            inputs.push(("gain file", g.as_path()));
-        }
-        output::refuse_input_as_output(&inputs, &[("--csv", csv)])?;
+    let mut inputs = Vec::new();
+    if let Some(p) = output::input_file(&a.plant) {
+        inputs.push(("plant file", p));
     }
+    if let Some(g) = &a.gains {
+        inputs.push(("gain file", g.as_path()));
+    }
+    output::refuse_input_as_output(&inputs, &a.output.files())?;
     let csv = a
         .output
         .csv
@@ -80,11 +82,11 @@ pub fn run(a: Args) -> Result<i32> {
         .map(|p| SampleCsv::create(p, &Sample::schema(), Sample::of, &provenance))
         .transpose()?;
     let meta = format!(
-        "# single muscle\n\n{}\n\ncontroller `{}`, reference `{ref_name}`, plant `{}`\n\n```toml\n{}```\n",
+        "# single muscle\n\n{}\n\ncontroller `{}`, reference `{ref_name}`, plant `{}`\n\n{}",
         provenance.line(),
         kind,
         plant.name,
-        config.to_toml_string()
+        super::gains_block(&config)
     );
     let viz = viz::bench(&a.output.rerun, "pma-exo single", spec.period_s, &meta)?;
     let stop = output::stop_flag()?;

@@ -1,6 +1,6 @@
 //! `pma-exo size`: the Festo muscles and pulleys a scenario's gait needs.
 use crate::output::{self, OutFile};
-use crate::provenance::Provenance;
+use crate::provenance::{Provenance, Seeds};
 use crate::say;
 use anyhow::{bail, Result};
 use pma_leg::demand::stride_demand;
@@ -22,9 +22,10 @@ pub struct Args {
     /// on the trainer's frame and pull through cables.
     #[arg(long, default_value_t = 1.2, allow_negative_numbers = true)]
     max_length_m: f64,
-    /// Where to write the recommended muscle geometry.
-    #[arg(long, default_value = "muscles.toml")]
-    out: PathBuf,
+    /// Where to write the recommended muscle geometry (nothing is written without it: no
+    /// default path, so that no file is replaced unasked).
+    #[arg(long)]
+    out: Option<PathBuf>,
     /// Print the sizing as JSON instead of a summary.
     #[arg(long)]
     json: bool,
@@ -42,35 +43,38 @@ pub fn run(a: Args) -> Result<i32> {
         bail!("--strides must be 1..=50 (got {})", a.strides);
     }
     let loaded = Scenario::load(&a.scenario)?;
-    output::refuse_input_as_output(
-        &super::scenario_inputs(&a.scenario, &loaded, None),
-        &[("--out", &a.out)],
-    )?;
-    let out_file = OutFile::create(&a.out)?;
+    if let Some(out) = &a.out {
+        output::refuse_input_as_output(
+            &super::scenario_inputs(&a.scenario, &loaded, None),
+            &[("--out", out)],
+        )?;
+    }
+    let out_file = a.out.as_deref().map(OutFile::create).transpose()?;
     let sc = &loaded.scenario;
     let demand = stride_demand(&loaded, a.strides)?;
     let p_max = sc.plant.valve.pressure_max_pa;
     let sizing = size_joints(&demand, p_max, a.max_length_m);
     let provenance = Provenance {
-        scenario: Some(sc.name.clone()),
+        scenario: Some(crate::provenance::named(&a.scenario, &sc.name)),
         patient: Some(super::simulate::patient_name(&loaded)),
-        seed: super::simulate::spasm_seed(&loaded),
+        seeds: Seeds::of_scenario(sc),
         ..Provenance::of_this_run()
     };
-    let written = match muscle_geometry(&sizing) {
-        Some(muscles) => {
+    let geometry = muscle_geometry(&sizing);
+    let written = match (&geometry, out_file) {
+        (Some(muscles), Some(out_file)) => {
             let header = format!(
-                "Muscle geometry recommended by `pma-exo size {}` (docs/treadmill.md).\nEach joint: the smallest Festo size that supplies the stride's torques within\nits rating, a 25 % contraction, the valve's range and its useful speed, then the\nlargest margin. Set the scenario's control.cocontraction_pa to {}.\n{}",
-                sc.name,
+                "Muscle geometry recommended by `{}` (docs/treadmill.md).\nEach joint: the smallest Festo size that supplies the stride's torques within\nits rating, a 25 % contraction, the valve's range and its useful speed, then the\nlargest margin. Set the scenario's control.cocontraction_pa to {}.\n{}",
+                provenance.command,
                 sizing
                     .cocontraction_pa
                     .map_or_else(|| "(none common)".to_owned(), |p| format!("{p:.4e}")),
                 provenance.line()
             );
-            out_file.finish_with(&muscles_toml(&muscles, &header))?;
-            true
+            out_file.finish_with(&muscles_toml(muscles, &header))?;
+            a.out.as_deref()
         }
-        None => false,
+        _ => None,
     };
     if a.json {
         let json = serde_json::json!({
@@ -78,22 +82,31 @@ pub fn run(a: Args) -> Result<i32> {
             "servo_max_error_deg": demand.max_error_deg,
             "treadmill": demand.treadmill,
             "sizing": sizing,
-            "muscle_geometry": written.then(|| a.out.display().to_string()),
+            "muscle_geometry": written.map(|p| p.display().to_string()),
         });
         say!("{}", serde_json::to_string(&json)?);
     } else {
         print_summary(&sizing, &demand, &sc.name)?;
         say!("{}", provenance.line());
     }
-    if written {
-        eprintln!("wrote {}", a.out.display());
-        Ok(0)
-    } else {
-        eprintln!(
-            "no Festo DMSP pair up to {} m long on a pulley up to 120 mm works for every joint: nothing written",
-            a.max_length_m
-        );
-        Ok(1)
+    match (geometry, written) {
+        (Some(_), Some(path)) => {
+            output::wrote(path);
+            Ok(0)
+        }
+        (Some(_), None) => {
+            eprintln!(
+                "the recommended muscle geometry was not written: pass --out FILE to write it"
+            );
+            Ok(0)
+        }
+        (None, _) => {
+            eprintln!(
+                "no Festo DMSP pair up to {} m long on a pulley up to 120 mm works for every joint: nothing written",
+                a.max_length_m
+            );
+            Ok(1)
+        }
     }
 }
 

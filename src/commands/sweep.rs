@@ -3,8 +3,9 @@
 use crate::output;
 use crate::say;
 use anyhow::{bail, Context, Result};
-use pma_studies::sweep::{self, Shard};
+use pma_studies::sweep::{self, FailedRecord, Record, Shard, Sweep};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// `sweep`'s arguments.
 #[derive(clap::Args)]
@@ -72,13 +73,14 @@ pub fn run(a: Args) -> Result<i32> {
     output::check_wall_time("this sweep", bench_periods, 1e-6 / threads as f64, a.yes)?;
     let stop = output::stop_flag()?;
     let bar = output::progress_bar(selected as u64, "runs");
-    let progress = |done: usize, _total: usize| bar.set_position(done as u64);
+    let progress = |done: usize| bar.set_position(done as u64);
     let start = std::time::Instant::now();
     let exec = super::with_threads(a.threads, || {
-        sweep::execute(&sweep, &out, a.shard, &progress, &stop)
+        execute(&sweep, &out, a.shard, &progress, &stop)
     })??;
     bar.finish_and_clear();
-    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+    warn_failed(&file, &exec.failed_now);
+    if stop.load(Ordering::Relaxed) {
         eprintln!(
             "interrupted: {} runs written now, {} before, in `{}`; run the same command again to resume",
             exec.run_now,
@@ -103,11 +105,105 @@ pub fn run(a: Args) -> Result<i32> {
     Ok(0)
 }
 
+/// How an execution went.
+pub struct Execution {
+    /// Runs of this shard already in the directory (resumed).
+    pub already_done: usize,
+    /// Run now.
+    pub run_now: usize,
+    /// The runs that failed now (recorded, and not run again by a resume).
+    pub failed_now: Vec<FailedRecord>,
+}
+
+/// Runs this shard of `sweep` into `out` (`runs.jsonl`, `sweep.json`; the directory is
+/// created, one level) on the current rayon pool, skipping the runs already written there;
+/// `progress(done)` is called after each run. The directory is locked for the run. Once
+/// `stop` is raised no new run starts (the runs written stay; the same command resumes).
+pub fn execute(
+    sweep: &Sweep,
+    out: &Path,
+    shard: Shard,
+    progress: &(dyn Fn(usize) + Sync),
+    stop: &AtomicBool,
+) -> Result<Execution> {
+    output::create_dir(out)?;
+    let _lock = output::DirLock::take(
+        out,
+        "another `pma-exo sweep` is writing into this directory: wait for it or use another --out",
+    )?;
+    let manifest = sweep::manifest(sweep, shard);
+    let manifest_path = out.join("sweep.json");
+    match std::fs::read_to_string(&manifest_path) {
+        Ok(text) => sweep::check_manifest(&manifest_path, &text, &manifest)?,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            output::write_file(&manifest_path, &serde_json::to_string_pretty(&manifest)?)?;
+        }
+        Err(e) => {
+            return Err(e).with_context(|| format!("cannot read `{}`", manifest_path.display()))
+        }
+    }
+    let runs_path = out.join("runs.jsonl");
+    let found = sweep::read_runs(&runs_path, true, sweep.jobs.len())?;
+    let todo = sweep::to_do(sweep, shard, &found.runs, &runs_path)?;
+    let selected = sweep
+        .jobs
+        .iter()
+        .filter(|j| shard.contains(j.index()))
+        .count();
+    let file = output::AppendFile::open(&runs_path, found.torn_at)?;
+    let failed_now = std::sync::Mutex::new(Vec::new());
+    let done = AtomicUsize::new(0);
+    let record = |r: &Record| -> Result<()> {
+        file.line(&serde_json::to_string(r)?)?;
+        if let Record::Failed(f) = r {
+            failed_now
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push(f.clone());
+        }
+        progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+        Ok(())
+    };
+    let run_now = sweep::run_jobs(sweep, &todo, stop, &record)?;
+    let mut failed_now = failed_now.into_inner().unwrap_or_else(|e| e.into_inner());
+    failed_now.sort_by_key(|f| f.run);
+    Ok(Execution {
+        already_done: selected - todo.len(),
+        run_now,
+        failed_now,
+    })
+}
+
+/// One line on stderr per run that failed now: the run, what it ran, why, and the sweep.
+fn warn_failed(file: &str, failed: &[FailedRecord]) {
+    for f in failed {
+        eprintln!(
+            "warning: sweep `{file}`: run {} ({}) failed, recorded as failed (a resume does not run it again): {}",
+            f.run, f.ran, f.failed
+        );
+    }
+}
+
 fn merge(dirs: &[PathBuf], out: &Path) -> Result<i32> {
-    // The inputs are read before anything is created: a missing shard leaves no empty --out.
+    let inputs: Vec<(&str, &Path)> = dirs
+        .iter()
+        .map(|d| ("shard directory", d.as_path()))
+        .collect();
+    output::refuse_input_as_output(&inputs, &[("--out", out)])?;
+    // The inputs are read and checked before anything is written: missing runs or shards
+    // leave no --out.
     let (manifest, runs, missing) = sweep::merge(dirs)?;
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create `{}`", out.display()))?;
-    sweep::write_runs(&out.join("runs.jsonl"), &runs)?;
+    if !missing.is_empty() {
+        bail!(
+            "{} of {} runs are missing (first: run {}): merge every shard (nothing written)",
+            missing.len(),
+            manifest.runs,
+            missing[0]
+        );
+    }
+    output::create_dir(out)?;
+    let runs_path = out.join("runs.jsonl");
+    output::write_file(&runs_path, &sweep::runs_jsonl(&runs_path, &runs)?)?;
     let merged = pma_studies::sweep::Manifest {
         shard: Shard::default(),
         ..manifest
@@ -117,14 +213,6 @@ fn merge(dirs: &[PathBuf], out: &Path) -> Result<i32> {
         &serde_json::to_string_pretty(&merged)?,
     )?;
     summarise_dirs(&[out.to_path_buf()], out)?;
-    if !missing.is_empty() {
-        bail!(
-            "{} of {} runs are missing (first: run {}): merge every shard",
-            missing.len(),
-            merged.runs,
-            missing[0]
-        );
-    }
     Ok(0)
 }
 
@@ -159,15 +247,22 @@ fn summarise_dirs(dirs: &[PathBuf], out: &Path) -> Result<()> {
             written.push(png.display().to_string());
         }
     }
+    let mut notes = Vec::new();
+    if summary.failed > 0 {
+        notes.push(format!("{} failed", summary.failed));
+    }
+    if !missing.is_empty() {
+        notes.push(format!("{} missing", missing.len()));
+    }
     say!(
         "sweep `{}`: {} runs in {} groups{}; wrote {}",
         summary.name,
         summary.runs,
         summary.groups.len() + summary.leg_groups.len(),
-        if missing.is_empty() {
+        if notes.is_empty() {
             String::new()
         } else {
-            format!(" ({} missing)", missing.len())
+            format!(" ({})", notes.join(", "))
         },
         written.join(", ")
     );

@@ -7,8 +7,11 @@
 //! Safety margins of its own: it never asks a rate above `slew_pa_per_s`, and it backs
 //! off when the measured position nears its window: while the position is beyond the
 //! window, the highest (or lowest) command it may give moves towards the safe side at the
-//! slew rate, and it recovers at a tenth of that rate once the position is back. Every
-//! state is a function of the readings, so a replay of its log recomputes every command.
+//! slew rate, and it recovers at a tenth of that rate once the position is back. Its
+//! margins are sized for a 1 ms period; at a longer period it judges the position as far
+//! ahead as the period is longer, extrapolated from its last two readings, so that it
+//! reacts no later than at 1 ms. Every state is a function of the readings, so a replay
+//! of its log recomputes every command.
 use crate::{ControlOutput, Controller, Diagnostics, Measurement, RefSample};
 
 /// What the excitation does.
@@ -159,6 +162,10 @@ impl ExcitationSpec {
     }
 }
 
+/// The period the back-off reacts in as specified (s): the paper's 1 ms. A longer period
+/// sees the position later, and the load moves on meanwhile.
+const BACK_OFF_PERIOD_S: f64 = 1e-3;
+
 /// The excitation as a controller.
 #[derive(Debug, Clone)]
 pub struct Excitation {
@@ -167,6 +174,7 @@ pub struct Excitation {
     last_pa: f64,
     ceiling_pa: f64,
     floor_pa: f64,
+    last_position_m: f64,
 }
 
 impl Excitation {
@@ -179,6 +187,7 @@ impl Excitation {
             last_pa: 0.0,
             ceiling_pa: spec.pressure_max_pa,
             floor_pa: 0.0,
+            last_position_m: f64::NAN,
         })
     }
 
@@ -187,7 +196,20 @@ impl Excitation {
         self.ceiling_pa
     }
 
+    /// The position the back-off judges: the reading, or at a period longer than
+    /// [`BACK_OFF_PERIOD_S`] where it will be that much later at its present velocity.
+    fn judged_position_m(&mut self, position_m: f64, dt_s: f64) -> f64 {
+        let lead_s = dt_s - BACK_OFF_PERIOD_S;
+        let last_m = std::mem::replace(&mut self.last_position_m, position_m);
+        if lead_s > 0.0 && last_m.is_finite() {
+            position_m + (position_m - last_m) / dt_s * lead_s
+        } else {
+            position_m
+        }
+    }
+
     fn back_off(&mut self, position_m: f64, dt_s: f64) {
+        let position_m = self.judged_position_m(position_m, dt_s);
         let s = &self.spec;
         let step = s.slew_pa_per_s * dt_s;
         if position_m > s.position_max_m {
@@ -208,8 +230,9 @@ impl Controller for Excitation {
         "excite"
     }
 
-    fn reset(&mut self, _measurement: Measurement, _reference: RefSample) {
+    fn reset(&mut self, measurement: Measurement, _reference: RefSample) {
         self.t_s = 0.0;
+        self.last_position_m = measurement.position_m;
         self.last_pa = 0.0;
         self.ceiling_pa = self.spec.pressure_max_pa;
         // Rising from a vented muscle is not a back-off: the floor starts at 0.
@@ -335,6 +358,32 @@ mod tests {
             e.ceiling_pa()
         );
         assert!(low < 2.0e5, "the ceiling fell to {low}");
+    }
+
+    /// The ceiling after a load rising at 0.55 m/s has been read every `dt_s` up to
+    /// 27.5 mm (the window's top is 30 mm).
+    fn ceiling_after_a_rise_to_27_5_mm(dt_s: f64) -> f64 {
+        let mut e = Excitation::new(spec()).unwrap();
+        e.reset(at(0.0), REST);
+        let step_m = 0.55 * dt_s;
+        for k in 1..=(0.0275 / step_m).round() as usize {
+            e.update(&REST, &at(step_m * k as f64), dt_s);
+        }
+        e.ceiling_pa()
+    }
+
+    /// Regression (with the virtual rig's plant step): `rig excite` at 10 ms went
+    /// `position-out` on a margin sized for 1 ms. At a longer period the back-off judges
+    /// the position where it will be when a 1 ms loop would have read it again: a load
+    /// rising at 0.55 m/s read at 27.5 mm, 2.5 mm below the window, is backed off from at
+    /// 10 ms (the next reading would be 3 mm past it) and not yet at 1 ms.
+    #[test]
+    fn at_a_10_ms_period_the_back_off_reacts_before_the_next_reading_is_too_late() {
+        assert_eq!(
+            ceiling_after_a_rise_to_27_5_mm(1e-3),
+            spec().pressure_max_pa
+        );
+        assert!(ceiling_after_a_rise_to_27_5_mm(1e-2) < spec().pressure_max_pa);
     }
 
     #[test]

@@ -90,8 +90,34 @@ impl<E: std::error::Error + 'static> Fault<E> {
 /// write succeeded.
 pub type VentAction = Box<dyn Fn() -> bool + Send + 'static>;
 
+/// The clock a watchdog measures the loop's silence on.
+#[derive(Clone, Default)]
+pub enum WatchdogClock {
+    /// Wall time: a real board, or a virtual rig following wall time. Anything that holds
+    /// the loop (a hung driver call, the scheduler, a loaded machine) is silence.
+    #[default]
+    Wall,
+    /// Simulated time since the start, which only the loop advances (a lockstep virtual
+    /// rig): a loaded machine slows the loop and its clock alike, so only silence in
+    /// simulated time (a simulated hang) trips the watchdog.
+    Simulated(Arc<dyn Fn() -> Duration + Send + Sync>),
+}
+
+impl WatchdogClock {
+    /// Nanoseconds since `origin` (wall) or since the simulation started.
+    fn now_ns(&self, origin: Instant) -> u64 {
+        let elapsed = match self {
+            WatchdogClock::Wall => origin.elapsed(),
+            WatchdogClock::Simulated(now) => now(),
+        };
+        u64::try_from(elapsed.as_nanos()).unwrap_or(u64::MAX)
+    }
+}
+
 /// An independent thread that vents on its own when the loop stops kicking it. Its sleep
-/// between checks is interruptible: shutting it down never waits for a poll to end.
+/// between checks is interruptible: shutting it down never waits for a poll to end. The
+/// loop checks it too ([`Watchdog::check`]) after every call that could hang, so a silence
+/// is caught even when the thread has not been scheduled since.
 pub struct Watchdog {
     shared: Arc<WatchdogShared>,
     thread: Option<std::thread::JoinHandle<()>>,
@@ -99,9 +125,13 @@ pub struct Watchdog {
 
 struct WatchdogShared {
     origin: Instant,
+    clock: WatchdogClock,
+    timeout_ns: u64,
     last_kick_ns: AtomicU64,
     tripped_silence_ns: AtomicU64,
     vented: AtomicBool,
+    /// The vent runs once, from whichever side sees the silence first.
+    vent: Mutex<Option<VentAction>>,
     stop: Mutex<bool>,
     wake: Condvar,
 }
@@ -116,48 +146,82 @@ impl WatchdogShared {
             .unwrap_or_else(|p| p.into_inner());
         *stop
     }
+
+    fn now_ns(&self) -> u64 {
+        self.clock.now_ns(self.origin)
+    }
+
+    /// Vents (once) if the loop has been silent longer than the timeout; returns whether
+    /// the watchdog has tripped.
+    fn trip_if_silent(&self) -> bool {
+        if self.tripped_silence_ns.load(Ordering::Acquire) != 0 {
+            return true;
+        }
+        let silent = self
+            .now_ns()
+            .saturating_sub(self.last_kick_ns.load(Ordering::Acquire));
+        if silent <= self.timeout_ns {
+            return false;
+        }
+        let mut vent = self.vent.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(vent) = vent.take() {
+            self.vented.store(vent(), Ordering::Release);
+            self.tripped_silence_ns
+                .store(silent.max(1), Ordering::Release);
+        }
+        true
+    }
 }
 
 impl Watchdog {
-    /// Starts watching: `vent` runs once if no kick comes for `timeout`.
+    /// Starts watching on the wall clock: `vent` runs once if no kick comes for `timeout`.
     pub fn spawn(timeout: Duration, vent: VentAction) -> std::io::Result<Self> {
+        Self::spawn_on(WatchdogClock::Wall, timeout, vent)
+    }
+
+    /// Starts watching on `clock`: `vent` runs once if no kick comes for `timeout` of it.
+    pub fn spawn_on(
+        clock: WatchdogClock,
+        timeout: Duration,
+        vent: VentAction,
+    ) -> std::io::Result<Self> {
         let shared = Arc::new(WatchdogShared {
             origin: Instant::now(),
+            clock,
+            timeout_ns: u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX),
             last_kick_ns: AtomicU64::new(0),
             tripped_silence_ns: AtomicU64::new(0),
             vented: AtomicBool::new(false),
+            vent: Mutex::new(Some(vent)),
             stop: Mutex::new(false),
             wake: Condvar::new(),
         });
+        // The first kick before the thread looks: the start is not silence.
+        shared
+            .last_kick_ns
+            .store(shared.now_ns(), Ordering::Release);
         let s = Arc::clone(&shared);
         let poll = (timeout / 4).max(Duration::from_micros(200));
-        let timeout_ns = u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX);
         let thread = std::thread::Builder::new()
             .name("pma-rig-watchdog".into())
-            .spawn(move || {
-                while !s.sleep(poll) {
-                    let now = s.origin.elapsed().as_nanos() as u64;
-                    let silent = now.saturating_sub(s.last_kick_ns.load(Ordering::Acquire));
-                    if silent > timeout_ns {
-                        let ok = vent();
-                        s.vented.store(ok, Ordering::Release);
-                        s.tripped_silence_ns.store(silent.max(1), Ordering::Release);
-                        return;
-                    }
-                }
-            })?;
-        let w = Self {
+            .spawn(move || while !s.sleep(poll) && !s.trip_if_silent() {})?;
+        Ok(Self {
             shared,
             thread: Some(thread),
-        };
-        w.kick();
-        Ok(w)
+        })
     }
 
     /// The loop is alive.
     pub fn kick(&self) {
-        let now = self.shared.origin.elapsed().as_nanos() as u64;
+        let now = self.shared.now_ns();
         self.shared.last_kick_ns.store(now, Ordering::Release);
+    }
+
+    /// Trips now if the loop has been silent too long (the vent runs here then, unless
+    /// the thread ran it already); returns the silence that tripped it, if it tripped.
+    pub fn check(&self) -> Option<Duration> {
+        self.shared.trip_if_silent();
+        self.tripped()
     }
 
     /// The silence that tripped it, if it tripped.
@@ -398,6 +462,7 @@ pub struct Supervised<B: Backend> {
     last_reading_bits: Vec<u64>,
     same_readings: Vec<u32>,
     watchdog_factory: Option<WatchdogFactory>,
+    watchdog_clock: WatchdogClock,
     watchdog: Option<Watchdog>,
     watchdog_vented: bool,
     alarm: Option<Arc<Alarm>>,
@@ -422,11 +487,19 @@ where
             last_reading_bits: vec![f64::NAN.to_bits(); n],
             same_readings: vec![0; n],
             watchdog_factory: watchdog,
+            watchdog_clock: WatchdogClock::Wall,
             watchdog: None,
             watchdog_vented: false,
             alarm: None,
             overruns: OverrunCounter::default(),
         }
+    }
+
+    /// The watchdog measures silence on `clock` instead of the wall clock (a lockstep
+    /// simulation's periods).
+    pub fn with_watchdog_clock(mut self, clock: WatchdogClock) -> Self {
+        self.watchdog_clock = clock;
+        self
     }
 
     /// Faults the run at the next period once `alarm` is raised (the log's writer).
@@ -472,7 +545,7 @@ where
         let Some(w) = &self.watchdog else {
             return Ok(());
         };
-        match w.tripped() {
+        match w.check() {
             None => Ok(()),
             Some(silence) => {
                 self.watchdog_vented = w.vented();
@@ -569,7 +642,9 @@ where
         let reading = self.check_reading(started.reading)?;
         if self.limits.watchdog_periods > 0 {
             if let Some(vent) = self.watchdog_factory.take().and_then(|f| f()) {
-                self.watchdog = Watchdog::spawn(self.watchdog_timeout(), vent).ok();
+                self.watchdog =
+                    Watchdog::spawn_on(self.watchdog_clock.clone(), self.watchdog_timeout(), vent)
+                        .ok();
             }
         }
         Ok(Started { reading, ..started })
@@ -772,6 +847,63 @@ mod tests {
         w.shutdown();
         assert!(t0.elapsed() < Duration::from_secs(5), "{:?}", t0.elapsed());
         assert!(w.tripped().is_none());
+    }
+
+    /// A simulated clock the test advances by hand (ns).
+    fn simulated_clock() -> (WatchdogClock, Arc<AtomicU64>) {
+        let ns = Arc::new(AtomicU64::new(0));
+        let read = Arc::clone(&ns);
+        let clock = WatchdogClock::Simulated(Arc::new(move || {
+            Duration::from_nanos(read.load(Ordering::SeqCst))
+        }));
+        (clock, ns)
+    }
+
+    fn counted_vent() -> (VentAction, Arc<AtomicU32>) {
+        let vents = Arc::new(AtomicU32::new(0));
+        let counted = Arc::clone(&vents);
+        let vent: VentAction = Box::new(move || {
+            counted.fetch_add(1, Ordering::SeqCst);
+            true
+        });
+        (vent, vents)
+    }
+
+    /// Regression: the watchdog of a lockstep virtual run measured silence on the wall
+    /// clock, so under CPU load a run with a 10 ms watchdog faulted `stall` at random,
+    /// although nothing stalls in simulated time. On a simulated clock, wall time is not
+    /// silence; simulated time without a kick is.
+    #[test]
+    fn a_watchdog_on_a_simulated_clock_ignores_wall_time_and_trips_on_simulated_silence() {
+        let (clock, ns) = simulated_clock();
+        let (vent, vents) = counted_vent();
+        let timeout = Duration::from_millis(10);
+        let mut w = Watchdog::spawn_on(clock, timeout, vent).expect("spawn");
+        // Ten timeouts of wall time, one period of simulated time: alive.
+        std::thread::sleep(10 * timeout);
+        ns.store(1_000_000, Ordering::SeqCst);
+        assert_eq!(w.check(), None);
+        w.kick();
+        // A simulated hang of 0.5 s: tripped at once, vented once.
+        ns.store(501_000_000, Ordering::SeqCst);
+        assert_eq!(w.check(), Some(Duration::from_millis(500)));
+        assert_eq!(w.check(), Some(Duration::from_millis(500)));
+        w.shutdown();
+        assert_eq!(vents.load(Ordering::SeqCst), 1);
+        assert!(w.vented());
+    }
+
+    /// On the wall clock, the loop's own check finds a silence longer than the timeout
+    /// whether or not the watchdog's thread has looked yet; the vent runs once either way.
+    #[test]
+    fn the_loop_finds_a_wall_clock_silence_without_waiting_for_the_watchdog_thread() {
+        let (vent, vents) = counted_vent();
+        let w = Watchdog::spawn(Duration::from_millis(20), vent).expect("spawn");
+        std::thread::sleep(Duration::from_millis(40));
+        let silence = w.check().expect("tripped");
+        assert!(silence > Duration::from_millis(20), "{silence:?}");
+        assert_eq!(w.check(), Some(silence));
+        assert_eq!(vents.load(Ordering::SeqCst), 1);
     }
 
     /// Regression: a real-time run at `period_s = 1e-5` missed 160,898 deadlines and ended

@@ -108,6 +108,10 @@ impl RigBackend {
         }
         let input = daq.range_v(&s.position, false)?;
         check_window(&config.limits, &c, input)?;
+        if let Some(channel) = &s.pressure {
+            let range = daq.range_v(channel, false)?;
+            check_pressure_span(config.limits.pressure_max_pa, &c, channel, range)?;
+        }
         let vent_v = vent_v.clamp(out.0, out.1);
         daq.write_analog(&s.valve, vent_v)?;
         if let Some(line) = &s.charge_pump {
@@ -263,6 +267,37 @@ fn check_window(limits: &Limits, c: &Calibration, input: (f64, f64)) -> Result<(
         }
     }
     Ok(())
+}
+
+/// The pressure channel must read every pressure a run can meet without a fault, 0 Pa to
+/// the limit plus [`PRESSURE_FAULT_MARGIN`], strictly inside its range: a converter reads
+/// NaN at either end, and a run stops on a NaN. Found at configure, this is one line; found
+/// by the run, it is a fault as soon as the muscle passes the channel's top.
+fn check_pressure_span(
+    pressure_max_pa: f64,
+    c: &Calibration,
+    channel: &crate::daq::AnalogChannel,
+    range: (f64, f64),
+) -> Result<(), RigError> {
+    let highest_pa = (1.0 + PRESSURE_FAULT_MARGIN) * pressure_max_pa;
+    let (zero_v, highest_v) = (c.pressure_v(0.0), c.pressure_v(highest_pa));
+    let inside = |v: f64| v > range.0 && v < range.1;
+    if inside(zero_v) && inside(highest_v) {
+        return Ok(());
+    }
+    Err(RigError::Field {
+        field: "signals.pressure",
+        message: format!(
+            "0..{:.2} bar (limits.pressure_max_pa + {:.0} %, the highest reading a run accepts) is {zero_v:.4}..{highest_v:.4} V through the calibration ({} Pa/V, {} V at 0 Pa), not inside range {} of the channel, {}..{} V, whose ends read NaN: choose a range that holds it, or correct calibration.pressure_pa_per_v and pressure_offset_v",
+            highest_pa / 1e5,
+            PRESSURE_FAULT_MARGIN * 100.0,
+            c.pressure_scale_pa_per_v(),
+            c.pressure_zero_v(),
+            channel.range,
+            range.0,
+            range.1
+        ),
+    })
 }
 
 impl Backend for RigBackend {

@@ -130,13 +130,11 @@ impl Calibration {
     }
     /// Pressure (Pa) of the pressure channel's voltage.
     pub fn pressure_pa(&self, volts: f64) -> f64 {
-        (volts - self.pressure_offset_v.unwrap_or(self.valve_offset_v))
-            * self.pressure_pa_per_v.unwrap_or(self.valve_pa_per_v)
+        (volts - self.pressure_zero_v()) * self.pressure_scale_pa_per_v()
     }
     /// The pressure channel's voltage of a pressure (Pa).
     pub fn pressure_v(&self, pressure_pa: f64) -> f64 {
-        pressure_pa / self.pressure_pa_per_v.unwrap_or(self.valve_pa_per_v)
-            + self.pressure_offset_v.unwrap_or(self.valve_offset_v)
+        pressure_pa / self.pressure_scale_pa_per_v() + self.pressure_zero_v()
     }
 }
 
@@ -440,12 +438,75 @@ fn frequency(field: &'static str, v: f64) -> Result<f64, Invalid> {
     )
 }
 
-fn nonzero(field: &'static str, v: f64) -> Result<f64, Invalid> {
-    check(
-        v.is_finite() && v != 0.0,
+/// Largest magnitude of a calibration's volts (V): the widest ranges a DAQ board has are
+/// +-10 V and 0..20 V (the PCI-6052E's).
+pub const CALIBRATION_VOLTS_MAX: f64 = 20.0;
+/// Plausible scales of a position sensor (m/V, magnitude): 10 um to 10 m over 10 V (a
+/// DMSP's longest travel, 25 % of 9 m, is 2.25 m).
+pub const POSITION_M_PER_V_RANGE: (f64, f64) = (1e-6, 1.0);
+/// Plausible scales of a valve's set point or actual value (Pa/V): 0.1 to 100 bar over
+/// 10 V (proportional pressure valves span 0-0.5 to 0-10 bar).
+pub const PRESSURE_PA_PER_V_RANGE: (f64, f64) = (1e3, 1e6);
+
+fn volts(field: &'static str, v: f64) -> Result<f64, Invalid> {
+    within(
         field,
         v,
-        "must be a finite, non-zero number",
+        -CALIBRATION_VOLTS_MAX,
+        CALIBRATION_VOLTS_MAX,
+        "must be -20..=20 V (the widest ranges of a DAQ board are +-10 V and 0..20 V)",
+    )
+}
+
+impl Calibration {
+    /// Every scale and offset finite, of the right sign and plausible.
+    fn validate(&self) -> Result<(), Invalid> {
+        let (lo, hi) = POSITION_M_PER_V_RANGE;
+        check(
+            self.position_m_per_v.is_finite()
+                && (lo..=hi).contains(&self.position_m_per_v.abs()),
+            "calibration.position_m_per_v",
+            self.position_m_per_v,
+            "must be 1e-6..=1 m/V in magnitude (10 um to 10 m over 10 V); negative if the sensor's voltage falls as the muscle contracts",
+        )?;
+        volts("calibration.position_offset_v", self.position_offset_v)?;
+        pressure_scale(
+            "calibration.valve_pa_per_v",
+            self.valve_pa_per_v,
+            "a higher set point must mean more pressure: a negative scale would turn every vent into full pressure",
+        )?;
+        volts("calibration.valve_offset_v", self.valve_offset_v)?;
+        if let Some(v) = self.pressure_pa_per_v {
+            pressure_scale(
+                "calibration.pressure_pa_per_v",
+                v,
+                "a higher reading must mean more pressure: a negative scale would read an over-pressure as a vacuum and hide it",
+            )?;
+        }
+        if let Some(v) = self.pressure_offset_v {
+            volts("calibration.pressure_offset_v", v)?;
+        }
+        Ok(())
+    }
+
+    /// The pressure channel's scale (Pa/V): its own, or the valve's.
+    pub fn pressure_scale_pa_per_v(&self) -> f64 {
+        self.pressure_pa_per_v.unwrap_or(self.valve_pa_per_v)
+    }
+
+    /// The pressure channel's volts at 0 Pa: its own, or the valve's.
+    pub fn pressure_zero_v(&self) -> f64 {
+        self.pressure_offset_v.unwrap_or(self.valve_offset_v)
+    }
+}
+
+fn pressure_scale(field: &'static str, v: f64, why: &str) -> Result<f64, Invalid> {
+    let (lo, hi) = PRESSURE_PA_PER_V_RANGE;
+    check(
+        v.is_finite() && (lo..=hi).contains(&v),
+        field,
+        v,
+        format!("must be 1e3..=1e6 Pa/V (0.1 to 100 bar over 10 V); {why}"),
     )
 }
 
@@ -502,22 +563,7 @@ impl RigConfig {
             });
         }
         self.signals.validate()?;
-        let c = &self.calibration;
-        nonzero("calibration.position_m_per_v", c.position_m_per_v)?;
-        finite("calibration.position_offset_v", c.position_offset_v)?;
-        check(
-            c.valve_pa_per_v.is_finite() && c.valve_pa_per_v > 0.0,
-            "calibration.valve_pa_per_v",
-            c.valve_pa_per_v,
-            "must be a finite number > 0: a higher set point must mean more pressure (a negative scale would turn every vent into full pressure)",
-        )?;
-        finite("calibration.valve_offset_v", c.valve_offset_v)?;
-        if let Some(v) = c.pressure_pa_per_v {
-            nonzero("calibration.pressure_pa_per_v", v)?;
-        }
-        if let Some(v) = c.pressure_offset_v {
-            finite("calibration.pressure_offset_v", v)?;
-        }
+        self.calibration.validate()?;
         if let Some(m) = self.load.mass_kg {
             within(
                 "load.mass_kg",
@@ -917,5 +963,100 @@ mod tests {
         let c = RigConfig::from_toml_str(EMBEDDED_PCI6052E, "pci6052e.toml").unwrap();
         assert_eq!(c.device.driver, Driver::Comedi);
         assert_eq!(c.device.path, "/dev/comedi0");
+    }
+
+    fn with_calibration(line: &str) -> String {
+        let text = EMBEDDED_VIRTUAL.replace(
+            "valve_offset_v = 0.0\n",
+            &format!("valve_offset_v = 0.0\n{line}\n"),
+        );
+        assert_ne!(text, EMBEDDED_VIRTUAL);
+        text
+    }
+
+    /// Regression: `pressure_pa_per_v = -1e5` was accepted while a negative
+    /// `valve_pa_per_v` was refused; on a real board it reads an over-pressure as a vacuum,
+    /// so the supervisor's pressure check never fires.
+    #[test]
+    fn a_negative_pressure_channel_scale_is_refused() {
+        let e = RigConfig::from_toml_str(&with_calibration("pressure_pa_per_v = -1.0e5"), "n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("calibration.pressure_pa_per_v"), "{e}");
+        assert!(e.contains("over-pressure"), "{e}");
+    }
+
+    /// Every calibration field has a plausible range, and a value outside it is one error
+    /// naming the field.
+    #[test]
+    fn every_calibration_field_is_bounded_naming_the_field() {
+        let cases = [
+            (
+                "position_m_per_v = 0.015\n",
+                "position_m_per_v = 1.0e3\n",
+                "calibration.position_m_per_v",
+            ),
+            (
+                "position_m_per_v = 0.015\n",
+                "position_m_per_v = 1.0e-9\n",
+                "calibration.position_m_per_v",
+            ),
+            (
+                "position_m_per_v = 0.015\n",
+                "position_m_per_v = nan\n",
+                "calibration.position_m_per_v",
+            ),
+            (
+                "position_offset_v = 1.3333333333333333",
+                "position_offset_v = 1.0e6",
+                "calibration.position_offset_v",
+            ),
+            (
+                "valve_pa_per_v = 1.0e5",
+                "valve_pa_per_v = 1.0e12",
+                "calibration.valve_pa_per_v",
+            ),
+            (
+                "valve_pa_per_v = 1.0e5",
+                "valve_pa_per_v = 1.0",
+                "calibration.valve_pa_per_v",
+            ),
+            (
+                "valve_offset_v = 0.0\n",
+                "valve_offset_v = -1.0e6\n",
+                "calibration.valve_offset_v",
+            ),
+            (
+                "valve_offset_v = 0.0\n",
+                "valve_offset_v = 0.0\npressure_pa_per_v = 1.0e9\n",
+                "calibration.pressure_pa_per_v",
+            ),
+            (
+                "valve_offset_v = 0.0\n",
+                "valve_offset_v = 0.0\npressure_pa_per_v = 0.0\n",
+                "calibration.pressure_pa_per_v",
+            ),
+            (
+                "valve_offset_v = 0.0\n",
+                "valve_offset_v = 0.0\npressure_offset_v = inf\n",
+                "calibration.pressure_offset_v",
+            ),
+        ];
+        for (from, to, field) in cases {
+            let text = EMBEDDED_VIRTUAL.replace(from, to);
+            assert_ne!(text, EMBEDDED_VIRTUAL, "{to}: the edit did not apply");
+            let e = RigConfig::from_toml_str(&text, "cal.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(field) && e.lines().count() == 1, "{to}: {e}");
+        }
+        // The shipped scales, a sensor mounted the other way round and a 0-6 bar valve
+        // on 0-10 V are plausible.
+        for line in ["pressure_pa_per_v = 6.0e4", "pressure_offset_v = -0.5"] {
+            RigConfig::from_toml_str(&with_calibration(line), "ok.toml").expect(line);
+        }
+        let reversed =
+            EMBEDDED_VIRTUAL.replace("position_m_per_v = 0.015\n", "position_m_per_v = -0.015\n");
+        RigConfig::from_toml_str(&reversed, "reversed.toml").expect("a reversed sensor");
     }
 }

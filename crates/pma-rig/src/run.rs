@@ -11,7 +11,9 @@ use crate::replay::{
 };
 use crate::timing::{enter_realtime, RealtimeStatus, TimingSummary};
 use crate::virtual_daq::{Injection, VirtualDaq};
-use pma_control::supervisor::{Alarm, Fault, Supervised, VentAction, WatchdogFactory};
+use pma_control::supervisor::{
+    Alarm, Fault, Supervised, VentAction, WatchdogClock, WatchdogFactory,
+};
 use pma_control::{ControllerConfig, ExcitationSpec, MuscleStep, MuscleTask, Tracking};
 use pma_loop::{End, LoopSettings, Recorder};
 use std::panic::AssertUnwindSafe;
@@ -40,6 +42,9 @@ pub struct RunOptions {
     pub fifo: Option<bool>,
     /// Excite the muscle open loop (`rig excite`) instead of running the controller.
     pub excitation: Option<ExcitationSpec>,
+    /// One line saying what ran (the program, the command line, the inputs), written into
+    /// the log's header after its format line.
+    pub provenance: Option<String>,
 }
 
 /// A run's outcome.
@@ -233,9 +238,10 @@ impl VirtualOrBoard {
 fn header(
     config: &RigConfig,
     gains: &ControllerConfig,
-    excitation: Option<&ExcitationSpec>,
+    options: &RunOptions,
     reference_start_m: f64,
 ) -> Result<String, RigError> {
+    let excitation = options.excitation.as_ref();
     let mut cfg = config.clone();
     cfg.control.gains = None;
     cfg.control.controller = gains.kind().as_str().to_owned();
@@ -253,8 +259,13 @@ fn header(
         }
         None => String::new(),
     };
+    // One line, whatever the command line held (the header is one `#` comment per line).
+    let provenance = match &options.provenance {
+        Some(line) => format!("{}\n", line.replace(['\n', '\r'], " ")),
+        None => String::new(),
+    };
     Ok(format!(
-        "{}\n{CONFIG_BEGIN}\n{toml}{CONFIG_END}\n{GAINS_BEGIN}\n{}{GAINS_END}\n{excitation}{REFERENCE_START}{reference_start_m:?}",
+        "{}\n{provenance}{CONFIG_BEGIN}\n{toml}{CONFIG_END}\n{GAINS_BEGIN}\n{}{GAINS_END}\n{excitation}{REFERENCE_START}{reference_start_m:?}",
         format_line(),
         gains.to_toml_string()
     ))
@@ -308,13 +319,14 @@ fn arm(cfg: &RigConfig, gains: &ControllerConfig, options: &RunOptions) -> Resul
     } else {
         "realtime"
     };
+    let watchdog_clock = watchdog_clock(board.lockstep.clone());
     let pacing = pacing_of(cfg, board.daq.as_ref(), board.lockstep);
     let realtime_pacing = matches!(pacing, Pacing::Realtime(_));
     let backend = RigBackend::configure(cfg, board.daq, pacing)?;
     let device = backend.device().to_owned();
     let start_m = backend.configure_reading_m();
     let vent_v = backend.vent_v();
-    let header = header(cfg, gains, options.excitation.as_ref(), start_m)?;
+    let header = header(cfg, gains, options, start_m)?;
     let panic_vent = PanicVent::register(backend.valve_handle()?, vent_v);
     let watchdog_handle = backend.valve_handle()?;
     let factory: WatchdogFactory = Box::new(move || {
@@ -323,6 +335,7 @@ fn arm(cfg: &RigConfig, gains: &ControllerConfig, options: &RunOptions) -> Resul
     });
     let alarm = Alarm::new();
     let rig = Supervised::new(backend, cfg.supervisor_limits(), Some(factory))
+        .with_watchdog_clock(watchdog_clock)
         .with_alarm(Arc::clone(&alarm));
     Ok(Armed {
         rig,
@@ -335,6 +348,16 @@ fn arm(cfg: &RigConfig, gains: &ControllerConfig, options: &RunOptions) -> Resul
         device,
         _panic_vent: panic_vent,
     })
+}
+
+/// The clock the watchdog measures silence on: a lockstep rig's simulated periods (a
+/// loaded machine slows the loop and its plant alike: nothing stalls in simulated time
+/// but a simulated hang), the wall clock for everything that follows wall time.
+fn watchdog_clock(lockstep: Option<crate::virtual_daq::LockstepClock>) -> WatchdogClock {
+    match lockstep {
+        Some(clock) => WatchdogClock::Simulated(Arc::new(move || clock.elapsed())),
+        None => WatchdogClock::Wall,
+    }
 }
 
 /// How the loop thread ended.

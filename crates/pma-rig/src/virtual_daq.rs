@@ -18,6 +18,21 @@ pub const VIRTUAL_DEVICE: &str = "virtual";
 /// Plant step of the real-time virtual rig (s): commands take effect within it.
 const REALTIME_STEP_S: f64 = 1e-4;
 
+/// The control period a plant file's `substeps_per_period` is chosen for (s): the
+/// paper's 1 ms, as the bench runs it.
+const PLANT_FILE_PERIOD_S: f64 = 1e-3;
+
+/// Substeps per lockstep period: the plant file's at 1 ms or shorter periods, more at
+/// longer ones so that no step is longer than the plant file's. The trapezoidal rule is
+/// A-stable but not L-stable: on the muscle's damping pole (about 3000 1/s at 2 kg) a
+/// 2.5 ms step (10 ms / 4) rings, and the simulated load rose 4 mm after a vent, where the
+/// muscle only sags.
+fn lockstep_substeps(plant_substeps: u32, period_s: f64) -> u32 {
+    // The tolerance keeps 3 ms at 12 substeps, not 13, through rounding.
+    let needed = (f64::from(plant_substeps) * period_s / PLANT_FILE_PERIOD_S - 1e-9).ceil();
+    plant_substeps.max(needed as u32)
+}
+
 /// A fault the virtual rig can be told to produce (`--inject FAULT@T`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum InjectedFault {
@@ -29,7 +44,8 @@ pub enum InjectedFault {
     PositionOut,
     /// The board's reads fail (EIO).
     DaqError,
-    /// One read blocks for 0.5 s (a hung driver call).
+    /// One read blocks for 0.5 s (a hung driver call): of wall time on a rig that follows
+    /// it, of simulated time in lockstep.
     Stall,
     /// The control loop panics (the virtual board panics in a read, standing for any bug
     /// in the loop; it tests the panic path, not a board fault).
@@ -41,6 +57,10 @@ pub enum InjectedFault {
 
 /// The supply pressure a valve stuck open reports (Pa).
 const SUPPLY_PA: f64 = 8.0e5;
+
+/// How long the injected stall hangs a read (s): twice the longest watchdog timeout a
+/// configuration may ask for, so that every watchdog trips during it.
+const STALL_S: f64 = 2.0 * crate::config::WATCHDOG_MAX_S;
 
 impl InjectedFault {
     /// Every fault, with its command-line name.
@@ -239,12 +259,21 @@ impl TimeSource {
 
 /// The lockstep clock of a virtual rig: one tick per control period.
 #[derive(Debug, Clone)]
-pub struct LockstepClock(Arc<AtomicU64>);
+pub struct LockstepClock {
+    ticks: Arc<AtomicU64>,
+    period_s: f64,
+}
 
 impl LockstepClock {
     /// Lets one period pass.
     pub fn tick(&self) {
-        self.0.fetch_add(1, Ordering::Relaxed);
+        self.ticks.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Simulated time since the rig was configured: the clock a lockstep run's watchdog
+    /// measures silence on (wall time says nothing about a simulation's periods).
+    pub fn elapsed(&self) -> Duration {
+        Duration::from_secs_f64(self.ticks.load(Ordering::Relaxed) as f64 * self.period_s)
     }
 }
 
@@ -335,7 +364,10 @@ impl VirtualDaq {
         let seed = plant.sensor.seed;
         plant.sensor = SensorParams::ideal();
         let (step_s, substeps) = match v.clock {
-            ClockMode::Lockstep => (config.period_s, plant.substeps_per_period),
+            ClockMode::Lockstep => (
+                config.period_s,
+                lockstep_substeps(plant.substeps_per_period, config.period_s),
+            ),
             ClockMode::Realtime => (REALTIME_STEP_S, 1),
         };
         let bench = MuscleBench::vented(&plant)?.with_substeps(substeps);
@@ -396,7 +428,10 @@ impl VirtualDaq {
     /// The lockstep clock, if the rig runs in lockstep.
     pub fn lockstep_clock(&self) -> Option<LockstepClock> {
         match &self.time {
-            TimeSource::Lockstep(c) => Some(LockstepClock(Arc::clone(c))),
+            TimeSource::Lockstep(c) => Some(LockstepClock {
+                ticks: Arc::clone(c),
+                period_s: self.period_s,
+            }),
             TimeSource::Wall(_) => None,
         }
     }
@@ -438,6 +473,18 @@ impl VirtualDaq {
         };
         let volts = hw.calibration.pressure_v(pressure);
         hw.pressure_input.map_or(f64::NAN, |c| c.sample(volts))
+    }
+
+    /// A driver call that hangs for `seconds`, without holding the plant, as a hung call
+    /// would: the watchdog must be able to vent meanwhile. In lockstep the simulated time
+    /// jumps (the run's watchdog follows it); otherwise the wall time passes.
+    fn hang(&self, seconds: f64) {
+        match &self.time {
+            TimeSource::Lockstep(c) => {
+                c.fetch_add((seconds / self.period_s).round() as u64, Ordering::Relaxed);
+            }
+            TimeSource::Wall(_) => std::thread::sleep(Duration::from_secs_f64(seconds)),
+        }
     }
 
     fn wrong_channel(&self, channel: ChannelName) -> DaqError {
@@ -512,9 +559,7 @@ impl Daq for VirtualDaq {
                 !std::mem::replace(&mut hw.stalled, true)
             };
             if first {
-                // Blocks without holding the plant, as a hung driver call would: the
-                // watchdog must be able to vent meanwhile.
-                std::thread::sleep(Duration::from_millis(500));
+                self.hang(STALL_S);
             }
         }
         if self.active(InjectedFault::ControllerPanic) {
@@ -613,6 +658,62 @@ mod tests {
         assert!(c.sample(f64::NAN).is_nan());
         assert_eq!(c.output(11.0), None);
         assert_eq!(Converter::new([0.0, 10.0], 0).sample(3.3), 3.3);
+    }
+
+    #[test]
+    fn the_lockstep_plant_step_does_not_grow_with_the_period() {
+        assert_eq!(lockstep_substeps(4, 1e-4), 4);
+        assert_eq!(lockstep_substeps(4, 1e-3), 4);
+        assert_eq!(lockstep_substeps(4, 3e-3), 12);
+        assert_eq!(lockstep_substeps(4, 1e-2), 40);
+        assert_eq!(lockstep_substeps(1000, 1e-2), 10_000);
+    }
+
+    /// The virtual rig of the shipped configuration at `period_s`.
+    fn virtual_daq_at(period_s: f64) -> (VirtualDaq, RigConfig) {
+        let text = crate::config::EMBEDDED_VIRTUAL
+            .replace("period_s = 0.001", &format!("period_s = {period_s}"))
+            .replace("watchdog_periods = 50", "watchdog_periods = 20");
+        let cfg = RigConfig::from_toml_str(&text, "virtual.toml").expect("config");
+        (VirtualDaq::new(&cfg, &[]).expect("virtual rig"), cfg)
+    }
+
+    /// Regression: at a 10 ms period the lockstep plant took 2.5 ms trapezoidal steps,
+    /// which ring on the muscle's damping pole: held at 2.17 bar the simulated load settled
+    /// 2.6 mm higher than at 1 ms, and in `rig excite` at 10 ms it rose 10 mm in the 30 ms
+    /// after the command fell from 2.17 bar to at most 1 bar, going `position-out` despite
+    /// the back-off (at 5 ms too).
+    #[test]
+    fn the_virtual_muscle_at_a_10_ms_period_moves_as_at_1_ms() {
+        let trajectory = |period_s: f64| -> Vec<f64> {
+            let (mut daq, cfg) = virtual_daq_at(period_s);
+            let clock = daq.lockstep_clock().expect("lockstep");
+            let valve = cfg.signals.valve;
+            let periods_per_10_ms = (0.01 / period_s).round() as usize;
+            let mut run = |pa: f64, seconds: f64| {
+                daq.write_analog(&valve, cfg.calibration.valve_v(pa))
+                    .expect("write");
+                let mut sampled = Vec::new();
+                for k in 0..(seconds / period_s).round() as usize {
+                    clock.tick();
+                    daq.read_analog(&cfg.signals.position).expect("read");
+                    if (k + 1) % periods_per_10_ms == 0 {
+                        sampled.push(daq.probe().state().position_m);
+                    }
+                }
+                sampled
+            };
+            let mut held = run(2.1666e5, 3.0);
+            held.extend(run(0.0, 0.1));
+            held
+        };
+        let fine = trajectory(1e-3);
+        let coarse = trajectory(1e-2);
+        assert_eq!(fine.len(), coarse.len());
+        // Sample for sample, every 10 ms, held and vented.
+        for (a, b) in fine.iter().zip(&coarse) {
+            assert!((a - b).abs() < 2e-4, "{a} m at 1 ms against {b} m at 10 ms");
+        }
     }
 
     #[test]

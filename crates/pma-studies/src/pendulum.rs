@@ -239,14 +239,14 @@ pub fn seated(loaded: &LoadedScenario, setup: PendulumSetup) -> Result<LegSim, L
     if !(hip_lo..=hip_hi).contains(&setup.hip_rad) {
         return Err(LegError::from(pma_model::Invalid::new(
             "hip angle (deg)",
-            setup.hip_rad.to_degrees(),
+            as_given_deg(setup.hip_rad),
             "must lie within the URDF's hip limits",
         )));
     }
     if !(knee_lo..=HANGING_KNEE_DEG.to_radians() - MIN_DROP_DEG.to_radians())
         .contains(&setup.knee_rad)
     {
-        return Err(LegError::from(pma_model::Invalid::new("knee angle (deg)", setup.knee_rad.to_degrees(), "must lie between the URDF's lower knee limit and 80 deg: the shank hangs at 90 deg and must fall at least 10 deg")));
+        return Err(LegError::from(pma_model::Invalid::new("knee angle (deg)", as_given_deg(setup.knee_rad), "must lie between the URDF's lower knee limit and 80 deg: the shank hangs at 90 deg and must fall at least 10 deg")));
     }
     let mount = Mount {
         knee_limits_rad: Some([knee_lo, knee_hi]),
@@ -257,6 +257,15 @@ pub fn seated(loaded: &LoadedScenario, setup: PendulumSetup) -> Result<LegSim, L
     sim.plant_mut().exo_mut().hold(0, 0, setup.hip_rad);
     sim.set_state([setup.hip_rad, setup.knee_rad], [0.0, 0.0]);
     Ok(sim)
+}
+
+/// An angle in degrees as the caller gave it before it became radians: the round trip's
+/// last-bit error removed (`500` deg comes back as 500.00000000000006), 12 significant
+/// digits kept.
+fn as_given_deg(rad: f64) -> f64 {
+    format!("{:.11e}", rad.to_degrees())
+        .parse()
+        .unwrap_or(rad.to_degrees())
 }
 
 /// Runs the test on a leg from [`seated`] with the same `setup`, `recorder` observing

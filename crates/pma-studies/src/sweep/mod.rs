@@ -59,7 +59,10 @@ pub use bench::{Grid, PlantSource, Plants, Point, RunRecord, Trace};
 pub use leg::{
     LegGrid, LegPoint, LegRunRecord, PatientPopulation, PatientSource, Patients, Spasticity,
 };
-pub use store::{execute, merge, read_runs, write_runs, DirLock, Execution, Manifest, Runs, Shard};
+pub use store::{
+    check_manifest, manifest, merge, read_runs, run_jobs, runs_jsonl, to_do, Manifest, Runs,
+    RunsFile, Shard,
+};
 pub use summary::{markdown, summarise, GroupSummary, LegGroupSummary, Summary};
 
 /// A sweep file.
@@ -127,7 +130,7 @@ impl Job {
     }
 
     /// What it runs, on one line (for messages).
-    fn describe(&self) -> String {
+    pub fn describe(&self) -> String {
         match self {
             Job::Bench(p) => format!(
                 "{} ({}) on {} / {}",
@@ -147,8 +150,8 @@ impl Job {
     }
 }
 
-/// A run's line in `runs.jsonl`: a bench run's or a leg run's (told apart by their
-/// fields, so a bench sweep's lines are what they were before the leg's existed).
+/// A run's line in `runs.jsonl`: a bench run's, a leg run's or a failed run's (told apart
+/// by their fields, so a bench sweep's lines are what they were before the leg's existed).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum Record {
@@ -156,6 +159,40 @@ pub enum Record {
     Bench(RunRecord),
     /// A leg run.
     Leg(LegRunRecord),
+    /// A run that failed.
+    Failed(FailedRecord),
+}
+
+/// A run that failed (its simulation left physical bounds, say): recorded like any run, so
+/// that the sweep goes on, the summary counts it, and a resume does not run it again (a
+/// run depends on its parameters only: it would fail the same way). A run the supervisor
+/// stopped is not failed: its figures up to the fault are a result.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FailedRecord {
+    /// Index in the sweep.
+    pub run: usize,
+    /// What it ran: controller, gains and setting, as messages name it.
+    pub ran: String,
+    /// Scenario, as the sweep file names it (leg runs; `null` for a bench run).
+    pub scenario: Option<String>,
+    /// Why it failed.
+    pub failed: String,
+}
+
+impl FailedRecord {
+    /// `job` failed with `error`.
+    pub fn of(job: &Job, error: &StudyError) -> Self {
+        Self {
+            run: job.index(),
+            ran: job.describe(),
+            scenario: match job {
+                Job::Bench(_) => None,
+                Job::Leg(p) => Some(p.scenario_name().to_owned()),
+            },
+            failed: error.to_string(),
+        }
+    }
 }
 
 impl Record {
@@ -164,6 +201,7 @@ impl Record {
         match self {
             Record::Bench(r) => r.run,
             Record::Leg(r) => r.run,
+            Record::Failed(r) => r.run,
         }
     }
 
@@ -178,6 +216,7 @@ impl Record {
                 "{} ({}) on {} with patient {}",
                 r.controller, r.gains, r.scenario, r.patient
             ),
+            Record::Failed(r) => r.ran.clone(),
         }
     }
 
@@ -185,7 +224,7 @@ impl Record {
     pub fn bench(&self) -> Option<&RunRecord> {
         match self {
             Record::Bench(r) => Some(r),
-            Record::Leg(_) => None,
+            _ => None,
         }
     }
 
@@ -193,7 +232,15 @@ impl Record {
     pub fn leg(&self) -> Option<&LegRunRecord> {
         match self {
             Record::Leg(r) => Some(r),
-            Record::Bench(_) => None,
+            _ => None,
+        }
+    }
+
+    /// The failed run, if it is one.
+    pub fn failed(&self) -> Option<&FailedRecord> {
+        match self {
+            Record::Failed(r) => Some(r),
+            _ => None,
         }
     }
 }

@@ -1,12 +1,12 @@
-//! A sweep's output directory: shards, the manifest (`sweep.json`), the runs' lines
-//! (`runs.jsonl`, appended one write per line, a torn last line cut off on resume), the
-//! lock that keeps two sweeps out of one directory, the parallel runner, and merging.
-use super::{Job, Record, Sweep};
-use crate::files::{dir_error, read_error, write_atomically, write_error};
+//! What a sweep's output directory holds, and the parallel runner: shards, the manifest
+//! (`sweep.json`), the runs' lines (`runs.jsonl`, a torn last line found on resume),
+//! the runs still to do, and merging. The files themselves are written by the caller
+//! (the binary's one output path: modes, atomic replacement, the directory's lock).
+use super::{FailedRecord, Job, Record, Sweep};
+use crate::files::{dir_error, read_error, write_error};
 use crate::StudyError;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// index is `I - 1` modulo `N`, so that every part gets a share of every grid.
@@ -64,15 +64,25 @@ pub struct Manifest {
     pub shard: Shard,
 }
 
-/// The complete lines of a `runs.jsonl` (a torn last line, from a kill, is cut off the
-/// file so that it is redone), by run index. Only indices below `runs_in_sweep` belong to
-/// the sweep; a run recorded twice must be recorded the same way (runs are
-/// deterministic: two different lines for one run mean two different sweeps wrote here).
-pub fn read_runs(path: &Path, repair: bool, runs_in_sweep: usize) -> Result<Runs, StudyError> {
+/// The complete lines of a `runs.jsonl`, by run index, and where a torn last line (from a
+/// kill) starts, if `tolerate_torn_end` (the caller cuts it off so that its run is redone;
+/// otherwise it is an error). Only indices below `runs_in_sweep` belong to the sweep; a
+/// run recorded twice must be recorded the same way (runs are deterministic: two different
+/// lines for one run mean two different sweeps wrote here).
+pub fn read_runs(
+    path: &Path,
+    tolerate_torn_end: bool,
+    runs_in_sweep: usize,
+) -> Result<RunsFile, StudyError> {
     let mut runs = BTreeMap::new();
     let text = match std::fs::read_to_string(path) {
         Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(runs),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Ok(RunsFile {
+                runs,
+                torn_at: None,
+            })
+        }
         Err(e) => return Err(read_error(path, e)),
     };
     let mut good_bytes = 0usize;
@@ -91,7 +101,7 @@ pub fn read_runs(path: &Path, repair: bool, runs_in_sweep: usize) -> Result<Runs
                 )?;
                 good_bytes = offset;
             }
-            _ if offset == text.len() && repair => break,
+            _ if offset == text.len() && tolerate_torn_end => break,
             _ => {
                 return Err(dir_error(
                     path,
@@ -100,15 +110,19 @@ pub fn read_runs(path: &Path, repair: bool, runs_in_sweep: usize) -> Result<Runs
             }
         }
     }
-    if repair && good_bytes < text.len() {
-        let f = std::fs::OpenOptions::new()
-            .write(true)
-            .open(path)
-            .map_err(|e| write_error(path, e))?;
-        f.set_len(good_bytes as u64)
-            .map_err(|e| write_error(path, e))?;
-    }
-    Ok(runs)
+    Ok(RunsFile {
+        runs,
+        torn_at: (good_bytes < text.len()).then_some(good_bytes as u64),
+    })
+}
+
+/// What a `runs.jsonl` holds.
+#[derive(Debug, Clone, Default)]
+pub struct RunsFile {
+    /// Its runs by index.
+    pub runs: Runs,
+    /// Where a torn last line starts (bytes), if there is one.
+    pub torn_at: Option<u64>,
 }
 
 fn add_run(
@@ -144,134 +158,75 @@ fn add_run(
     }
 }
 
-/// Holds a directory for one sweep at a time (an advisory lock on `DIR/.lock`, released
-/// when the process ends, even by a kill).
-pub struct DirLock(#[allow(dead_code)] std::fs::File);
-
-impl DirLock {
-    /// Takes the lock of `out`, or fails at once if another process holds it.
-    pub fn take(out: &Path) -> Result<Self, StudyError> {
-        let path = out.join(".lock");
-        let file = std::fs::OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(&path)
-            .map_err(|e| write_error(&path, e))?;
-        match file.try_lock() {
-            Ok(()) => Ok(Self(file)),
-            Err(std::fs::TryLockError::WouldBlock) => Err(dir_error(
-                out,
-                "another `pma-exo sweep` is writing into this directory: wait for it or use another --out",
-            )),
-            Err(std::fs::TryLockError::Error(e)) => Err(write_error(&path, e)),
-        }
-    }
-}
-
-/// How an execution went.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Execution {
-    /// Runs of this shard.
-    pub selected: usize,
-    /// Of which already in the file (resumed).
-    pub already_done: usize,
-    /// Run now.
-    pub run_now: usize,
-}
-
-/// Runs this shard of `sweep` into `out` (`runs.jsonl`, `sweep.json`), on the current
-/// rayon pool, skipping the runs already written there; `progress(done, total)` is called
-/// after each run. Once `stop` is raised no new run starts (the runs written stay; the
-/// same command resumes).
-pub fn execute(
-    sweep: &Sweep,
-    out: &Path,
-    shard: Shard,
-    progress: &(dyn Fn(usize, usize) + Sync),
-    stop: &std::sync::atomic::AtomicBool,
-) -> Result<Execution, StudyError> {
-    use rayon::prelude::*;
-    std::fs::create_dir_all(out).map_err(|e| write_error(out, e))?;
-    let manifest = Manifest {
+/// The manifest of this shard of `sweep`.
+pub fn manifest(sweep: &Sweep, shard: Shard) -> Manifest {
+    Manifest {
         name: sweep.file.name.clone(),
         fingerprint: sweep.fingerprint.clone(),
         runs: sweep.jobs.len(),
         shard,
-    };
-    let _lock = DirLock::take(out)?;
-    check_manifest(out, &manifest)?;
-    let runs_path = out.join("runs.jsonl");
-    let done = read_runs(&runs_path, true, sweep.jobs.len())?;
-    for r in done.values() {
-        check_record(&runs_path, r, &sweep.jobs[r.run()])?;
     }
-    let todo: Vec<&Job> = sweep
+}
+
+/// Checks that the manifest `text` read from `path` is `manifest`: a directory holds one
+/// shard of one sweep.
+pub fn check_manifest(path: &Path, text: &str, manifest: &Manifest) -> Result<(), StudyError> {
+    let found: Manifest = serde_json::from_str(text).map_err(|e| dir_error(path, e))?;
+    if &found != manifest {
+        return Err(dir_error(
+            path,
+            format!(
+                "this directory holds shard {} of sweep `{}` ({}), not shard {} of `{}` ({}): use another --out",
+                found.shard, found.name, found.fingerprint, manifest.shard, manifest.name, manifest.fingerprint
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The runs of `shard` not in `done` (read from `path`), after checking that each run in
+/// `done` is the sweep's run of its index.
+pub fn to_do<'s>(
+    sweep: &'s Sweep,
+    shard: Shard,
+    done: &Runs,
+    path: &Path,
+) -> Result<Vec<&'s Job>, StudyError> {
+    for r in done.values() {
+        check_record(path, r, &sweep.jobs[r.run()])?;
+    }
+    Ok(sweep
         .jobs
         .iter()
         .filter(|j| shard.contains(j.index()) && !done.contains_key(&j.index()))
-        .collect();
-    let selected = sweep
-        .jobs
-        .iter()
-        .filter(|j| shard.contains(j.index()))
-        .count();
-    let file = std::fs::OpenOptions::new()
-        .create(true)
-        .append(true)
-        .open(&runs_path)
-        .map_err(|e| write_error(&runs_path, e))?;
-    let writer = std::sync::Mutex::new(file);
-    let counter = std::sync::atomic::AtomicUsize::new(0);
-    let total = todo.len();
-    todo.par_iter()
-        .try_for_each(|job| -> Result<(), StudyError> {
-            if stop.load(std::sync::atomic::Ordering::Relaxed) {
-                return Ok(());
-            }
-            let record = job.run(&sweep.file)?;
-            let mut line =
-                serde_json::to_string(&record).map_err(|e| write_error(&runs_path, e))?;
-            line.push('\n');
-            {
-                let mut f = writer.lock().unwrap_or_else(|e| e.into_inner());
-                // One write per line: a kill tears at most the line being written.
-                f.write_all(line.as_bytes())
-                    .map_err(|e| write_error(&runs_path, e))?;
-            }
-            let n = counter.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            progress(n, total);
-            Ok(())
-        })?;
-    Ok(Execution {
-        selected,
-        already_done: selected - total,
-        run_now: counter.into_inner(),
-    })
+        .collect())
 }
 
-fn check_manifest(out: &Path, manifest: &Manifest) -> Result<(), StudyError> {
-    let path = out.join("sweep.json");
-    match std::fs::read_to_string(&path) {
-        Ok(text) => {
-            let found: Manifest = serde_json::from_str(&text).map_err(|e| dir_error(&path, e))?;
-            if &found != manifest {
-                return Err(dir_error(
-                    &path,
-                    format!(
-                        "this directory holds shard {} of sweep `{}` ({}), not shard {} of `{}` ({}): use another --out",
-                        found.shard, found.name, found.fingerprint, manifest.shard, manifest.name, manifest.fingerprint
-                    ),
-                ));
-            }
-            Ok(())
+/// Runs `jobs` on the current rayon pool, handing each run's record to `record` (from
+/// any thread, as the runs end); returns how many ran. A run that fails is recorded as
+/// failed ([`FailedRecord`]) and the others go on. Once `stop` is raised no new run
+/// starts. The first error of `record` ends the runs and is returned.
+pub fn run_jobs<E: Send>(
+    sweep: &Sweep,
+    jobs: &[&Job],
+    stop: &std::sync::atomic::AtomicBool,
+    record: &(dyn Fn(&Record) -> Result<(), E> + Sync),
+) -> Result<usize, E> {
+    use rayon::prelude::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let ran = AtomicUsize::new(0);
+    jobs.par_iter().try_for_each(|job| {
+        if stop.load(Ordering::Relaxed) {
+            return Ok(());
         }
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            let text = serde_json::to_string_pretty(manifest).map_err(|e| write_error(&path, e))?;
-            write_atomically(&path, &text)
-        }
-        Err(e) => Err(read_error(&path, e)),
-    }
+        let r = job
+            .run(&sweep.file)
+            .unwrap_or_else(|e| Record::Failed(FailedRecord::of(job, &e)));
+        record(&r)?;
+        ran.fetch_add(1, Ordering::Relaxed);
+        Ok(())
+    })?;
+    Ok(ran.into_inner())
 }
 
 /// A recorded run must be the sweep's run of that index (the same controller, gains and
@@ -318,7 +273,7 @@ pub fn merge(dirs: &[PathBuf]) -> Result<(Manifest, Runs, Vec<usize>), StudyErro
         }
         shards.insert(m.shard.index);
         let path = dir.join("runs.jsonl");
-        for (index, r) in read_runs(&path, false, m.runs)? {
+        for (index, r) in read_runs(&path, false, m.runs)?.runs {
             add_run(&path, &format!("run {index}"), r, m.runs, &mut runs)?;
         }
         first.get_or_insert(m);
@@ -330,12 +285,12 @@ pub fn merge(dirs: &[PathBuf]) -> Result<(Manifest, Runs, Vec<usize>), StudyErro
     Ok((manifest, runs, missing))
 }
 
-/// Writes `runs.jsonl` sorted by index.
-pub fn write_runs(path: &Path, runs: &Runs) -> Result<(), StudyError> {
+/// The text of a `runs.jsonl` of `runs`, sorted by index (`path` names it in errors).
+pub fn runs_jsonl(path: &Path, runs: &Runs) -> Result<String, StudyError> {
     let mut text = String::new();
     for r in runs.values() {
         text.push_str(&serde_json::to_string(r).map_err(|e| write_error(path, e))?);
         text.push('\n');
     }
-    write_atomically(path, &text)
+    Ok(text)
 }

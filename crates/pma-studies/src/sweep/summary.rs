@@ -1,7 +1,7 @@
 //! A sweep's summary: its bench runs grouped by controller, gains, plant group, reference
 //! and event, its leg runs by scenario, patient group, controller and gains, with the
 //! distribution of their figures.
-use super::{LegRunRecord, Record, RunRecord, Runs};
+use super::{FailedRecord, LegRunRecord, Record, RunRecord, Runs};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -15,6 +15,11 @@ pub struct Summary {
     pub runs: usize,
     /// Runs of the sweep not (yet) in the directories.
     pub missing: usize,
+    /// Runs that failed (counted in `runs`, in no group).
+    pub failed: usize,
+    /// Each failed run: its index, what it ran, its scenario and why.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub failed_runs: Vec<FailedRecord>,
     /// One per group of bench runs.
     pub groups: Vec<GroupSummary>,
     /// One per group of leg runs.
@@ -196,6 +201,8 @@ pub fn summarise(name: &str, runs: &Runs, missing: usize) -> Summary {
         name: name.to_owned(),
         runs: runs.len(),
         missing,
+        failed: runs.values().filter(|r| r.failed().is_some()).count(),
+        failed_runs: runs.values().filter_map(Record::failed).cloned().collect(),
         groups: bench_groups(runs.values().filter_map(Record::bench)),
         leg_groups: leg_groups(runs.values().filter_map(Record::leg)),
     }
@@ -312,6 +319,16 @@ pub fn markdown(s: &Summary) -> String {
             "\n**{} runs missing** (shards not merged yet?)",
             s.missing
         );
+    }
+    if s.failed > 0 {
+        let _ = writeln!(
+            md,
+            "\n**Runs that failed: {}** (in no table; a resume does not run them again):\n",
+            s.failed
+        );
+        for f in &s.failed_runs {
+            let _ = writeln!(md, "- run {}, {}: {}", f.run, f.ran, f.failed);
+        }
     }
     // One table per reference, event and plant group, in the order they first appear.
     let table_of = |g: &GroupSummary| (g.reference.clone(), g.event.clone(), g.plant_group.clone());

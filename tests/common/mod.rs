@@ -1,0 +1,29 @@
+//! What several test files of the binary share.
+use std::path::Path;
+
+/// Writes into `dir` a scenario whose every run leaves physical bounds at once (the
+/// embedded `gait_training` on a 1 g shank, which its muscles spin past 50 rad/s or beyond
+/// its limit within milliseconds) and returns its path.
+pub fn diverging_scenario(dir: &Path) -> String {
+    let shank_mass = r#"<mass value="6.075"/>"#;
+    let shank_inertia = r#"ixx="0.1376" ixy="0" ixz="0" iyy="0.1376" iyz="0" izz="0.0100""#;
+    let urdf = pma_leg::config::EMBEDDED_URDF;
+    assert!(
+        urdf.contains(shank_mass) && urdf.contains(shank_inertia),
+        "the embedded URDF's shank changed: update this test's light shank"
+    );
+    let light = urdf
+        .replace(shank_mass, r#"<mass value="0.001"/>"#)
+        .replace(
+            shank_inertia,
+            r#"ixx="1e-7" ixy="0" ixz="0" iyy="1e-7" iyz="0" izz="1e-7""#,
+        );
+    std::fs::write(dir.join("light_shank.urdf"), light).expect("urdf");
+    let (_, training) = pma_leg::config::EMBEDDED_SCENARIOS
+        .iter()
+        .find(|(n, _)| *n == "gait_training")
+        .expect("gait_training");
+    let path = dir.join("diverging.toml");
+    std::fs::write(&path, format!("urdf = \"light_shank.urdf\"\n{training}")).expect("scenario");
+    path.display().to_string()
+}
