@@ -57,15 +57,20 @@ pub fn run(a: Args) -> Result<i32> {
     for s in &scenarios {
         s.scenario.check_run_duration(a.duration)?;
     }
-    let controllers = COMPARED
+    let controllers: Vec<Vec<ControllerConfig>> = scenarios
         .iter()
-        .map(|k| pma_leg::gains::leg_gains(*k))
-        .collect::<Result<Vec<ControllerConfig>, _>>()?;
+        .map(|s| {
+            COMPARED
+                .iter()
+                .map(|k| pma_leg::gains::scenario_gains(s, *k))
+                .collect::<Result<Vec<ControllerConfig>, _>>()
+        })
+        .collect::<Result<_, _>>()?;
     let periods = scenarios
         .iter()
         .map(|s| a.duration / s.scenario.period_s)
         .sum::<f64>()
-        * controllers.len() as f64;
+        * COMPARED.len() as f64;
     crate::output::check_wall_time(
         "this comparison",
         periods,
@@ -89,7 +94,7 @@ pub fn run(a: Args) -> Result<i32> {
     let md_file = OutFile::create(&a.out.join("compare-leg.md"))?;
     static DONE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let bar =
-        crate::output::follow_progress(&DONE, (scenarios.len() * controllers.len()) as u64, "runs");
+        crate::output::follow_progress(&DONE, (scenarios.len() * COMPARED.len()) as u64, "runs");
     let mut rows = super::with_threads(a.threads, || {
         compare(&scenarios, &controllers, a.duration, Some(&DONE))
     })??;

@@ -279,19 +279,22 @@ pub fn patient_name(loaded: &pma_leg::LoadedScenario) -> String {
     format!("hip {}, knee {}", joint(&p.hip), joint(&p.knee))
 }
 
-/// The controller of every muscle: the scenario's APRC-NDO by default, a gain file, or
-/// the controller's gains tuned for the leg (`crates/pma-leg/models/gains/`).
+/// The controller of every muscle: a gain file, or the scenario's gains for the controller
+/// (its own APRC-NDO gains for APRC-NDO, the default, and APRC; its gain set's for the
+/// others: `pma_leg::gains::scenario_gains`). One name, one gain set.
 pub fn leg_config(
     kind: Option<ControllerKind>,
     gains: Option<&std::path::Path>,
     loaded: &pma_leg::LoadedScenario,
 ) -> Result<ControllerConfig> {
     Ok(match (kind, gains) {
-        (None, _) => pma_leg::gains::base_config(loaded, ControllerKind::AprcNdo),
-        (Some(k), Some(path)) => super::load_gains(k, Some(path))?,
-        // APRC has no leg gain file of its own: the scenario's APRC-NDO gains without NDO.
-        (Some(k @ ControllerKind::Aprc), None) => pma_leg::gains::base_config(loaded, k),
-        (Some(k), None) => pma_leg::gains::leg_gains(k)?,
+        (k, Some(path)) => {
+            let k = super::kind_of_gains(Some(path), k.unwrap_or(ControllerKind::AprcNdo))?;
+            super::load_gains(k, Some(path))?
+        }
+        (k, None) => {
+            pma_leg::gains::scenario_gains(loaded, k.unwrap_or(ControllerKind::AprcNdo))?
+        }
     })
 }
 
@@ -473,10 +476,11 @@ fn print_safety(s: &pma_leg::SafetyReport) -> Result<()> {
     );
     for (name, m) in &s.muscles {
         say!(
-            "  {name:13} peak force {:.0} N = {:.2}x its {:.0} N rating ({:.3} s above it, margin {:.0} N), valve at a limit {:.2} s, peak pressure rate {:.0} bar/s",
+            "  {name:13} peak force {:.0} N = {:.2}x its {:.0} N rating ({}; {:.3} s above it, margin {:.0} N), valve at a limit {:.2} s, peak pressure rate {:.0} bar/s",
             m.peak_force_n,
             m.peak_over_rated,
             m.rated_force_n,
+            m.rating,
             m.time_over_rated_s,
             m.margin_n,
             m.valve_saturated_s,

@@ -311,18 +311,34 @@ pub struct PlantSettings {
     /// Per-muscle factors on Table I (muscle name -> factors); absent = nominal.
     #[serde(default)]
     pub muscle_scale: BTreeMap<String, MuscleScale>,
-    /// Rated pulling force of every muscle (N), against which the run's peak force is
-    /// reported. Default 1500 N: Festo's maximum for the paper's DMSP-20 (at 6 bar and no
-    /// contraction).
-    #[serde(default = "default_rated_force")]
-    pub muscle_rated_force_n: f64,
+    /// Rated pulling force of every eq. (1) muscle (N), against which the run's peak force
+    /// is reported. Default: what Table I's muscle itself pulls at the valve's limit and no
+    /// contraction (4124 N at 6 bar), the rating of the muscle it models. (A Festo
+    /// DMSP-20, 1500 N, is 2.8 times weaker than Table I's "similar PMA": a file of Festo
+    /// muscles, `size`, is held against the Festo rating.)
+    #[serde(default)]
+    pub muscle_rated_force_n: Option<f64>,
 }
 
 /// Festo DMSP-20's rated (maximum) force (N).
 pub const DMSP20_RATED_FORCE_N: f64 = 1500.0;
 
-fn default_rated_force() -> f64 {
-    DMSP20_RATED_FORCE_N
+impl PlantSettings {
+    /// An eq. (1) muscle's rating and where it comes from: the scenario's, or Table I's own
+    /// pull at the valve's limit.
+    pub fn three_element_rating(&self) -> (f64, String) {
+        match self.muscle_rated_force_n {
+            Some(f) => (f, "plant.muscle_rated_force_n".into()),
+            None => {
+                let p = self.valve.pressure_max_pa;
+                let t = pma_model::MuscleParams::TABLE_I;
+                (
+                    t.f0_n + t.f1_n_per_pa * p,
+                    format!("Table I's muscle at {:.1} bar, no contraction", p / 1e5),
+                )
+            }
+        }
+    }
 }
 
 fn default_encoder() -> EncoderSettings {
@@ -367,6 +383,10 @@ pub struct ControlSettings {
     /// lower one to see what a slower valve path does.
     #[serde(default = "default_rate_max")]
     pub pressure_rate_max_pa_per_s: f64,
+    /// Which shipped gains the other controllers take (`--controller NAME` without
+    /// `--gains`, `compare-leg`): `in-air` (default) or `treadmill`.
+    #[serde(default)]
+    pub gain_set: crate::gains::GainSet,
 }
 
 fn default_rate_max() -> f64 {
@@ -536,10 +556,9 @@ impl Scenario {
             )?;
         }
         self.plant.valve.validate()?;
-        positive(
-            "plant.muscle_rated_force_n",
-            self.plant.muscle_rated_force_n,
-        )?;
+        if let Some(f) = self.plant.muscle_rated_force_n {
+            positive("plant.muscle_rated_force_n", f)?;
+        }
         self.plant.encoder.sensor(0).validate()?;
         positive("control.cocontraction_pa", self.control.cocontraction_pa)?;
         if self.control.cocontraction_pa > self.plant.valve.pressure_max_pa {

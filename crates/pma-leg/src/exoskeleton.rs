@@ -520,6 +520,19 @@ impl Exoskeleton {
         mount: Mount,
     ) -> Result<Self, LegError> {
         let mut raw = parse_urdf(text, file)?;
+        if let Some(slide) = raw
+            .joints
+            .iter()
+            .find(|j| j.joint_type == urdf_rs::JointType::Prismatic)
+        {
+            return Err(urdf_err(
+                file,
+                format!(
+                    "its pelvis slides (`{}`): a treadmill's model, which an in-air scenario cannot use (give the scenario a [treadmill] section, or use exo_leg.urdf)",
+                    slide.name
+                ),
+            ));
+        }
         let mut prefixes = leg_prefixes(&raw, file)?;
         keep_legs(&mut raw, &mut prefixes, 1);
         let mut exo = Self::build(&raw, file, &prefixes, period_s, substeps, mount)?;

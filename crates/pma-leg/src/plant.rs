@@ -25,9 +25,11 @@ pub struct MuscleActuator {
     pub joint: usize,
     /// True muscle: eq. (1), or a Festo size as measured.
     pub model: MuscleModel,
-    /// Rated pulling force (N): the Festo size's, or the scenario's
-    /// `plant.muscle_rated_force_n` for an eq. (1) muscle.
+    /// Rated pulling force (N): the Festo size's, or for an eq. (1) muscle Table I's own at
+    /// the valve's limit (`plant.muscle_rated_force_n` overrides it).
     pub rated_force_n: f64,
+    /// Where the rating comes from, as outputs say it.
+    pub rating: String,
     pub(crate) valve: Valve,
 }
 

@@ -92,12 +92,15 @@ pub struct LimitStats {
 }
 
 /// A muscle against its rating and its valve's range.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
 pub struct MuscleSafety {
     /// Largest force (N).
     pub peak_force_n: f64,
-    /// The muscle's rated force (N), `plant.muscle_rated_force_n`.
+    /// The muscle's rated force (N): its Festo size's, or Table I's own pull at the valve's
+    /// limit for an eq. (1) muscle (`plant.muscle_rated_force_n` overrides it).
     pub rated_force_n: f64,
+    /// What the rating is (`Festo DMSP-40`, `Table I's muscle at 6.0 bar, ...`).
+    pub rating: String,
     /// `peak_force_n / rated_force_n`.
     pub peak_over_rated: f64,
     /// Time the force was above the rating (s).
@@ -138,6 +141,7 @@ pub struct PatientMetrics {
     limits_rad: [[f64; 2]; 2],
     pressure_max_pa: f64,
     rated_force_n: [f64; 4],
+    rating: [String; 4],
     n: usize,
     torque_sq: [f64; 2],
     torque_peak: [f64; 2],
@@ -187,6 +191,7 @@ impl PatientMetrics {
         let joint_of = std::array::from_fn(|i| muscles.get(i).map_or(0, |m| m.joint));
         let rated_force_n =
             std::array::from_fn(|i| muscles.get(i).map_or(f64::NAN, |m| m.rated_force_n));
+        let rating = std::array::from_fn(|i| muscles.get(i).map_or_else(String::new, |m| m.rating.clone()));
         let spasms = events
             .iter()
             .enumerate()
@@ -214,6 +219,7 @@ impl PatientMetrics {
             limits_rad: plant.exo().limits_rad(leg),
             pressure_max_pa,
             rated_force_n,
+            rating,
             n: 0,
             torque_sq: [0.0; 2],
             torque_peak: [0.0; 2],
@@ -340,6 +346,7 @@ impl PatientMetrics {
                         MuscleSafety {
                             peak_force_n: self.peak_force[i],
                             rated_force_n: self.rated_force_n[i],
+                            rating: self.rating[i].clone(),
                             peak_over_rated: self.peak_force[i] / self.rated_force_n[i],
                             time_over_rated_s: self.over_rated_s[i],
                             margin_n: self.rated_force_n[i] - self.peak_force[i],

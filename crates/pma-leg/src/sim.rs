@@ -937,8 +937,14 @@ fn build_muscles(
             )));
         }
         let scale = sc.plant.muscle_scale.get(&g.name).copied();
-        let (model, rated_force_n) = match (g.festo()?, scale) {
-            (Some(festo), None) => (MuscleModel::Festo(festo), festo.size.rated_force_n()),
+        let (model, (rated_force_n, rating)) = match (g.festo()?, scale) {
+            (Some(festo), None) => (
+                MuscleModel::Festo(festo),
+                (
+                    festo.size.rated_force_n(),
+                    format!("Festo {}", festo.size.name().to_uppercase()),
+                ),
+            ),
             (Some(_), Some(_)) => return Err(err(
                 "is a Festo muscle (`size`): plant.muscle_scale applies to Table I muscles only"
                     .into(),
@@ -948,7 +954,7 @@ fn build_muscles(
                 params.validate()?;
                 (
                     MuscleModel::ThreeElement(params),
-                    sc.plant.muscle_rated_force_n,
+                    sc.plant.three_element_rating(),
                 )
             }
         };
@@ -959,6 +965,7 @@ fn build_muscles(
             joint,
             model,
             rated_force_n,
+            rating,
             valve: Valve::new(sc.plant.valve, 0.0)?,
         });
     }

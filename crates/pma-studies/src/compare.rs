@@ -194,18 +194,19 @@ impl CompareRow {
     }
 }
 
-/// Runs every controller of `controllers` on every scenario for `duration_s`, in parallel
+/// Runs every scenario with its controllers (`controllers[i]` on `scenarios[i]`) for `duration_s`, in parallel
 /// on rayon's pool (the caller's `install` sets its size); rows in scenario-major order,
 /// the same for any thread count. `progress` counts the runs done (for a progress bar).
 pub fn compare(
     scenarios: &[LoadedScenario],
-    controllers: &[ControllerConfig],
+    controllers: &[Vec<ControllerConfig>],
     duration_s: f64,
     progress: Option<&std::sync::atomic::AtomicUsize>,
 ) -> Result<Vec<CompareRow>, LegError> {
     let pairs: Vec<(&LoadedScenario, &ControllerConfig)> = scenarios
         .iter()
-        .flat_map(|s| controllers.iter().map(move |c| (s, c)))
+        .zip(controllers)
+        .flat_map(|(s, cs)| cs.iter().map(move |c| (s, c)))
         .collect();
     pairs
         .par_iter()
