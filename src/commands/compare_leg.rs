@@ -9,7 +9,7 @@ use pma_studies::compare::{compare, CompareRow};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-/// The controllers compared, each with its leg gain file.
+/// The controllers compared, each with the scenario's gains for it (`pma_leg::gains::scenario_gains`).
 pub const COMPARED: [ControllerKind; 5] = [
     ControllerKind::AprcNdo,
     ControllerKind::Psmc,
@@ -104,7 +104,7 @@ pub fn run(a: Args) -> Result<i32> {
     for (row, label) in rows.iter_mut().zip(
         a.scenarios
             .iter()
-            .flat_map(|s| std::iter::repeat_n(s, controllers.len())),
+            .flat_map(|s| std::iter::repeat_n(s, COMPARED.len())),
     ) {
         row.scenario.clone_from(label);
     }

@@ -29,7 +29,7 @@ pub const EMBEDDED_GAIT_TRAINING: &str = include_str!("../models/scenarios/gait_
 pub const EMBEDDED_GAIT_REALISTIC: &str = include_str!("../models/scenarios/gait_realistic.toml");
 
 /// Every embedded scenario: name and text (`crates/pma-leg/models/scenarios/<name>.toml`).
-pub const EMBEDDED_SCENARIOS: [(&str, &str); 7] = [
+pub const EMBEDDED_SCENARIOS: [(&str, &str); 8] = [
     ("gait_training", EMBEDDED_GAIT_TRAINING),
     ("gait_realistic", EMBEDDED_GAIT_REALISTIC),
     (
@@ -52,10 +52,14 @@ pub const EMBEDDED_SCENARIOS: [(&str, &str); 7] = [
         "gait_treadmill_spastic",
         include_str!("../models/scenarios/gait_treadmill_spastic.toml"),
     ),
+    (
+        "gait_treadmill_one_leg",
+        include_str!("../models/scenarios/gait_treadmill_one_leg.toml"),
+    ),
 ];
 
 /// The embedded scenarios' names, for help texts and messages.
-pub const EMBEDDED_SCENARIO_NAMES: &str = "gait_training, gait_realistic, gait_spastic, gait_spasms, gait_resistive, gait_treadmill, gait_treadmill_spastic";
+pub const EMBEDDED_SCENARIO_NAMES: &str = "gait_training, gait_realistic, gait_spastic, gait_spasms, gait_resistive, gait_treadmill, gait_treadmill_spastic, gait_treadmill_one_leg";
 
 fn embedded_text(name: &str) -> Option<&'static str> {
     EMBEDDED_SCENARIOS

@@ -193,7 +193,7 @@ pub fn stride_demand(loaded: &LoadedScenario, strides: usize) -> Result<Demand, 
                 [lo.min(s.torque_nm[j]), hi.max(s.torque_nm[j])]
             })
     });
-    let half = ((0.5 * DEMAND_WINDOW_S / sc.period_s).round() as usize).max(0);
+    let half = (0.5 * DEMAND_WINDOW_S / sc.period_s).round() as usize;
     average_per_leg(&mut samples, legs, half);
     Ok(Demand {
         samples,
@@ -224,6 +224,81 @@ fn average_per_leg(samples: &mut [DemandSample], legs: usize, half: usize) {
                 [0, 1].map(|j| window.iter().map(|t| t[j]).sum::<f64>() / window.len() as f64);
         }
     }
+}
+
+/// A joint's demand over the gait cycle beside the adult normative moment (per kilogram of
+/// the patient's body mass, flexion positive), at 0, 1, ..., 100 % of each leg's cycle.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct NormComparison {
+    /// `hip` or `knee`.
+    pub joint: String,
+    /// The servos' torque averaged over the strides and legs at each per cent of the
+    /// cycle (N m/kg).
+    pub demand_nm_kg: Vec<f64>,
+    /// The normative internal moment turned into the torque the joint needs (flexion
+    /// positive: minus the extensor moment), unsupported walking (N m/kg).
+    pub normative_nm_kg: Vec<f64>,
+    /// Largest |demand| over the cycle (N m/kg).
+    pub peak_demand_nm_kg: f64,
+    /// Largest |normative| (N m/kg).
+    pub peak_normative_nm_kg: f64,
+    /// RMS of demand minus normative over the cycle (N m/kg).
+    pub rms_difference_nm_kg: f64,
+    /// The same against the normative moment scaled by `1 - bws_fraction` (the share of
+    /// the weight the legs carry; support lowers stance moments roughly so, swing's less).
+    pub rms_difference_supported_nm_kg: f64,
+}
+
+/// Each joint's demand over the cycle beside `norms` (the adult data at the reference's
+/// speed), for a patient of `body_mass_kg` on `bws_fraction` support.
+pub fn against_norms(
+    demand: &Demand,
+    norms: &crate::gait::AdultNorms,
+    body_mass_kg: f64,
+    bws_fraction: f64,
+) -> Vec<NormComparison> {
+    let n = crate::gait::CURVE_SAMPLES;
+    let normative = [
+        &norms.curves.hip_moment_nm_kg,
+        &norms.curves.knee_moment_nm_kg,
+    ];
+    ["hip", "knee"]
+        .iter()
+        .enumerate()
+        .map(|(j, name)| {
+            let mut sum = vec![0.0; n];
+            let mut count = vec![0usize; n];
+            for s in &demand.samples {
+                let bin = ((s.phase * (n - 1) as f64).round() as usize).min(n - 1);
+                sum[bin] += s.torque_nm[j] / body_mass_kg;
+                count[bin] += 1;
+            }
+            let demand_nm_kg: Vec<f64> = sum
+                .iter()
+                .zip(&count)
+                .map(|(s, c)| if *c > 0 { s / *c as f64 } else { f64::NAN })
+                .collect();
+            let norm: Vec<f64> = normative[j].iter().map(|m| -m).collect();
+            let rms = |scale: f64| {
+                let (sq, k) = demand_nm_kg
+                    .iter()
+                    .zip(&norm)
+                    .filter(|(d, _)| d.is_finite())
+                    .fold((0.0, 0usize), |(sq, k), (d, m)| (sq + (d - scale * m).powi(2), k + 1));
+                (sq / k.max(1) as f64).sqrt()
+            };
+            let peak = |v: &[f64]| v.iter().filter(|x| x.is_finite()).fold(0.0f64, |p, x| p.max(x.abs()));
+            NormComparison {
+                joint: (*name).to_owned(),
+                peak_demand_nm_kg: peak(&demand_nm_kg),
+                peak_normative_nm_kg: peak(&norm),
+                rms_difference_nm_kg: rms(1.0),
+                rms_difference_supported_nm_kg: rms(1.0 - bws_fraction),
+                demand_nm_kg,
+                normative_nm_kg: norm,
+            }
+        })
+        .collect()
 }
 
 /// Leg `leg`'s servos' torques at `t_s` (N m): stiff springs and dampers to its reference.
