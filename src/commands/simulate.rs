@@ -5,6 +5,7 @@ use crate::provenance::{Provenance, Seeds};
 use crate::say;
 use anyhow::Result;
 use pma_control::{ControllerConfig, ControllerKind};
+use pma_exo::strides::GaitCycles;
 use pma_leg::{LegReport, LegSim, Scenario, TrainerSample};
 use std::path::PathBuf;
 
@@ -30,9 +31,11 @@ pub struct Args {
     /// Run even if it would take over an hour.
     #[arg(long)]
     yes: bool,
-    /// Draw the run into this directory (`leg.png`: angles over their references, tracking
-    /// errors, patient torques, pressures and forces against their limits, spasms shaded;
-    /// on a treadmill the ground reaction and the pelvis's height too).
+    /// Draw the run into this directory: `leg.png` over time (angles over their references,
+    /// tracking errors, patient torques, pressures and forces against their limits, spasms
+    /// shaded; on a treadmill the ground reaction and the pelvis's height too; a long run's
+    /// last four strides) and `strides.png` over the gait cycle (every leg's joints and
+    /// tracking errors, on a treadmill each foot's ground reaction against the norm).
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
     #[command(flatten)]
@@ -80,10 +83,14 @@ pub fn run(a: Args) -> Result<i32> {
         .iter()
         .map(|m| m.geometry.name.clone())
         .collect();
-    let plot_file = a.plot.as_ref().map(|dir| dir.join("leg.png"));
+    let plot_files = a
+        .plot
+        .as_ref()
+        .map(|dir| (dir.join("leg.png"), dir.join("strides.png")));
     let mut outputs = a.output.files();
-    if let Some(png) = &plot_file {
-        outputs.push(("--plot", png));
+    if let Some((leg, strides)) = &plot_files {
+        outputs.push(("--plot", leg));
+        outputs.push(("--plot", strides));
     }
     output::refuse_input_as_output(
         &super::scenario_inputs(&a.scenario, &loaded, a.gains.as_deref()),
@@ -131,16 +138,29 @@ pub fn run(a: Args) -> Result<i32> {
         }
         t
     });
+    // The same samples as the report's tracking figures: after the first stride.
+    let cycles = a
+        .plot
+        .as_ref()
+        .map(|_| GaitCycles::new(&sim, sc.gait.stride_period_s))
+        .transpose()?;
+    let norm = match a.plot {
+        Some(_) => norm_grf(sc)?,
+        None => None,
+    };
     let stop = output::stop_flag()?;
     let settings = settings.with_stop_flag(&stop);
-    let mut recorders = (csv, viz, progress, trace);
+    let mut recorders = (csv, viz, progress, trace, cycles);
     let report = sim.run_with(&settings, &mut recorders);
     bar.finish_and_clear();
     let report = report?;
-    let (csv, viz, _, trace) = recorders;
-    if let (Some(path), Some(mut trace)) = (&plot_file, trace) {
+    let (csv, viz, _, trace, cycles) = recorders;
+    if let (Some((path, strides_path)), Some(mut trace), Some(cycles)) =
+        (&plot_files, trace, cycles)
+    {
         trace.0.muscles = names.clone();
         trace.0.legs = sim.leg_count();
+        trace.0.stride_s = sc.gait.stride_period_s;
         trace.0.pressure_max_bar = sc.plant.valve.pressure_max_pa / 1e5;
         // One mark for the four: the lowest rating, which every force is held against.
         trace.0.rated_force_n = sim
@@ -162,10 +182,25 @@ pub fn run(a: Args) -> Result<i32> {
             .collect();
         crate::plot::register_font()?;
         let title = format!("{}: {} on every muscle", sc.name, config.kind());
+        let leg_title = if sim.leg_count() > 1 {
+            format!("{title} ({} leg)", pma_leg::SIDES[0])
+        } else {
+            title.clone()
+        };
         output::write_via_temp(path, |tmp| {
-            crate::plot::leg_run(tmp, &title, &provenance.command, &trace.0)
+            crate::plot::leg_run(tmp, &leg_title, &provenance.command, &trace.0)
         })?;
         output::wrote(path);
+        let figure = crate::plot::StrideFigure {
+            cycles: &cycles,
+            norm_grf: norm,
+            treadmill: sc.treadmill.is_some(),
+        };
+        let title = format!("{title}, over the gait cycle");
+        output::write_via_temp(strides_path, |tmp| {
+            crate::plot::strides_run(tmp, &title, &provenance.command, &figure)
+        })?;
+        output::wrote(strides_path);
     }
     let non_finite =
         (!report.finite).then(|| format!("the simulation (scenario {})", report.scenario));
@@ -185,6 +220,27 @@ pub fn run(a: Args) -> Result<i32> {
         return Ok(INTERRUPTED);
     }
     Ok(0)
+}
+
+/// The adult data's vertical ground reaction at the scenario's speed, scaled by the
+/// body-weight support, for a treadmill on the adult reference (Fukuchi et al. 2018).
+fn norm_grf(sc: &Scenario) -> Result<Option<crate::plot::NormGrf>> {
+    let (Some(t), pma_leg::gait::GaitData::Fukuchi2018, Some(speed)) =
+        (&sc.treadmill, sc.gait.data, sc.gait.speed_m_per_s)
+    else {
+        return Ok(None);
+    };
+    let norms = pma_leg::gait::AdultNorms::at(speed)?;
+    let scale = 1.0 - t.bws_fraction;
+    let scaled = |v: &[f64]| v.iter().map(|x| x * scale).collect();
+    Ok(Some(crate::plot::NormGrf {
+        mean_bw: scaled(&norms.curves.grf_vertical_bw),
+        sd_bw: scaled(&norms.sd.grf_vertical_bw),
+        label: format!(
+            "adults' mean (Fukuchi 2018, {:.2} m/s, {} subjects) x (1 - {:.2} body-weight support)",
+            norms.speed_m_s, norms.subjects, t.bws_fraction
+        ),
+    }))
 }
 
 /// Every 10th period of a leg run, for `--plot`.
