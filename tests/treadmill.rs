@@ -186,7 +186,7 @@ fn bad_trainer_input_is_a_one_line_error_naming_the_field() {
             "speed_m_per_s = 0.9",
             "gait.speed_m_per_s",
         ),
-        ("physics_substeps = 1", &in_air_urdf, "foot"),
+        ("physics_substeps = 1", &in_air_urdf, "the URDF has 1 leg(s)"),
         ("legs = 2", "legs = 2\nwalking_aid = true", "walking_aid"),
     ];
     for (i, (from, to, needle)) in cases.iter().enumerate() {
@@ -295,7 +295,7 @@ fn the_controllers_walk_both_legs_finite_and_within_their_limits() {
 
 #[test]
 fn a_foot_sunk_through_the_belt_ends_the_run() {
-    // A belt a thousand times softer lets a foot sink past its spheres' size: the contact
+    // A belt 200 times softer (the softest pad allowed) lets a foot sink past its spheres' size: the contact
     // model no longer means anything, and the run fails in one line.
     let dir = temp_dir("sink");
     let path = scenario_with(
@@ -303,7 +303,7 @@ fn a_foot_sunk_through_the_belt_ends_the_run() {
         "soft.toml",
         &[(
             "body_mass_kg = 75.0",
-            "body_mass_kg = 75.0\n[treadmill.contact]\nstiffness_n_per_m2 = 2.0e3",
+            "body_mass_kg = 75.0\n[treadmill.contact]\nstiffness_n_per_m2 = 1.0e4",
         )],
     );
     assert_refused(&path, "into the belt");

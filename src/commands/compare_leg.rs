@@ -124,7 +124,7 @@ pub fn run(a: Args) -> Result<i32> {
                 .collect::<Vec<_>>()
                 .join(","),
         ),
-        gains: Some("shipped leg gains (crates/pma-leg/models/gains)".into()),
+        gains: Some(gain_sets(&a.scenarios, &scenarios)),
         patient: Some("each scenario's".into()),
         ..crate::provenance::Provenance::of_this_run()
     };
@@ -202,10 +202,23 @@ fn draw_bars(dir: &std::path::Path, rows: &[CompareRow], command: &str) -> Resul
     })
 }
 
+/// Which shipped gain set each scenario's controllers took (APRC-NDO: the scenario's own).
+fn gain_sets(args: &[String], scenarios: &[pma_leg::LoadedScenario]) -> String {
+    let each: Vec<String> = args
+        .iter()
+        .zip(scenarios)
+        .map(|(arg, s)| {
+            let set = s.scenario.control.gain_set;
+            format!("{arg}: {} set ({})", set.as_str(), set.directory())
+        })
+        .collect();
+    format!("APRC-NDO the scenario's own, the others {}", each.join(", "))
+}
+
 /// One Markdown table per scenario, and on a treadmill a second one of its gait phases.
 pub fn report(rows: &[CompareRow], duration_s: f64) -> String {
     let mut md = format!(
-        "# Controllers on the leg with a patient ({duration_s} s per run, gains tuned on gait_training with the same budget)\n"
+        "# Controllers on the leg with a patient ({duration_s} s per run, each scenario's gain set, tuned with the same budget)\n"
     );
     let mut scenarios: Vec<&str> = Vec::new();
     for r in rows {

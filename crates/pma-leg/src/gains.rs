@@ -83,6 +83,11 @@ impl GainSet {
         }
     }
 
+    /// Where the set's files are, from the repository's root.
+    pub fn directory(self) -> &'static str {
+        self.files().1
+    }
+
     /// `kind`'s gains of this set; its defaults if none were shipped.
     pub fn gains(self, kind: ControllerKind) -> Result<ControllerConfig, LegError> {
         let (files, dir) = self.files();
