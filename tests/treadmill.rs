@@ -94,7 +94,10 @@ fn simulate_two_legs_reports_each_foot_the_pelvis_and_both_legs_safety() {
                 "{side} {j}: {f}"
             );
             let name = format!("{side}/{j}");
-            assert!(v["joints"][&name]["rms_deg"].as_f64().unwrap() < 1.5, "{name}");
+            assert!(
+                v["joints"][&name]["rms_deg"].as_f64().unwrap() < 1.5,
+                "{name}"
+            );
             let l = &v["safety"]["joints"][&name];
             assert_eq!(l["time_outside_s"].as_f64(), Some(0.0), "{l}");
         }
@@ -139,7 +142,9 @@ fn one_leg_with_a_virtual_other_leg_carries_the_same_belt_load() {
     assert!(t["feet"]["left"].is_null(), "{t}");
     // The virtual leg pushes the pelvis up for half the stride's load.
     assert!(t["mean_other_leg_bw"].as_f64().unwrap() > 0.1, "{t}");
-    let stance = t["feet"]["right"]["stance_fraction"]["mean"].as_f64().unwrap();
+    let stance = t["feet"]["right"]["stance_fraction"]["mean"]
+        .as_f64()
+        .unwrap();
     assert!((0.5..0.8).contains(&stance), "{stance}");
 }
 
@@ -159,13 +164,21 @@ fn bad_trainer_input_is_a_one_line_error_naming_the_field() {
             "legs = 2\ncontralateral = \"reference\"",
             "treadmill.contralateral",
         ),
-        ("body_mass_kg = 75.0", "body_mass_kg = 5.0", "treadmill.body_mass_kg"),
+        (
+            "body_mass_kg = 75.0",
+            "body_mass_kg = 5.0",
+            "treadmill.body_mass_kg",
+        ),
         (
             "body_mass_kg = 75.0",
             "body_mass_kg = 75.0\nspeed_m_per_s = 12.0",
             "treadmill.speed_m_per_s",
         ),
-        ("bws_fraction = 0.3", "bws_fraction = 1.5", "treadmill.bws_fraction"),
+        (
+            "bws_fraction = 0.3",
+            "bws_fraction = 1.5",
+            "treadmill.bws_fraction",
+        ),
         (
             "body_mass_kg = 75.0",
             "body_mass_kg = 75.0\n[treadmill.ankle]\nrange_deg = [5.0, 15.0]",
@@ -186,7 +199,11 @@ fn bad_trainer_input_is_a_one_line_error_naming_the_field() {
             "speed_m_per_s = 0.9",
             "gait.speed_m_per_s",
         ),
-        ("physics_substeps = 1", &in_air_urdf, "the URDF has 1 leg(s)"),
+        (
+            "physics_substeps = 1",
+            &in_air_urdf,
+            "the URDF has 1 leg(s)",
+        ),
         ("legs = 2", "legs = 2\nwalking_aid = true", "walking_aid"),
     ];
     for (i, (from, to, needle)) in cases.iter().enumerate() {
@@ -255,8 +272,8 @@ fn size_recommends_muscles_the_two_legs_then_run_on() {
 
 #[test]
 fn the_controllers_walk_both_legs_finite_and_within_their_limits() {
-    // 8 s of gait_treadmill per controller, each on its gains tuned on the two legs (the
-    // 60 s figures are in docs/treadmill.md).
+    // 8 s of gait_treadmill per controller, each on its gains tuned on the two legs within
+    // the muscles' rating (the 60 s figures are in docs/treadmill.md).
     for c in ["aprc-ndo", "psmc", "ndo-smc", "sta", "pid"] {
         let v = json_of(&[
             "simulate",
@@ -268,28 +285,32 @@ fn the_controllers_walk_both_legs_finite_and_within_their_limits() {
             "--json",
         ]);
         assert!(v["finite"].as_bool().unwrap(), "{c}");
-        let worst = v["safety"]["muscles"]
-            .as_object()
-            .unwrap()
-            .values()
-            .map(|m| m["peak_over_rated"].as_f64().unwrap())
-            .fold(0.0, f64::max);
-        let beyond = v["safety"]["joints"]
-            .as_object()
-            .unwrap()
-            .values()
-            .map(|j| j["max_beyond_deg"].as_f64().unwrap())
-            .fold(0.0, f64::max);
+        let worst = |section: &str, key: &str| {
+            v["safety"][section]
+                .as_object()
+                .unwrap()
+                .values()
+                .map(|m| m[key].as_f64().unwrap())
+                .fold(0.0, f64::max)
+        };
+        let (over, beyond) = (
+            worst("muscles", "peak_over_rated"),
+            worst("joints", "max_beyond_deg"),
+        );
         let rms = v["joints"]
             .as_object()
             .unwrap()
             .values()
             .map(|j| j["rms_deg"].as_f64().unwrap())
             .fold(0.0, f64::max);
-        eprintln!("{c}: worst RMS {rms:.2} deg, peak force / rating {worst:.2}, beyond the URDF limits {beyond:.2} deg");
-        assert!(beyond < 2.0, "{c}: {beyond} deg beyond a limit");
-        assert!(worst <= 1.0, "{c}: {worst} of the rating");
-        assert!(rms < 3.0, "{c}: {rms} deg RMS");
+        eprintln!("{c}: worst RMS {rms:.2} deg, peak force / rating {over:.2}, beyond the URDF limits {beyond:.2} deg");
+        assert!(beyond < 1.0, "{c}: {beyond} deg beyond a limit");
+        assert!(over <= 1.0, "{c}: {over} of the rating");
+        // PSMC finds no gains that track the two legs within the rating (docs/treadmill.md:
+        // its best tracks 17 / 57 deg RMS); every other controller tracks within 1.5 deg.
+        if c != "psmc" {
+            assert!(rms < 1.5, "{c}: {rms} deg RMS");
+        }
     }
 }
 

@@ -212,7 +212,10 @@ fn gain_sets(args: &[String], scenarios: &[pma_leg::LoadedScenario]) -> String {
             format!("{arg}: {} set ({})", set.as_str(), set.directory())
         })
         .collect();
-    format!("APRC-NDO the scenario's own, the others {}", each.join(", "))
+    format!(
+        "APRC-NDO the scenario's own, the others {}",
+        each.join(", ")
+    )
 }
 
 /// One Markdown table per scenario, and on a treadmill a second one of its gait phases.

@@ -348,9 +348,7 @@ pub fn leg_config(
             let k = super::kind_of_gains(Some(path), k.unwrap_or(ControllerKind::AprcNdo))?;
             super::load_gains(k, Some(path))?
         }
-        (k, None) => {
-            pma_leg::gains::scenario_gains(loaded, k.unwrap_or(ControllerKind::AprcNdo))?
-        }
+        (k, None) => pma_leg::gains::scenario_gains(loaded, k.unwrap_or(ControllerKind::AprcNdo))?,
     })
 }
 

@@ -284,10 +284,16 @@ pub fn against_norms(
                     .iter()
                     .zip(&norm)
                     .filter(|(d, _)| d.is_finite())
-                    .fold((0.0, 0usize), |(sq, k), (d, m)| (sq + (d - scale * m).powi(2), k + 1));
+                    .fold((0.0, 0usize), |(sq, k), (d, m)| {
+                        (sq + (d - scale * m).powi(2), k + 1)
+                    });
                 (sq / k.max(1) as f64).sqrt()
             };
-            let peak = |v: &[f64]| v.iter().filter(|x| x.is_finite()).fold(0.0f64, |p, x| p.max(x.abs()));
+            let peak = |v: &[f64]| {
+                v.iter()
+                    .filter(|x| x.is_finite())
+                    .fold(0.0f64, |p, x| p.max(x.abs()))
+            };
             NormComparison {
                 joint: (*name).to_owned(),
                 peak_demand_nm_kg: peak(&demand_nm_kg),

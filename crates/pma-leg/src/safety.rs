@@ -191,7 +191,11 @@ impl PatientMetrics {
         let joint_of = std::array::from_fn(|i| muscles.get(i).map_or(0, |m| m.joint));
         let rated_force_n =
             std::array::from_fn(|i| muscles.get(i).map_or(f64::NAN, |m| m.rated_force_n));
-        let rating = std::array::from_fn(|i| muscles.get(i).map_or_else(String::new, |m| m.rating.clone()));
+        let rating = std::array::from_fn(|i| {
+            muscles
+                .get(i)
+                .map_or_else(String::new, |m| m.rating.clone())
+        });
         let spasms = events
             .iter()
             .enumerate()

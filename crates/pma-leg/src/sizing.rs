@@ -34,8 +34,8 @@ pub const PULLEY_RADII_M: [f64; 23] = [
 /// Up to 400 mm a muscle fits along the 429 mm thigh; longer ones sit on the trainer's frame
 /// and pull the pulley through a cable (a 2 m muscle runs from the frame's top to the hip).
 pub const REST_LENGTHS_M: [f64; 20] = [
-    0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.4, 1.5, 1.6, 1.7, 1.8,
-    1.9, 2.0,
+    0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.4, 1.5, 1.6, 1.7, 1.8, 1.9,
+    2.0,
 ];
 /// The longest muscle that fits along the 429 mm thigh (m).
 pub const THIGH_MUSCLE_MAX_M: f64 = 0.4;
