@@ -2,8 +2,7 @@
 //! controllers + references) beside rapier's bare step of the same leg with the same
 //! physics substeps, in one run.
 use criterion::{criterion_group, criterion_main, Criterion};
-use pma_leg::leg::Leg;
-use pma_leg::{LegOutput, LegSample, LegSim, Scenario, SupervisedLeg};
+use pma_leg::{Exoskeleton, LegOutput, LegSim, PerLeg, Scenario, SupervisedLeg, TrainerSample};
 use pma_loop::{FnRecorder, Period};
 use std::hint::black_box;
 
@@ -11,7 +10,7 @@ fn leg(c: &mut Criterion) {
     let loaded = Scenario::load("gait_training").expect("embedded scenario");
     let sc = &loaded.scenario;
     let mut group = c.benchmark_group("leg_period_1ms");
-    let mut bare = Leg::from_urdf_str(
+    let mut bare = Exoskeleton::from_urdf_str(
         &loaded.urdf_text,
         &loaded.urdf_source,
         [sc.joints.hip, sc.joints.knee],
@@ -25,40 +24,49 @@ fn leg(c: &mut Criterion) {
             // A moving leg (a resting one would cost the same: sleeping is disabled).
             k += 1;
             let a = (k as f64 * 0.004).sin();
-            bare.step(|_, _| [20.0 * a, 5.0 * a]);
-            black_box(bare.angles())
+            bare.step(|_, _| PerLeg::one([20.0 * a, 5.0 * a]));
+            black_box(bare.angles(0))
         })
     });
-    // The treadmill leg (pelvis on its slides, foot on a 0.6 m/s belt, 30 % BWS) with the
-    // treadmill scenarios' one substep, the contacts computed every substep.
-    let treadmill = pma_leg::ground::TreadmillSettings {
-        speed_m_per_s: Some(0.6),
-        contralateral: pma_leg::ground::Contralateral::None,
-        ..pma_leg::ground::TreadmillSettings::new(0.3, 75.0)
-    };
-    let mut on_belt = Leg::on_treadmill(
-        pma_leg::config::EMBEDDED_FOOT_URDF,
-        "exo_leg_foot.urdf",
-        [sc.joints.hip, sc.joints.knee],
-        sc.period_s,
-        1,
-        &treadmill,
-    )
-    .expect("treadmill leg");
-    on_belt.set_state([0.05, 0.10], [0.0, 0.0]);
-    on_belt.rest_on_belt();
-    group.bench_function("rapier_treadmill_bare", |b| {
-        b.iter(|| {
-            on_belt.step(|l, _| {
-                let (q, qd) = (l.angles(), l.velocities());
-                [
-                    -3000.0 * (q[0] - 0.05) - 60.0 * qd[0],
-                    -3000.0 * (q[1] - 0.10) - 60.0 * qd[1],
-                ]
-            });
-            black_box(on_belt.ground_reaction())
-        })
-    });
+    // The trainer (pelvis on its slides, feet on a 0.6 m/s belt, 30 % BWS, passive
+    // ankles) with one and two legs at the treadmill scenarios' one substep, the contacts
+    // computed every substep.
+    for legs in [1, 2] {
+        let treadmill = pma_leg::ground::TreadmillSettings {
+            legs,
+            speed_m_per_s: Some(0.6),
+            contralateral: Some(pma_leg::ground::Contralateral::None),
+            ..pma_leg::ground::TreadmillSettings::new(0.3, 75.0)
+        };
+        let mut on_belt = Exoskeleton::on_treadmill(
+            pma_leg::config::EMBEDDED_TRAINER_URDF,
+            "exo_trainer.urdf",
+            [sc.joints.hip, sc.joints.knee],
+            sc.period_s,
+            1,
+            &treadmill,
+        )
+        .expect("treadmill leg");
+        for leg in 0..legs {
+            on_belt.set_state(leg, [0.05, 0.10], [0.0, 0.0]);
+        }
+        on_belt.rest_on_belt();
+        let name = format!("rapier_treadmill_bare_{legs}_leg");
+        group.bench_function(name.as_str(), |b| {
+            b.iter(|| {
+                on_belt.step(|l, _| {
+                    PerLeg::from_fn(legs, |leg| {
+                        let (q, qd) = (l.angles(leg), l.velocities(leg));
+                        [
+                            -3000.0 * (q[0] - 0.05) - 60.0 * qd[0],
+                            -3000.0 * (q[1] - 0.10) - 60.0 * qd[1],
+                        ]
+                    })
+                });
+                black_box(on_belt.ground_reaction())
+            })
+        });
+    }
     // The closed loop is timed over runs of 100 periods (0.1 s) on one simulation that
     // keeps walking; criterion's figure divided by 100 is the cost of one period.
     let mut sim = LegSim::new(&loaded).expect("sim");
@@ -84,9 +92,9 @@ fn leg(c: &mut Criterion) {
             .expect("on");
         let channels = pma_exo::viz::leg_layout(&mut viz, &sim, "bench").expect("layout");
         let (mut step, mut scalars) = (0i64, vec![0.0; channels]);
-        let mut log = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
+        let mut log = FnRecorder(|p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>| {
             step += 1;
-            let s = LegSample::of(p);
+            let s = TrainerSample::of(p);
             pma_exo::viz::push_leg(&mut viz, p.backend, &s, step, &mut scalars).expect("log");
         });
         group.bench_function(label, |b| {

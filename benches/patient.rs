@@ -31,7 +31,7 @@ fn patient(c: &mut Criterion) {
         let loaded = Scenario::load(name).expect("embedded scenario");
         let sim = LegSim::new(&loaded).expect("sim");
         let mut patient = sim.plant().patient().expect("a patient").clone();
-        let h = sim.leg().substep_s();
+        let h = sim.exo().substep_s();
         patient.plan(1000.0);
         let mut k = 0u64;
         group.bench_function(name, |b| {

@@ -1,5 +1,7 @@
 //! Library part of the `pma-exo` package: the glue between the simulations and the Rerun
-//! layer, shared by the binary and the integration tests.
+//! layer, and the gait-cycle binning of `simulate --plot`, shared by the binary and the
+//! integration tests.
+pub mod strides;
 #[cfg(feature = "rerun")]
 pub mod viz;
 

@@ -175,6 +175,8 @@ impl StagedPath {
     }
 
     /// The path it is for.
+    // Only the Rerun recorder asks (`commands::viz`), which a build without it leaves out.
+    #[cfg_attr(not(feature = "rerun"), allow(dead_code))]
     pub fn path(&self) -> &Path {
         &self.path
     }
@@ -298,6 +300,8 @@ impl CsvOut {
     }
 
     /// The path it is for.
+    // Only the Rerun recorder asks (`commands::viz`), which a build without it leaves out.
+    #[cfg_attr(not(feature = "rerun"), allow(dead_code))]
     pub fn path(&self) -> &Path {
         &self.path
     }

@@ -5,7 +5,7 @@ use anyhow::Result;
 use pma_bench::{MuscleBench, Sample};
 use pma_control::MuscleStep;
 use pma_leg::patient::SpasmEvent;
-use pma_leg::{LegOutput, LegPlant, LegSample, LegSim, SupervisedLeg, VisualShape};
+use pma_leg::{LegOutput, LegPlant, LegSim, PerLeg, SupervisedLeg, TrainerSample, VisualShape};
 use pma_loop::{Period, Recorder, Signals, Start};
 use pma_studies::pendulum::PendulumSample;
 use pma_viz::{Frame, Marker, Shape, Sink, Viz, VizError};
@@ -66,11 +66,15 @@ fn shape(v: &VisualShape) -> Shape {
     }
 }
 
-/// The leg's layout: links with their URDF shapes, muscles, and the series of
-/// [`LegSample::schema`]; returns their number.
+/// The exoskeleton's layout: links with their URDF shapes, muscles, and the series of
+/// [`TrainerSample::schema`]; returns their number.
 pub fn leg_layout(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<usize> {
     leg_scene(viz, sim, meta)?;
-    let schema = LegSample::schema_of(&muscle_names(sim), sim.leg().ground().is_some());
+    let schema = TrainerSample::schema(
+        &muscle_names(sim),
+        sim.leg_count(),
+        sim.exo().ground().is_some(),
+    );
     viz.schema(&schema)?;
     Ok(schema.len())
 }
@@ -88,10 +92,10 @@ pub fn pendulum_layout(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<usize>
 /// The recording's description, the links with their URDF shapes and the muscles' lines.
 fn leg_scene(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<()> {
     viz.document("metadata", meta)?;
-    let leg = sim.leg();
-    let names: Vec<String> = leg.link_names().map(str::to_owned).collect();
+    let exo = sim.exo();
+    let names: Vec<String> = exo.link_names().map(str::to_owned).collect();
     for (i, n) in names.iter().enumerate() {
-        let shapes: Vec<Shape> = leg.visuals(i).iter().map(shape).collect();
+        let shapes: Vec<Shape> = exo.visuals(i).iter().map(shape).collect();
         viz.link(
             n,
             &shapes,
@@ -102,12 +106,12 @@ fn leg_scene(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<()> {
             },
         )?;
     }
-    if leg.ground().is_some() {
-        treadmill_scene(viz)?;
+    if exo.ground().is_some() {
+        treadmill_scene(viz, sim.leg_count())?;
     }
     let p_max = sim.scenario().plant.valve.pressure_max_pa;
     for m in sim.muscles() {
-        viz.muscle(&m.geometry.name, p_max)?;
+        viz.muscle(&m.label(sim.leg_count()), p_max)?;
     }
     Ok(())
 }
@@ -118,9 +122,9 @@ const STRIPE_SPACING_M: f64 = 0.2;
 const BELT_SIZE_M: [f64; 2] = [2.0, 0.4];
 
 /// The treadmill: the belt (a slab whose top is the contact plane), its stripes (a link
-/// that moves backwards with the belt, by one spacing and back), and the foot's ground
+/// that moves backwards with the belt, by one spacing and back), and each foot's ground
 /// reaction (contact points and the force as an arrow at the centre of pressure).
-fn treadmill_scene(viz: &mut Viz) -> Result<()> {
+fn treadmill_scene(viz: &mut Viz, legs: usize) -> Result<()> {
     let [length, width] = BELT_SIZE_M.map(|v| v as f32);
     viz.fixture(
         "belt",
@@ -142,29 +146,42 @@ fn treadmill_scene(viz: &mut Viz) -> Result<()> {
         })
         .collect();
     viz.link(BELT_STRIPES, &stripes, [200, 200, 90])?;
-    viz.ground("foot_on_belt")?;
+    for leg in 0..legs {
+        viz.ground(&foot_on_belt_path(legs, leg))?;
+    }
     Ok(())
 }
 
 /// The belt's stripes as a link of the scene.
 const BELT_STRIPES: &str = "belt_stripes";
 
-/// Most links a leg's frame carries (the treadmill leg has five and the belt's stripes).
-const MAX_LINKS: usize = 8;
+/// Most links a frame carries (the two-leg trainer has eight and the belt's stripes).
+const MAX_LINKS: usize = 12;
 
-/// The muscles' names, in the geometry file's order.
+/// Where foot `leg`'s ground reaction is drawn (`world/<this>/grf`).
+pub fn foot_on_belt_path(legs: usize, leg: usize) -> String {
+    if legs > 1 {
+        format!("{}_foot_on_belt", pma_leg::SIDES[leg])
+    } else {
+        "foot_on_belt".to_owned()
+    }
+}
+
+/// One leg's muscles' names, in the geometry file's order.
 pub fn muscle_names(sim: &LegSim) -> Vec<String> {
-    sim.muscles()
+    sim.plant()
+        .leg_muscles(0)
         .iter()
         .map(|m| m.geometry.name.clone())
         .collect()
 }
 
-/// Logs one leg period (layout of [`leg_layout`]); `scalars` has the schema's length.
+/// Logs one period of the exoskeleton (layout of [`leg_layout`]); `scalars` has the
+/// schema's length.
 pub fn push_leg(
     viz: &mut Viz,
     plant: &LegPlant,
-    s: &LegSample,
+    s: &TrainerSample,
     step: i64,
     scalars: &mut [f64],
 ) -> Result<()> {
@@ -172,28 +189,33 @@ pub fn push_leg(
         return Ok(());
     }
     s.values(scalars);
-    push_leg_frame(viz, plant, (s.t_s, step), s.pressure_pa, scalars)
+    let pressures = s.legs.map(|l| l.pressure_pa);
+    push_leg_frame(viz, plant, (s.t_s, step), &pressures, scalars)
 }
 
-/// Logs one leg frame: the links, the muscles' lines coloured by `pressure_pa`, and the
-/// series' `scalars`.
+/// Most contact spheres drawn per foot.
+const MAX_CONTACTS: usize = 4;
+
+/// Logs one frame of the exoskeleton: the links, every leg's muscles' lines coloured by
+/// its `pressure_pa`, each foot's ground reaction, and the series' `scalars`.
 fn push_leg_frame(
     viz: &mut Viz,
     plant: &LegPlant,
     (t_s, step): (f64, i64),
-    pressure_pa: [f64; 4],
+    pressure_pa: &PerLeg<[f64; 4]>,
     scalars: &[f64],
 ) -> Result<()> {
-    let leg = plant.leg();
+    let exo = plant.exo();
     let mut poses = [([0.0; 3], [0.0, 0.0, 0.0, 1.0]); MAX_LINKS];
-    let links = leg.link_count().min(MAX_LINKS - 1);
+    let links = exo.link_count().min(MAX_LINKS - 1);
     for (i, pose) in poses.iter_mut().enumerate().take(links) {
-        *pose = leg.link_pose(i);
+        *pose = exo.link_pose(i);
     }
     let mut n = links;
-    let mut contacts = [[0.0; 3]; 4];
-    let mut ground_frame = None;
-    if let Some(g) = leg.ground() {
+    let legs = exo.leg_count().min(pma_leg::MAX_LEGS);
+    let mut contacts = [[[0.0; 3]; MAX_CONTACTS]; pma_leg::MAX_LEGS];
+    let mut feet = [(0usize, [f64::NAN; 3], [0.0; 3]); pma_leg::MAX_LEGS];
+    let has_ground = if let Some(g) = exo.ground() {
         // The stripes travel backwards with the belt, wrapping every spacing.
         let travelled = g.settings().belt_speed_m_s() * t_s;
         poses[n] = (
@@ -201,33 +223,45 @@ fn push_leg_frame(
             [0.0, 0.0, 0.0, 1.0],
         );
         n += 1;
-        let (mut k, mut force) = (0, [0.0; 3]);
-        for c in g.sphere_contacts().iter().flatten() {
-            if k < contacts.len() {
-                contacts[k] = c.point_m;
-                k += 1;
+        for (leg, foot) in feet.iter_mut().enumerate().take(legs) {
+            let (mut k, mut force) = (0, [0.0; 3]);
+            for c in g.sphere_contacts(leg).iter().flatten() {
+                if k < MAX_CONTACTS {
+                    contacts[leg][k] = c.point_m;
+                    k += 1;
+                }
+                for (f, v) in force.iter_mut().zip(c.force_n) {
+                    *f += v;
+                }
             }
-            for (f, v) in force.iter_mut().zip(c.force_n) {
-                *f += v;
-            }
+            let at = [g.centre_of_pressure_x_m(leg), contacts[leg][0][1], 0.0];
+            *foot = (k, at, force);
         }
-        let at = [g.centre_of_pressure_x_m(), contacts[0][1], 0.0];
-        ground_frame = Some(pma_viz::GroundFrame {
-            contacts_m: &contacts[..k],
-            at_m: at,
-            force_n: force,
+        true
+    } else {
+        false
+    };
+    let grounds: [pma_viz::GroundFrame; pma_leg::MAX_LEGS] =
+        std::array::from_fn(|leg| pma_viz::GroundFrame {
+            contacts_m: &contacts[leg][..feet[leg].0],
+            at_m: feet[leg].1,
+            force_n: feet[leg].2,
         });
+    let mut lines = [([0.0; 3], [0.0; 3], 0.0); 4 * pma_leg::MAX_LEGS];
+    for leg in 0..legs {
+        let seg = plant.muscle_segments(leg);
+        for i in 0..4 {
+            let p = pressure_pa.get(leg).map_or(f64::NAN, |p| p[i]);
+            lines[4 * leg + i] = (seg[i].0, seg[i].1, p);
+        }
     }
-    let seg = plant.muscle_segments();
-    let lines: [([f64; 3], [f64; 3], f64); 4] =
-        std::array::from_fn(|i| (seg[i].0, seg[i].1, pressure_pa[i]));
     viz.push(&Frame {
         t_s,
         step,
         scalars,
         link_poses: &poses[..n],
-        muscle_lines: &lines,
-        ground: ground_frame,
+        muscle_lines: &lines[..4 * legs],
+        grounds: if has_ground { &grounds[..legs] } else { &[] },
     })?;
     Ok(())
 }
@@ -296,18 +330,19 @@ impl VizRecorder {
 
     fn push_pendulum(
         &mut self,
-        p: &Period<'_, SupervisedLeg, LegOutput>,
+        p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>,
         knee_damping_nm_s_per_rad: f64,
     ) -> Result<()> {
         if self.step % self.viz.decimation() != 0 {
             return Ok(());
         }
         PendulumSample::of(p, knee_damping_nm_s_per_rad).values(&mut self.scalars);
+        let pressures = p.truth.legs.map(|l| l.pressure_pa);
         push_leg_frame(
             &mut self.viz,
             p.backend,
             (p.t_s, self.step),
-            p.truth.pressure_pa,
+            &pressures,
             &self.scalars,
         )
     }
@@ -333,7 +368,7 @@ pub fn push_bench(viz: &mut Viz, s: &Sample, step: i64, scalars: &mut [f64]) -> 
         scalars,
         link_poses: &[],
         muscle_lines: &[],
-        ground: None,
+        grounds: &[],
     })?;
     Ok(())
 }
@@ -402,18 +437,18 @@ impl Recorder<pma_rig::Rig, MuscleStep> for VizRecorder {
     }
 }
 
-impl Recorder<SupervisedLeg, LegOutput> for VizRecorder {
+impl Recorder<SupervisedLeg, PerLeg<LegOutput>> for VizRecorder {
     fn start(&mut self, s: &Start<'_, SupervisedLeg>) {
         self.previous_t_s = s.t_s;
     }
 
-    fn record(&mut self, p: &Period<'_, SupervisedLeg, LegOutput>) {
+    fn record(&mut self, p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>) {
         self.step += 1;
         let r = match self.leg_series {
             LegSeries::Gait => push_leg(
                 &mut self.viz,
                 p.backend,
-                &LegSample::of(p),
+                &TrainerSample::of(p),
                 self.step,
                 &mut self.scalars,
             ),
@@ -422,16 +457,18 @@ impl Recorder<SupervisedLeg, LegOutput> for VizRecorder {
             } => self.push_pendulum(p, knee_damping_nm_s_per_rad),
         };
         self.keep(r);
-        if let Some(patient) = p.backend.patient() {
+        let legs = p.backend.leg_count();
+        for (leg, patient) in p.backend.patients().iter().enumerate() {
             let r = mark_spasms(
                 &self.viz,
+                (legs, leg),
                 patient.events(),
                 (self.previous_t_s, p.t_s),
                 self.step,
             );
             self.keep(r);
-            self.previous_t_s = p.t_s;
         }
+        self.previous_t_s = p.t_s;
     }
 }
 
@@ -439,10 +476,15 @@ impl Recorder<SupervisedLeg, LegOutput> for VizRecorder {
 /// reading.
 pub const RIG_END_MARKER_PATH: &str = "muscles/muscle/end";
 
-/// The entity marking a spasm on `joint`: a child of the link the joint moves, so that it
-/// sits on the joint and moves with the leg.
-pub fn spasm_marker_path(joint: usize) -> String {
-    format!("world/{}/spasm", JOINT_LINKS[joint].1)
+/// The entity marking a spasm on `joint` of leg `leg` of a trainer of `legs` legs: a child
+/// of the link the joint moves, so that it sits on the joint and moves with the leg.
+pub fn spasm_marker_path((legs, leg): (usize, usize), joint: usize) -> String {
+    let link = JOINT_LINKS[joint].1;
+    if legs > 1 {
+        format!("world/{}_{link}/spasm", pma_leg::SIDES[leg])
+    } else {
+        format!("world/{link}/spasm")
+    }
 }
 
 /// Logs the spasms that start or end by `t_s`: a line in [`EVENTS_PATH`] each time, and a
@@ -450,6 +492,7 @@ pub fn spasm_marker_path(joint: usize) -> String {
 /// overlapping spasms ends).
 fn mark_spasms(
     viz: &Viz,
+    leg: (usize, usize),
     events: &[SpasmEvent],
     (previous_t_s, t_s): (f64, f64),
     step: i64,
@@ -457,7 +500,7 @@ fn mark_spasms(
     // What happened since the previous period: onsets and ends in (previous_t_s, t_s].
     let crossed = |at: f64| previous_t_s < at && at <= t_s;
     for e in events {
-        let joint = JOINT_LINKS[e.joint].0;
+        let joint = pma_leg::plant::leg_label(leg.0, leg.1, JOINT_LINKS[e.joint].0);
         if crossed(e.t_s) {
             let text = format!(
                 "{joint} spasm: {} {:.1} N m for {:.2} s",
@@ -470,7 +513,7 @@ fn mark_spasms(
                 rgb: [230, 30, 30],
                 label: text,
             };
-            viz.marker(t_s, step, &spasm_marker_path(e.joint), &marker)?;
+            viz.marker(t_s, step, &spasm_marker_path(leg, e.joint), &marker)?;
         }
         if crossed(e.end_s()) {
             viz.event(
@@ -484,7 +527,7 @@ fn mark_spasms(
                 .iter()
                 .any(|o| o.joint == e.joint && o.t_s <= t_s && t_s < o.end_s());
             if !still_acting {
-                viz.clear(t_s, step, &spasm_marker_path(e.joint))?;
+                viz.clear(t_s, step, &spasm_marker_path(leg, e.joint))?;
             }
         }
     }

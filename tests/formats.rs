@@ -2,7 +2,7 @@
 //! samples' schemas: this test fails when one drifts. `PMA_BLESS=1 cargo test --test
 //! formats` rewrites them.
 use pma_bench::Sample;
-use pma_leg::LegSample;
+use pma_leg::{LegSample, TrainerSample};
 use pma_loop::Schema;
 use pma_studies::pendulum::PendulumSample;
 
@@ -24,9 +24,13 @@ fn tables() -> Vec<(&'static str, Schema)> {
     vec![
         (
             "simulate",
-            with_time(LegSample::schema(&["{muscle}".to_owned()])),
+            with_time(LegSample::schema(&["{muscle}".to_owned()], false)),
         ),
-        ("simulate-treadmill", LegSample::ground_schema()),
+        ("simulate-treadmill", {
+            let mut s = LegSample::foot_schema();
+            s.channels.extend(TrainerSample::ground_schema().channels);
+            s
+        }),
         ("pendulum", with_time(PendulumSample::schema())),
         ("single", with_time(Sample::schema())),
     ]

@@ -1,7 +1,7 @@
 //! The exoskeleton leg through the public API: gait tracking, co-contraction over a long
 //! run, energy and static equilibrium against hand calculations, bad input.
 use pma_leg::config::EMBEDDED_URDF;
-use pma_leg::{LegOutput, LegReport, LegSample, LegSim, Scenario, Side, SupervisedLeg};
+use pma_leg::{LegOutput, LegReport, LegSim, PerLeg, Scenario, Side, SupervisedLeg, TrainerSample};
 use pma_loop::{FnRecorder, Period};
 
 fn run(name: &str, duration_s: f64) -> LegReport {
@@ -76,16 +76,16 @@ fn passive_leg_with_vented_muscles_conserves_energy() {
     let mut sim = LegSim::new(&loaded).unwrap();
     let vented = [0.0; 4];
     sim.step_with_commands(vented); // vent every muscle
-    let rest = sim.leg().inertia().energy([0.0, 0.0], [0.0, 0.0]);
+    let rest = sim.exo().inertia().energy([0.0, 0.0], [0.0, 0.0]);
     for q0 in [[0.5, 0.6], [0.4, 0.8], [0.6, 0.0]] {
         sim.set_state(q0, [0.0, 0.0]);
-        let e0 = sim.leg().energy();
+        let e0 = sim.exo().energy();
         let drop = e0 - rest;
         let (mut worst, mut max_force): (f64, f64) = (0.0, 0.0);
         for _ in 0..2000 {
             let s = sim.step_with_commands(vented);
-            worst = worst.max((sim.leg().energy() - e0).abs());
-            max_force = s.force_n.iter().fold(max_force, |m, f| m.max(*f));
+            worst = worst.max((sim.exo().energy() - e0).abs());
+            max_force = s.legs[0].force_n.iter().fold(max_force, |m, f| m.max(*f));
         }
         // Vented muscles are slack (f0 < 0) except when stretched fast enough for their
         // damper to exceed |f0| + k x: then they dissipate a little, within the budget.
@@ -132,9 +132,9 @@ fn static_pose_is_held_at_the_hand_computed_equilibrium_pressures() {
     // 20 s: the co-contraction loop and the slow pole of the sliding surface (c2/c1 ~ 1/s)
     // settle in ~10 s; the last second is averaged.
     let settle_s = 20.0;
-    let mut keep = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
+    let mut keep = FnRecorder(|p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>| {
         if p.t_s > settle_s {
-            last.push(LegSample::of(p));
+            last.push(TrainerSample::of(p).legs[0]);
         }
     });
     sim.run(settle_s + 1.0, &mut keep).unwrap();
@@ -156,7 +156,7 @@ fn static_pose_is_held_at_the_hand_computed_equilibrium_pressures() {
         });
         assert!(hi - lo < 1e-4, "joint {j} still moves by {} rad", hi - lo);
     }
-    let gravity = sim.leg().inertia().gravity_torques(q[0], q[1]);
+    let gravity = sim.exo().inertia().gravity_torques(q[0], q[1]);
     let muscles = sim.muscles();
     for joint in 0..2 {
         let idx = |side| {
@@ -299,30 +299,30 @@ struct NanKnee {
 }
 
 impl pma_loop::Backend for NanKnee {
-    type Reading = [f64; 2];
-    type Command = [f64; 4];
-    type Truth = pma_leg::LegState;
+    type Reading = PerLeg<[f64; 2]>;
+    type Command = PerLeg<[f64; 4]>;
+    type Truth = pma_leg::TrainerState;
     type Error = pma_leg::LegError;
     fn period_s(&self) -> f64 {
         self.plant.period_s()
     }
-    fn start(&mut self) -> Result<pma_loop::Started<[f64; 2], [f64; 4]>, Self::Error> {
+    fn start(&mut self) -> Result<pma_loop::Started<Self::Reading, Self::Command>, Self::Error> {
         self.plant.start()
     }
     fn wait(&mut self) -> Result<u32, Self::Error> {
         self.plant.wait()
     }
-    fn read(&mut self) -> Result<[f64; 2], Self::Error> {
+    fn read(&mut self) -> Result<Self::Reading, Self::Error> {
         let mut r = self.plant.read()?;
         if self.plant.time() >= self.at_s {
-            r[1] = f64::NAN;
+            r[0][1] = f64::NAN;
         }
         Ok(r)
     }
-    fn write(&mut self, c: &[f64; 4]) -> Result<[f64; 4], Self::Error> {
+    fn write(&mut self, c: &Self::Command) -> Result<Self::Command, Self::Error> {
         self.plant.write(c)
     }
-    fn truth(&self) -> pma_leg::LegState {
+    fn truth(&self) -> pma_leg::TrainerState {
         self.plant.truth()
     }
     fn stop(&mut self) {

@@ -156,7 +156,7 @@ fn the_patient_model_allocates_nothing_per_substep() {
         let loaded = pma_leg::Scenario::load(scenario).expect("scenario");
         let sim = pma_leg::LegSim::new(&loaded).expect("sim");
         let mut patient = sim.plant().patient().expect("a patient").clone();
-        let h = sim.leg().substep_s();
+        let h = sim.exo().substep_s();
         let substeps = (60.0 / h) as u64;
         // As a run does: every spasm drawn before the loop.
         patient.plan(60.0);
@@ -180,8 +180,11 @@ fn the_patient_model_allocates_nothing_per_substep() {
     }
 }
 
-impl Recorder<pma_leg::SupervisedLeg, pma_leg::LegOutput> for Counter {
-    fn record(&mut self, _: &Period<'_, pma_leg::SupervisedLeg, pma_leg::LegOutput>) {
+impl Recorder<pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutput>> for Counter {
+    fn record(
+        &mut self,
+        _: &Period<'_, pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutput>>,
+    ) {
         self.tick();
     }
 }
@@ -192,8 +195,11 @@ struct Attributing {
     periods: u64,
 }
 
-impl Recorder<pma_leg::SupervisedLeg, pma_leg::LegOutput> for Attributing {
-    fn record(&mut self, _: &Period<'_, pma_leg::SupervisedLeg, pma_leg::LegOutput>) {
+impl Recorder<pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutput>> for Attributing {
+    fn record(
+        &mut self,
+        _: &Period<'_, pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutput>>,
+    ) {
         self.periods += 1;
         if self.periods == 100 {
             CLASSIFY.with(|c| c.set(true));
@@ -215,15 +221,16 @@ fn the_leg_loop_allocates_nothing_but_what_rapier_allocates_itself() {
     // mass matrix, the contact graph; its list of changed bodies is taken each step and
     // refilled by the next `RigidBodySet::get_mut`): about 11 allocations a substep.
     // Everything around it (muscles, valves, controllers, the patient, the belt, the
-    // harness, the other leg, the recorders) must add none: each allocation of 300
-    // periods is attributed by its backtrace.
+    // harness, the other leg, the recorders, `simulate --plot`'s gait-cycle bins) must add
+    // none: each allocation of 300 periods is attributed by its backtrace.
     for scenario in ["gait_spastic", "gait_treadmill_spastic"] {
         let loaded = pma_leg::Scenario::load(scenario).expect("scenario");
         let mut sim = pma_leg::LegSim::new(&loaded).expect("sim");
         let mut counter = Attributing::default();
+        let mut cycles = pma_exo::strides::GaitCycles::new(&sim, 0.0).expect("gait cycles");
         OURS.with(|c| c.set(0));
         RAPIERS.with(|c| c.set(0));
-        let result = sim.run(0.4, &mut counter);
+        let result = sim.run(0.4, &mut (&mut counter, &mut cycles));
         CLASSIFY.with(|c| c.set(false));
         result.expect("run");
         assert_eq!(counter.periods, 400, "{scenario}");

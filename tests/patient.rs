@@ -6,7 +6,7 @@ use pma_leg::gait::GaitReference;
 use pma_leg::patient::{
     JointPatientSettings, PatientSettings, PatientTorques, SpasticityPreset, SpasticitySettings,
 };
-use pma_leg::{LegOutput, LegReport, LegSim, Patient, Scenario, SupervisedLeg, Vented};
+use pma_leg::{LegOutput, LegReport, LegSim, Patient, PerLeg, Scenario, SupervisedLeg, Vented};
 use pma_loop::{FnRecorder, LoopSettings, Period};
 use pma_studies::pendulum::{self, PendulumSetup};
 
@@ -30,8 +30,8 @@ fn run(
     let config = pma_leg::gains::leg_gains(kind).expect("gains");
     let mut sim = LegSim::with_controller(&loaded, &config).expect("sim");
     let mut peak = [0.0f64; 2];
-    let mut rec = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
-        let tau = part(&p.truth.patient);
+    let mut rec = FnRecorder(|p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>| {
+        let tau = part(&p.truth.legs[0].patient);
         for j in 0..2 {
             peak[j] = peak[j].max(tau[j].abs());
         }
@@ -49,7 +49,7 @@ fn every_controller_for_60_s(scenario: &str, part: fn(&PatientTorques) -> [f64; 
             "{scenario} {kind}: hip RMS {:.3} deg, knee RMS {:.3} deg, patient knee RMS {:.2} N m, {} spasms",
             r.joints["hip"].rms_deg,
             r.joints["knee"].rms_deg,
-            r.patient.knee.torque_rms_nm,
+            r.patient.joints["knee"].torque_rms_nm,
             r.spasms.len()
         );
         assert!(r.finite, "{scenario} {kind}: non-finite");
@@ -120,7 +120,7 @@ fn patient(settings: &PatientSettings, h_s: f64) -> Patient {
     let loaded = Scenario::load("gait_training").unwrap();
     let sim = LegSim::new(&loaded).unwrap();
     let gait = GaitReference::normative(pma_leg::gait::GaitSpeed::Slow, 1.6, 1.6).unwrap();
-    Patient::new(settings, h_s, gait, *sim.leg().inertia(), [0.5, 0.5]).unwrap()
+    Patient::new(settings, h_s, gait, *sim.exo().inertia(), [0.5, 0.5]).unwrap()
 }
 
 #[test]
@@ -216,9 +216,9 @@ fn assisting_at_100_percent_with_vented_muscles_follows_the_reference() {
     let duration = loaded.scenario.gait.ramp_s + stride;
     let mut task = Vented::gait(sim.gait_reference().unwrap());
     let (mut sq, mut n, mut worst) = (0.0, 0usize, 0.0f64);
-    let mut rec = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
+    let mut rec = FnRecorder(|p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>| {
         for j in 0..2 {
-            let e = (p.output.reference_rad[j] - p.truth.angle_rad[j]).to_degrees();
+            let e = (p.output[0].reference_rad[j] - p.truth.legs[0].angle_rad[j]).to_degrees();
             sq += e * e;
             n += 1;
             worst = worst.max(e.abs());

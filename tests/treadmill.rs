@@ -1,165 +1,8 @@
-//! The treadmill through the binary and against MuJoCo (issue 19): `simulate` on the belt,
-//! `size`, bad `[treadmill]` input, the controllers on the sized leg, and the static stance
-//! against MuJoCo's on the same URDF (the vertical ground reaction, its split between heel
-//! and ball, the holding torques). MuJoCo's figures come from `python3
-//! tools/mujoco/stance.py --json > tools/mujoco/stance.json` (MuJoCo 4.0.0 from PyPI;
-//! tools/mujoco/README.md); this test needs only the file, CI checks it is current.
-use pma_leg::config::{JointSettings, EMBEDDED_FOOT_URDF};
-use pma_leg::ground::{Contralateral, TreadmillSettings};
-use pma_leg::Leg;
-
-const PERIOD_S: f64 = 1e-3;
-/// Fore-aft distance between the foot's heel and ball spheres (m).
-const SPHERES_APART_M: f64 = 0.17;
-
-/// One MuJoCo case.
-struct Case {
-    q: [f64; 2],
-    bws: f64,
-    body_mass_kg: f64,
-    vertical_n: f64,
-    heel_n: f64,
-    ball_n: f64,
-    torque_nm: [f64; 2],
-}
-
-fn mujoco_cases() -> Vec<Case> {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tools/mujoco/stance.json");
-    let text = std::fs::read_to_string(path).expect("tools/mujoco/stance.json");
-    let json: serde_json::Value = serde_json::from_str(&text).expect("JSON");
-    assert!(json["urdf"]
-        .as_str()
-        .unwrap()
-        .ends_with("exo_leg_foot.urdf"));
-    json["cases"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| {
-            let f = |k: &str| c[k].as_f64().unwrap();
-            Case {
-                q: [f("hip_deg").to_radians(), f("knee_deg").to_radians()],
-                bws: f("bws_fraction"),
-                body_mass_kg: f("body_mass_kg"),
-                vertical_n: f("vertical_n"),
-                heel_n: f("heel_vertical_n"),
-                ball_n: f("ball_vertical_n"),
-                torque_nm: [f("hip_torque_nm"), f("knee_torque_nm")],
-            }
-        })
-        .collect()
-}
-
-/// What the rapier leg does standing at `c`'s pose: total, heel and ball vertical force
-/// (N) and the holding torques (N m), averaged over the last half second of four.
-fn rapier_stance(c: &Case) -> (f64, f64, f64, [f64; 2]) {
-    let t = TreadmillSettings {
-        speed_m_per_s: Some(0.0),
-        contralateral: Contralateral::None,
-        ..TreadmillSettings::new(c.bws, c.body_mass_kg)
-    };
-    let j = JointSettings {
-        damping_nm_s_per_rad: 0.0,
-        friction_nm: 0.0,
-    };
-    let mut l = Leg::on_treadmill(
-        EMBEDDED_FOOT_URDF,
-        "exo_leg_foot.urdf",
-        [j, j],
-        PERIOD_S,
-        2,
-        &t,
-    )
-    .unwrap();
-    l.set_state(c.q, [0.0, 0.0]);
-    l.rest_on_belt();
-    // A stiff servo with integral action: the pose exact at rest, as MuJoCo's corrected
-    // set-point holds it.
-    let (kp, kd, ki) = (2.0e4, 150.0, 4.0e4);
-    let mut integral = [0.0; 2];
-    let mut sums = (0.0, 0.0, 0.0, [0.0; 2]);
-    let periods = 4000;
-    for k in 0..periods {
-        let mut applied = [0.0; 2];
-        l.step(|l, _| {
-            let (q, qd) = (l.angles(), l.velocities());
-            applied = std::array::from_fn(|i| {
-                integral[i] += (c.q[i] - q[i]) * PERIOD_S;
-                kp * (c.q[i] - q[i]) - kd * qd[i] + ki * integral[i]
-            });
-            applied
-        });
-        if k >= periods - 500 {
-            let g = l.ground().unwrap();
-            let (mut heel, mut ball) = (0.0, 0.0);
-            for (s, contact) in g.spheres().iter().zip(g.sphere_contacts()) {
-                let f = contact.map_or(0.0, |c| c.force_n[2]);
-                if s.center_m[0] < 0.0 {
-                    heel += f;
-                } else {
-                    ball += f;
-                }
-            }
-            sums.0 += heel + ball;
-            sums.1 += heel;
-            sums.2 += ball;
-            sums.3[0] += applied[0];
-            sums.3[1] += applied[1];
-        }
-    }
-    let n = 500.0;
-    (sums.0 / n, sums.1 / n, sums.2 / n, sums.3.map(|v| v / n))
-}
-
-#[test]
-fn a_static_stance_splits_and_holds_the_weight_as_mujoco_does() {
-    let cases = mujoco_cases();
-    assert_eq!(cases.len(), 12);
-    for c in &cases {
-        let (total, heel, ball, torque) = rapier_stance(c);
-        let share = |h: f64, t: f64| 100.0 * h / t;
-        eprintln!(
-            "hip {:.2} knee {:.2} deg, bws {:.1}: vertical {total:.2} vs MuJoCo {:.2} N ({:+.3} %); heel {:.2} % vs {:.2} % of it; hip {:.2} vs {:.2} N m ({:+.2} %), knee {:.2} vs {:.2} N m ({:+.2} %)",
-            c.q[0].to_degrees(),
-            c.q[1].to_degrees(),
-            c.bws,
-            c.vertical_n,
-            100.0 * (total - c.vertical_n) / c.vertical_n,
-            share(heel, total),
-            share(c.heel_n, c.vertical_n),
-            torque[0],
-            c.torque_nm[0],
-            100.0 * (torque[0] - c.torque_nm[0]) / c.torque_nm[0],
-            torque[1],
-            c.torque_nm[1],
-            100.0 * (torque[1] - c.torque_nm[1]) / c.torque_nm[1],
-        );
-        assert!((total - c.vertical_n).abs() < 0.01 * c.vertical_n);
-        // The split between heel and ball within 2 % of the load.
-        assert!(
-            (heel - c.heel_n).abs() < 0.02 * c.vertical_n,
-            "heel {heel} vs {}",
-            c.heel_n
-        );
-        assert!(
-            (ball - c.ball_n).abs() < 0.02 * c.vertical_n,
-            "ball {ball} vs {}",
-            c.ball_n
-        );
-        // The holding torques within 1 %, once the split's own difference is allowed for:
-        // load moved from one sphere to the other moves its moment by their 0.17 m apart
-        // (Hertz spheres sink 30 mm under 868 N, so the lifted sphere of a tilted foot
-        // still touches; MuJoCo's stiffer contact sinks 2.6 mm).
-        let from_split = SPHERES_APART_M * (ball - c.ball_n).abs();
-        for (j, (ours, theirs)) in torque.iter().zip(c.torque_nm).enumerate() {
-            let allowed = 0.01 * theirs.abs() + from_split;
-            assert!(
-                (ours - theirs).abs() < allowed,
-                "joint {j}: {ours} vs {theirs} (allowed {allowed})"
-            );
-        }
-    }
-}
+//! The two-leg gait trainer through the binary (issue 27): `simulate` on the belt reports
+//! each foot, the pelvis and both legs' safety; `size` recommends muscles the scenario then
+//! runs on; bad `[treadmill]` and `[gait]` input is a one-line error naming the field; the
+//! controllers walk both legs. The physics of the trainer is checked in
+//! `crates/pma-leg/tests/treadmill.rs`.
 
 fn pma_exo(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_pma-exo"))
@@ -180,32 +23,40 @@ fn json_of(args: &[&str]) -> serde_json::Value {
 }
 
 fn temp_dir(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("pma-exo-treadmill-{name}-{}", std::process::id()));
+    let d = std::env::temp_dir().join(format!("pma-exo-trainer-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
     d
 }
 
-/// `gait_treadmill` in `dir`, with `extra` after its `[treadmill]` section's
-/// `body_mass_kg` line and `top` after `physics_substeps`.
-fn treadmill_scenario(dir: &std::path::Path, extra: &str, top: &str) -> std::path::PathBuf {
-    let base = include_str!("../crates/pma-leg/models/scenarios/gait_treadmill.toml");
-    let text = base
-        .replace(
-            "body_mass_kg = 75.0",
-            &format!("body_mass_kg = 75.0\n{extra}"),
-        )
-        .replacen(
-            "physics_substeps = 1",
-            &format!("physics_substeps = 1\n{top}"),
-            1,
-        );
-    let path = dir.join("scenario.toml");
+const SCENARIO: &str = include_str!("../crates/pma-leg/models/scenarios/gait_treadmill.toml");
+
+/// `gait_treadmill` in `dir` as `name`, with each `(from, to)` replaced once (every `from`
+/// must be in the file, so a renamed field fails here rather than testing nothing).
+fn scenario_with(dir: &std::path::Path, name: &str, edits: &[(&str, &str)]) -> std::path::PathBuf {
+    let mut text = SCENARIO.to_owned();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{from} not in gait_treadmill.toml");
+        text = text.replacen(from, to, 1);
+    }
+    let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
     path
 }
 
+/// Runs `simulate` on `path`, asserts it failed with one line naming `needle`.
+fn assert_refused(path: &std::path::Path, needle: &str) {
+    let out = pma_exo(&["simulate", path.to_str().unwrap(), "--duration", "4"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{needle}: succeeded");
+    assert_eq!(err.trim_end().lines().count(), 1, "{needle}: {err}");
+    assert!(
+        err.contains(needle) && !err.contains("panicked"),
+        "{needle}: {err}"
+    );
+}
+
 #[test]
-fn simulate_on_the_treadmill_reports_the_phases_the_ground_and_the_safety() {
+fn simulate_two_legs_reports_each_foot_the_pelvis_and_both_legs_safety() {
     let dir = temp_dir("simulate");
     let csv = dir.join("run.csv");
     let v = json_of(&[
@@ -218,84 +69,151 @@ fn simulate_on_the_treadmill_reports_the_phases_the_ground_and_the_safety() {
         csv.to_str().unwrap(),
     ]);
     let t = &v["treadmill"];
-    // 6.4 s: the start-up stride, then whole strides after the first.
-    assert!(t["strides"].as_u64().unwrap() >= 2, "{t}");
-    let peak = t["peak_grf_bw"]["mean"].as_f64().unwrap();
-    assert!((0.5..2.0).contains(&peak), "{t}");
-    let stance = t["stance_fraction"]["mean"].as_f64().unwrap();
-    assert!((0.4..0.8).contains(&stance), "{t}");
-    for j in ["hip", "knee"] {
-        assert!(
-            t["tracking"][j]["stance_rms_deg"].as_f64().unwrap() < 2.0,
-            "{t}"
-        );
-        assert!(t["heel_strikes"][j]["count"].as_u64().unwrap() >= 2, "{t}");
-        let l = &v["safety"]["joints"][j];
-        assert_eq!(l["time_beyond_normal_range_s"].as_f64(), Some(0.0), "{l}");
+    assert_eq!(t["legs"].as_u64(), Some(2), "{t}");
+    // The belt carries the patient less the harness's share, plus the exoskeleton; over
+    // whole strides the mean is that within the trainer's vertical motion.
+    let load = t["mean_belt_load_bw"].as_f64().unwrap();
+    let expected = t["expected_belt_load_bw"].as_f64().unwrap();
+    assert!((load / expected - 1.0).abs() < 0.03, "{load} vs {expected}");
+    for side in ["right", "left"] {
+        let f = &t["feet"][side];
+        assert!(f["strides"].as_u64().unwrap() >= 2, "{side}: {f}");
+        // Each foot's stance within 5 points of the adults' (67.5 %).
+        let stance = f["stance_fraction"]["mean"].as_f64().unwrap();
+        let reference = f["reference_stance_fraction"].as_f64().unwrap();
+        assert!((stance - reference).abs() < 0.05, "{side}: {stance}");
+        let peak = f["peak_grf_bw"]["mean"].as_f64().unwrap();
+        assert!((0.5..2.0).contains(&peak), "{side}: {peak}");
+        // The passive ankle stays within its orthosis's stops (+-15 deg, 0.1 deg of
+        // contact give).
+        let [lo, hi] = [0, 1].map(|i| f["ankle_range_deg"][i].as_f64().unwrap());
+        assert!(lo > -15.1 && hi < 15.1, "{side}: {lo}..{hi}");
+        for j in ["hip", "knee"] {
+            assert!(
+                f["tracking"][j]["stance_rms_deg"].as_f64().unwrap() < 2.0,
+                "{side} {j}: {f}"
+            );
+            let name = format!("{side}/{j}");
+            assert!(
+                v["joints"][&name]["rms_deg"].as_f64().unwrap() < 1.5,
+                "{name}"
+            );
+            let l = &v["safety"]["joints"][&name];
+            assert_eq!(l["time_outside_s"].as_f64(), Some(0.0), "{l}");
+        }
+        for m in ["hip_flexor", "hip_extensor", "knee_flexor", "knee_extensor"] {
+            let s = &v["safety"]["muscles"][format!("{side}/{m}")];
+            let rated = s["rated_force_n"].as_f64().unwrap();
+            let peak = s["peak_force_n"].as_f64().unwrap();
+            assert_eq!(s["rating"], "Festo DMSP-40", "{s}");
+            assert!((s["margin_n"].as_f64().unwrap() - (rated - peak)).abs() < 1e-6);
+        }
     }
-    for m in ["hip_flexor", "hip_extensor", "knee_flexor", "knee_extensor"] {
-        let s = &v["safety"]["muscles"][m];
-        assert_eq!(s["rated_force_n"].as_f64(), Some(6000.0), "{s}");
-        let margin = s["margin_n"].as_f64().unwrap();
-        let peak = s["peak_force_n"].as_f64().unwrap();
-        assert!((margin - (6000.0 - peak)).abs() < 1e-6, "{s}");
-    }
-    // The CSV carries the treadmill's channels.
+    // Fore-aft the harness holds the pelvis loosely: it moves with the stride, within cm.
+    let fore_aft = t["pelvis_fore_aft_excursion_m"].as_f64().unwrap();
+    assert!((0.005..0.15).contains(&fore_aft), "{fore_aft}");
+    // The CSV carries both feet and the pelvis.
     let text = std::fs::read_to_string(&csv).unwrap();
     let header = text.lines().nth(1).unwrap();
     for c in [
-        "foot_grf_vertical_n",
-        "foot_stance",
-        "other_leg_force_n",
+        "right_foot_grf_vertical_n",
+        "left_foot_grf_vertical_n",
+        "left_ankle_orthosis_torque_nm",
+        "right_hip_flexor_force_n",
+        "harness_fore_aft_n",
+        "pelvis_x_m",
         "pelvis_height_m",
     ] {
-        assert!(header.contains(c), "{header}");
+        assert!(header.split(',').any(|h| h == c), "{c} not in {header}");
     }
 }
 
 #[test]
-fn bad_treadmill_input_is_a_one_line_error_naming_the_field() {
+fn one_leg_with_a_virtual_other_leg_carries_the_same_belt_load() {
+    let v = json_of(&[
+        "simulate",
+        "gait_treadmill_one_leg",
+        "--duration",
+        "6.4",
+        "--json",
+    ]);
+    let t = &v["treadmill"];
+    assert_eq!(t["legs"].as_u64(), Some(1), "{t}");
+    assert!(t["feet"]["left"].is_null(), "{t}");
+    // The virtual leg pushes the pelvis up for half the stride's load.
+    assert!(t["mean_other_leg_bw"].as_f64().unwrap() > 0.1, "{t}");
+    let stance = t["feet"]["right"]["stance_fraction"]["mean"]
+        .as_f64()
+        .unwrap();
+    assert!((0.5..0.8).contains(&stance), "{stance}");
+}
+
+#[test]
+fn bad_trainer_input_is_a_one_line_error_naming_the_field() {
     let dir = temp_dir("bad");
     let in_air = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/crates/pma-leg/models/exo_leg.urdf"
     );
-    let no_foot = format!("urdf = \"{in_air}\"");
-    for (extra, top, needle) in [
-        ("speed_m_per_s = -0.4", "", "treadmill.speed_m_per_s"),
-        ("speed_m_per_s = 12.0", "", "treadmill.speed_m_per_s"),
+    let in_air_urdf = format!("physics_substeps = 1\nurdf = \"{in_air}\"");
+    let cases: &[(&str, &str, &str)] = &[
+        ("legs = 2", "legs = 3", "treadmill.legs"),
+        ("legs = 2", "legs = 0", "treadmill.legs"),
         (
-            "pelvis_fore_aft_n_per_m = -5.0",
-            "",
-            "treadmill.pelvis_fore_aft_n_per_m",
+            "legs = 2",
+            "legs = 2\ncontralateral = \"reference\"",
+            "treadmill.contralateral",
         ),
-        ("walking_aid = true", "", "walking_aid"),
-        ("", no_foot.as_str(), "foot"),
-    ] {
-        let path = treadmill_scenario(&dir, extra, top);
-        let out = pma_exo(&["simulate", path.to_str().unwrap(), "--duration", "4"]);
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success(), "{extra} {top}: succeeded");
-        assert_eq!(err.trim_end().lines().count(), 1, "{extra}: {err}");
-        assert!(
-            err.contains(needle) && !err.contains("panicked"),
-            "{extra}: {err}"
-        );
+        (
+            "body_mass_kg = 75.0",
+            "body_mass_kg = 5.0",
+            "treadmill.body_mass_kg",
+        ),
+        (
+            "body_mass_kg = 75.0",
+            "body_mass_kg = 75.0\nspeed_m_per_s = 12.0",
+            "treadmill.speed_m_per_s",
+        ),
+        (
+            "bws_fraction = 0.3",
+            "bws_fraction = 1.5",
+            "treadmill.bws_fraction",
+        ),
+        (
+            "body_mass_kg = 75.0",
+            "body_mass_kg = 75.0\n[treadmill.ankle]\nrange_deg = [5.0, 15.0]",
+            "treadmill.ankle.range_deg",
+        ),
+        (
+            "body_mass_kg = 75.0",
+            "body_mass_kg = 75.0\n[treadmill.ankle]\nrest_deg = 20.0",
+            "treadmill.ankle.rest_deg",
+        ),
+        (
+            "body_mass_kg = 75.0",
+            "body_mass_kg = 75.0\n[treadmill.contact]\nfriction = 1.0e6",
+            "treadmill.contact.friction",
+        ),
+        (
+            "speed_m_per_s = 0.5",
+            "speed_m_per_s = 0.9",
+            "gait.speed_m_per_s",
+        ),
+        (
+            "physics_substeps = 1",
+            &in_air_urdf,
+            "the URDF has 1 leg(s)",
+        ),
+        ("legs = 2", "legs = 2\nwalking_aid = true", "walking_aid"),
+    ];
+    for (i, (from, to, needle)) in cases.iter().enumerate() {
+        let path = scenario_with(&dir, &format!("bad{i}.toml"), &[(from, to)]);
+        assert_refused(&path, needle);
     }
-    // The support's fraction out of 0..1.
-    let text = std::fs::read_to_string(treadmill_scenario(&dir, "", ""))
-        .unwrap()
-        .replace("bws_fraction = 0.3", "bws_fraction = 1.5");
-    let path = dir.join("bws.toml");
-    std::fs::write(&path, text).unwrap();
-    let out = pma_exo(&["simulate", path.to_str().unwrap(), "--duration", "4"]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
-    assert!(err.contains("treadmill.bws_fraction"), "{err}");
 }
 
 #[test]
-fn size_recommends_muscles_the_scenario_then_runs_on() {
+fn size_recommends_muscles_the_two_legs_then_run_on() {
     let dir = temp_dir("size");
     let out = dir.join("m.toml");
     let v = json_of(&[
@@ -309,12 +227,30 @@ fn size_recommends_muscles_the_scenario_then_runs_on() {
     assert_eq!(joints.len(), 2);
     for j in joints {
         let d = &j["recommended"];
-        assert_eq!(d["size"], "DMSP-40", "{j}");
-        assert!(d["peak_force_over_rated"].as_f64().unwrap() <= 1.0, "{j}");
-        assert!(d["speed_over_useful"].as_f64().unwrap() < 1.0, "{j}");
+        assert!(d["peak_force_over_rated"].as_f64().unwrap() <= 0.9, "{j}");
+        assert!(d["speed_over_useful"].as_f64().unwrap() <= 0.9, "{j}");
     }
-    // The written geometry is a muscle file a scenario runs on.
-    let scenario = treadmill_scenario(&dir, "", "muscle_geometry = \"m.toml\"");
+    // The demand is compared with the adults' moments at the same speed, per joint.
+    let norms = v["against_norms"].as_array().unwrap();
+    assert_eq!(norms.len(), 2);
+    for (n, j) in norms.iter().zip(["hip", "knee"]) {
+        assert_eq!(n["joint"], j, "{n}");
+        // The adults' moment over a cycle, as many points as the demand's.
+        let points = n["demand_nm_kg"].as_array().unwrap().len();
+        assert_eq!(points, n["normative_nm_kg"].as_array().unwrap().len());
+        assert!(points >= 50, "{points}");
+        assert!(n["peak_demand_nm_kg"].as_f64().unwrap() > 0.0, "{n}");
+        assert!(n["peak_normative_nm_kg"].as_f64().unwrap() > 0.1, "{n}");
+    }
+    // The written geometry is a muscle file the scenario runs on.
+    let scenario = scenario_with(
+        &dir,
+        "sized.toml",
+        &[(
+            "physics_substeps = 1",
+            "physics_substeps = 1\nmuscle_geometry = \"m.toml\"",
+        )],
+    );
     let run = json_of(&[
         "simulate",
         scenario.to_str().unwrap(),
@@ -335,8 +271,9 @@ fn size_recommends_muscles_the_scenario_then_runs_on() {
 }
 
 #[test]
-fn the_controllers_walk_the_sized_leg_finite_and_near_their_limits() {
-    // 8 s of gait_treadmill per controller (the 60 s figures are in docs/treadmill.md).
+fn the_controllers_walk_both_legs_finite_and_within_their_limits() {
+    // 8 s of gait_treadmill per controller, each on its gains tuned on the two legs within
+    // the muscles' rating (the 60 s figures are in docs/treadmill.md).
     for c in ["aprc-ndo", "psmc", "ndo-smc", "sta", "pid"] {
         let v = json_of(&[
             "simulate",
@@ -348,41 +285,47 @@ fn the_controllers_walk_the_sized_leg_finite_and_near_their_limits() {
             "--json",
         ]);
         assert!(v["finite"].as_bool().unwrap(), "{c}");
-        let worst = v["safety"]["muscles"]
+        let worst = |section: &str, key: &str| {
+            v["safety"][section]
+                .as_object()
+                .unwrap()
+                .values()
+                .map(|m| m[key].as_f64().unwrap())
+                .fold(0.0, f64::max)
+        };
+        let (over, beyond) = (
+            worst("muscles", "peak_over_rated"),
+            worst("joints", "max_beyond_deg"),
+        );
+        let rms = v["joints"]
             .as_object()
             .unwrap()
             .values()
-            .map(|m| m["peak_over_rated"].as_f64().unwrap())
+            .map(|j| j["rms_deg"].as_f64().unwrap())
             .fold(0.0, f64::max);
-        let beyond = v["safety"]["joints"]
-            .as_object()
-            .unwrap()
-            .values()
-            .map(|j| j["max_beyond_deg"].as_f64().unwrap())
-            .fold(0.0, f64::max);
-        eprintln!("{c}: peak force / rating {worst:.2}, beyond the URDF limits {beyond:.2} deg");
-        assert!(beyond < 2.0, "{c}: {beyond} deg beyond a limit");
-        if c == "aprc-ndo" {
-            assert!(worst <= 1.0, "{c}: {worst}");
-            for j in ["hip", "knee"] {
-                assert!(v["joints"][j]["rms_deg"].as_f64().unwrap() < 1.5, "{c} {j}");
-            }
+        eprintln!("{c}: worst RMS {rms:.2} deg, peak force / rating {over:.2}, beyond the URDF limits {beyond:.2} deg");
+        assert!(beyond < 1.0, "{c}: {beyond} deg beyond a limit");
+        assert!(over <= 1.0, "{c}: {over} of the rating");
+        // PSMC finds no gains that track the two legs within the rating (docs/treadmill.md:
+        // its best tracks 17 / 57 deg RMS); every other controller tracks within 1.5 deg.
+        if c != "psmc" {
+            assert!(rms < 1.5, "{c}: {rms} deg RMS");
         }
     }
 }
 
 #[test]
 fn a_foot_sunk_through_the_belt_ends_the_run() {
-    // A belt a thousand times softer lets the foot sink past its spheres' size: the
-    // contact model no longer means anything, and the run fails in one line.
+    // A belt 200 times softer (the softest pad allowed) lets a foot sink past its spheres' size: the contact
+    // model no longer means anything, and the run fails in one line.
     let dir = temp_dir("sink");
-    let path = treadmill_scenario(&dir, "", "");
-    let text = std::fs::read_to_string(&path).unwrap()
-        + "\n[treadmill.contact]\nstiffness_n_per_m2 = 2.0e3\n";
-    std::fs::write(&path, text).unwrap();
-    let out = pma_exo(&["simulate", path.to_str().unwrap(), "--duration", "4"]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
-    assert!(err.contains("into the belt"), "{err}");
+    let path = scenario_with(
+        &dir,
+        "soft.toml",
+        &[(
+            "body_mass_kg = 75.0",
+            "body_mass_kg = 75.0\n[treadmill.contact]\nstiffness_n_per_m2 = 1.0e4",
+        )],
+    );
+    assert_refused(&path, "into the belt");
 }

@@ -1,6 +1,6 @@
 //! The Rerun layer: what a recording holds, decoded back in Rust from an in-memory sink.
 use pma_exo::viz;
-use pma_leg::{LegOutput, LegSample, LegSim, Scenario, SupervisedLeg};
+use pma_leg::{LegOutput, LegSample, LegSim, PerLeg, Scenario, SupervisedLeg, TrainerSample};
 use pma_loop::{FnRecorder, Period};
 use pma_viz::Viz;
 use rerun::log::{Chunk, LogMsg};
@@ -76,11 +76,11 @@ fn logged_leg_run(duration_s: f64, rate_hz: Option<f64>) -> LoggedRun {
     let every = v.decimation();
     let (mut samples, mut shank_translations) = (Vec::new(), Vec::new());
     let (mut step, mut scalars) = (0i64, vec![0.0; channels]);
-    let mut observe = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
+    let mut observe = FnRecorder(|p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>| {
         step += 1;
-        let s = LegSample::of(p);
-        samples.push(s);
-        shank_translations.push(p.backend.leg().link_pose(2).0);
+        let s = TrainerSample::of(p);
+        samples.push(s.legs[0]);
+        shank_translations.push(p.backend.exo().link_pose(2).0);
         viz::push_leg(&mut v, p.backend, &s, step, &mut scalars).unwrap();
     });
     let report = sim.run(duration_s, &mut observe).unwrap();
@@ -117,7 +117,7 @@ fn leg_recording_has_every_path_and_the_simulation_values() {
         }
     }
     let muscles = ["hip_flexor", "hip_extensor", "knee_flexor", "knee_extensor"].map(String::from);
-    let schema = LegSample::schema(&muscles);
+    let schema = LegSample::schema(&muscles, false);
     for c in &schema.channels {
         assert_eq!(series[&format!("/{}", c.path)].1.len(), 400, "{}", c.path);
     }
@@ -208,7 +208,7 @@ fn spasms_are_logged_as_events_markers_and_torque_series() {
     let mut samples = Vec::new();
     let duration = 20.0;
     let (sim, report, msgs) = recorded("gait_spasms", duration, |p| {
-        samples.push(LegSample::of(p));
+        samples.push(TrainerSample::of(p).legs[0]);
     });
     let (series, _) = decode(&msgs);
     let events = &report.spasms;
@@ -280,7 +280,7 @@ fn a_pendulum_recording_logs_what_the_test_has() {
     let channels = viz::pendulum_layout(&mut v, &sim, "# test").unwrap();
     assert_eq!(channels, PendulumSample::schema().len());
     let mut samples = Vec::new();
-    let mut keep = FnRecorder(|p: &Period<'_, SupervisedLeg, LegOutput>| {
+    let mut keep = FnRecorder(|p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>| {
         samples.push(PendulumSample::of(p, damping));
     });
     let mut rec = viz::VizRecorder::pendulum(v, channels, damping);
@@ -342,7 +342,7 @@ fn a_rig_fault_and_its_vent_are_logged_as_an_event() {
 fn recorded(
     scenario: &str,
     duration_s: f64,
-    keep: impl FnMut(&Period<'_, SupervisedLeg, LegOutput>),
+    keep: impl FnMut(&Period<'_, SupervisedLeg, PerLeg<LegOutput>>),
 ) -> (LegSim, pma_leg::LegReport, Vec<LogMsg>) {
     let loaded = Scenario::load(scenario).unwrap();
     let mut sim = LegSim::new(&loaded).unwrap();
@@ -383,24 +383,26 @@ fn a_treadmill_recording_shows_the_belt_the_contacts_the_grf_and_the_phases() {
     let mut samples = Vec::new();
     let mut shank = Vec::new();
     let (sim, _, msgs) = recorded("gait_treadmill", 3.0, |p| {
-        samples.push(LegSample::of(p));
-        let leg = p.backend.leg();
-        let i = leg.link_names().position(|n| n == "shank").unwrap();
-        shank.push(leg.link_pose(i).0.map(|x| x as f32));
+        samples.push(TrainerSample::of(p));
+        let exo = p.backend.exo();
+        let i = exo.link_names().position(|n| n == "right_shank").unwrap();
+        shank.push(exo.link_pose(i).0.map(|x| x as f32));
     });
     let (series, rows) = decode(&msgs);
     // The belt (static), its stripes (moving with it), the contacts and the force arrow.
     assert!(rows.contains_key("/world/belt"));
     for path in [
         "/world/belt_stripes",
-        "/world/foot_on_belt/grf",
-        "/world/foot_on_belt/contacts",
+        "/world/right_foot_on_belt/grf",
+        "/world/right_foot_on_belt/contacts",
+        "/world/left_foot_on_belt/grf",
+        "/world/left_foot_on_belt/contacts",
     ] {
         assert_eq!(rows[path], 3000, "{path}");
     }
     // The stripes travel backwards at the belt's speed, wrapping every 0.2 m.
     let stripes = logged_translations(&msgs, "/world/belt_stripes");
-    let speed = sim.leg().ground().unwrap().settings().belt_speed_m_s();
+    let speed = sim.exo().ground().unwrap().settings().belt_speed_m_s();
     let (a, b) = (stripes[2000][0], stripes[2010][0]);
     let moved = f64::from(a - b).rem_euclid(0.2);
     assert!(
@@ -408,25 +410,28 @@ fn a_treadmill_recording_shows_the_belt_the_contacts_the_grf_and_the_phases() {
         "{moved} vs {}",
         speed * 0.01
     );
-    // Every link where the simulation had it, the treadmill's five links included.
-    assert_eq!(logged_translations(&msgs, "/world/shank"), shank);
-    // The phases and the ground reaction as series, the simulation's own values.
-    let stance = &series["/ground/foot/stance"].1;
-    let grf = &series["/ground/foot/grf_vertical_n"].1;
-    assert_eq!(stance.len(), 3000);
-    assert!(stance.contains(&0.0) && stance.contains(&1.0));
-    for (k, s) in samples.iter().enumerate() {
-        let (g, _, _) = s.ground.unwrap();
-        assert_eq!(grf[k], g.vertical_n);
-        assert_eq!(
-            stance[k] == 1.0,
-            g.vertical_n > pma_leg::stance::CONTACT_THRESHOLD_N
-        );
+    // Every link where the simulation had it, both legs' included.
+    assert_eq!(logged_translations(&msgs, "/world/right_shank"), shank);
+    // The phases and the ground reaction as series, the simulation's own values, per leg.
+    for (leg, side) in ["right", "left"].iter().enumerate() {
+        let stance = &series[&format!("/{side}/ground/foot/stance")].1;
+        let grf = &series[&format!("/{side}/ground/foot/grf_vertical_n")].1;
+        assert_eq!(stance.len(), 3000);
+        assert!(stance.contains(&0.0) && stance.contains(&1.0), "{side}");
+        for (k, s) in samples.iter().enumerate() {
+            let g = s.legs[leg].foot.unwrap().reaction;
+            assert_eq!(grf[k], g.vertical_n);
+            assert_eq!(
+                stance[k] == 1.0,
+                g.vertical_n > pma_leg::stance::CONTACT_THRESHOLD_N
+            );
+        }
     }
+    let stance = &series["/right/ground/foot/stance"].1;
     // The arrow is the force at the last substep, 1 kN to half a metre, upwards in stance.
     let arrows = logged_vectors(
         &msgs,
-        "/world/foot_on_belt/grf",
+        "/world/right_foot_on_belt/grf",
         rerun::Arrows3D::descriptor_vectors().component,
     );
     assert_eq!(arrows.len(), 3000);

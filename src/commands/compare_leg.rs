@@ -9,7 +9,7 @@ use pma_studies::compare::{compare, CompareRow};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-/// The controllers compared, each with its leg gain file.
+/// The controllers compared, each with the scenario's gains for it (`pma_leg::gains::scenario_gains`).
 pub const COMPARED: [ControllerKind; 5] = [
     ControllerKind::AprcNdo,
     ControllerKind::Psmc,
@@ -57,15 +57,20 @@ pub fn run(a: Args) -> Result<i32> {
     for s in &scenarios {
         s.scenario.check_run_duration(a.duration)?;
     }
-    let controllers = COMPARED
+    let controllers: Vec<Vec<ControllerConfig>> = scenarios
         .iter()
-        .map(|k| pma_leg::gains::leg_gains(*k))
-        .collect::<Result<Vec<ControllerConfig>, _>>()?;
+        .map(|s| {
+            COMPARED
+                .iter()
+                .map(|k| pma_leg::gains::scenario_gains(s, *k))
+                .collect::<Result<Vec<ControllerConfig>, _>>()
+        })
+        .collect::<Result<_, _>>()?;
     let periods = scenarios
         .iter()
         .map(|s| a.duration / s.scenario.period_s)
         .sum::<f64>()
-        * controllers.len() as f64;
+        * COMPARED.len() as f64;
     crate::output::check_wall_time(
         "this comparison",
         periods,
@@ -89,7 +94,7 @@ pub fn run(a: Args) -> Result<i32> {
     let md_file = OutFile::create(&a.out.join("compare-leg.md"))?;
     static DONE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let bar =
-        crate::output::follow_progress(&DONE, (scenarios.len() * controllers.len()) as u64, "runs");
+        crate::output::follow_progress(&DONE, (scenarios.len() * COMPARED.len()) as u64, "runs");
     let mut rows = super::with_threads(a.threads, || {
         compare(&scenarios, &controllers, a.duration, Some(&DONE))
     })??;
@@ -99,7 +104,7 @@ pub fn run(a: Args) -> Result<i32> {
     for (row, label) in rows.iter_mut().zip(
         a.scenarios
             .iter()
-            .flat_map(|s| std::iter::repeat_n(s, controllers.len())),
+            .flat_map(|s| std::iter::repeat_n(s, COMPARED.len())),
     ) {
         row.scenario.clone_from(label);
     }
@@ -119,7 +124,7 @@ pub fn run(a: Args) -> Result<i32> {
                 .collect::<Vec<_>>()
                 .join(","),
         ),
-        gains: Some("shipped leg gains (crates/pma-leg/models/gains)".into()),
+        gains: Some(gain_sets(&a.scenarios, &scenarios)),
         patient: Some("each scenario's".into()),
         ..crate::provenance::Provenance::of_this_run()
     };
@@ -197,10 +202,26 @@ fn draw_bars(dir: &std::path::Path, rows: &[CompareRow], command: &str) -> Resul
     })
 }
 
+/// Which shipped gain set each scenario's controllers took (APRC-NDO: the scenario's own).
+fn gain_sets(args: &[String], scenarios: &[pma_leg::LoadedScenario]) -> String {
+    let each: Vec<String> = args
+        .iter()
+        .zip(scenarios)
+        .map(|(arg, s)| {
+            let set = s.scenario.control.gain_set;
+            format!("{arg}: {} set ({})", set.as_str(), set.directory())
+        })
+        .collect();
+    format!(
+        "APRC-NDO the scenario's own, the others {}",
+        each.join(", ")
+    )
+}
+
 /// One Markdown table per scenario, and on a treadmill a second one of its gait phases.
 pub fn report(rows: &[CompareRow], duration_s: f64) -> String {
     let mut md = format!(
-        "# Controllers on the leg with a patient ({duration_s} s per run, gains tuned on gait_training with the same budget)\n"
+        "# Controllers on the leg with a patient ({duration_s} s per run, each scenario's gain set, tuned with the same budget)\n"
     );
     let mut scenarios: Vec<&str> = Vec::new();
     for r in rows {

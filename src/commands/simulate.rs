@@ -5,7 +5,8 @@ use crate::provenance::{Provenance, Seeds};
 use crate::say;
 use anyhow::Result;
 use pma_control::{ControllerConfig, ControllerKind};
-use pma_leg::{LegReport, LegSample, LegSim, Scenario};
+use pma_exo::strides::GaitCycles;
+use pma_leg::{LegReport, LegSim, Scenario, TrainerSample};
 use std::path::PathBuf;
 
 /// Estimated wall time of one leg period (release build, with margin).
@@ -30,9 +31,11 @@ pub struct Args {
     /// Run even if it would take over an hour.
     #[arg(long)]
     yes: bool,
-    /// Draw the run into this directory (`leg.png`: angles over their references, tracking
-    /// errors, patient torques, pressures and forces against their limits, spasms shaded;
-    /// on a treadmill the ground reaction and the pelvis's height too).
+    /// Draw the run into this directory: `leg.png` over time (angles over their references,
+    /// tracking errors, patient torques, pressures and forces against their limits, spasms
+    /// shaded; on a treadmill the ground reaction and the pelvis's height too; a long run's
+    /// last four strides) and `strides.png` over the gait cycle (every leg's joints and
+    /// tracking errors, on a treadmill each foot's ground reaction against the norm).
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
     #[command(flatten)]
@@ -75,14 +78,19 @@ pub fn run(a: Args) -> Result<i32> {
     let periods = settings.periods(sc.period_s)?;
     output::check_wall_time("this simulation", periods as f64, LEG_PERIOD_S, a.yes)?;
     let names: Vec<String> = sim
-        .muscles()
+        .plant()
+        .leg_muscles(0)
         .iter()
         .map(|m| m.geometry.name.clone())
         .collect();
-    let plot_file = a.plot.as_ref().map(|dir| dir.join("leg.png"));
+    let plot_files = a
+        .plot
+        .as_ref()
+        .map(|dir| (dir.join("leg.png"), dir.join("strides.png")));
     let mut outputs = a.output.files();
-    if let Some(png) = &plot_file {
-        outputs.push(("--plot", png));
+    if let Some((leg, strides)) = &plot_files {
+        outputs.push(("--plot", leg));
+        outputs.push(("--plot", strides));
     }
     output::refuse_input_as_output(
         &super::scenario_inputs(&a.scenario, &loaded, a.gains.as_deref()),
@@ -93,8 +101,9 @@ pub fn run(a: Args) -> Result<i32> {
         .csv
         .as_deref()
         .map(|p| {
-            let schema = LegSample::schema_of(&names, sim.leg().ground().is_some());
-            SampleCsv::create(p, &schema, LegSample::of, &provenance)
+            let schema =
+                TrainerSample::schema(&names, sim.leg_count(), sim.exo().ground().is_some());
+            SampleCsv::create(p, &schema, TrainerSample::of, &provenance)
         })
         .transpose()?;
     let meta = format!(
@@ -102,7 +111,7 @@ pub fn run(a: Args) -> Result<i32> {
         sc.name,
         provenance.line(),
         sc.description,
-        sc.gait.speed,
+        sc.gait.speed_label(),
         sc.gait.stride_period_s,
         sc.control.cocontraction_pa / 1e5,
         config.kind(),
@@ -116,10 +125,12 @@ pub fn run(a: Args) -> Result<i32> {
     }
     let trace = a.plot.as_ref().map(|_| {
         let mut t = Trace::with_capacity(periods);
-        if let Some(g) = sim.leg().ground() {
+        if let Some(g) = sim.exo().ground() {
             let n = (periods / 10 + 2) as usize;
             t.0.ground = Some(crate::plot::GroundTrace {
-                foot_n: Vec::with_capacity(n),
+                foot_n: (0..sim.leg_count())
+                    .map(|_| Vec::with_capacity(n))
+                    .collect(),
                 other_leg_n: Vec::with_capacity(n),
                 pelvis_m: Vec::with_capacity(n),
                 unsupported_n: g.unsupported_weight_n(),
@@ -127,15 +138,29 @@ pub fn run(a: Args) -> Result<i32> {
         }
         t
     });
+    // The same samples as the report's tracking figures: after the first stride.
+    let cycles = a
+        .plot
+        .as_ref()
+        .map(|_| GaitCycles::new(&sim, sc.gait.stride_period_s))
+        .transpose()?;
+    let norm = match a.plot {
+        Some(_) => norm_grf(sc)?,
+        None => None,
+    };
     let stop = output::stop_flag()?;
     let settings = settings.with_stop_flag(&stop);
-    let mut recorders = (csv, viz, progress, trace);
+    let mut recorders = (csv, viz, progress, trace, cycles);
     let report = sim.run_with(&settings, &mut recorders);
     bar.finish_and_clear();
     let report = report?;
-    let (csv, viz, _, trace) = recorders;
-    if let (Some(path), Some(mut trace)) = (&plot_file, trace) {
+    let (csv, viz, _, trace, cycles) = recorders;
+    if let (Some((path, strides_path)), Some(mut trace), Some(cycles)) =
+        (&plot_files, trace, cycles)
+    {
         trace.0.muscles = names.clone();
+        trace.0.legs = sim.leg_count();
+        trace.0.stride_s = sc.gait.stride_period_s;
         trace.0.pressure_max_bar = sc.plant.valve.pressure_max_pa / 1e5;
         // One mark for the four: the lowest rating, which every force is held against.
         trace.0.rated_force_n = sim
@@ -146,14 +171,36 @@ pub fn run(a: Args) -> Result<i32> {
         trace.0.spasms = report
             .spasms
             .iter()
-            .map(|e| (usize::from(e.joint == "knee"), e.t_s, e.t_s + e.duration_s))
+            .filter(|e| !e.joint.starts_with("left/"))
+            .map(|e| {
+                (
+                    usize::from(e.joint.ends_with("knee")),
+                    e.t_s,
+                    e.t_s + e.duration_s,
+                )
+            })
             .collect();
         crate::plot::register_font()?;
         let title = format!("{}: {} on every muscle", sc.name, config.kind());
+        let leg_title = if sim.leg_count() > 1 {
+            format!("{title} ({} leg)", pma_leg::SIDES[0])
+        } else {
+            title.clone()
+        };
         output::write_via_temp(path, |tmp| {
-            crate::plot::leg_run(tmp, &title, &provenance.command, &trace.0)
+            crate::plot::leg_run(tmp, &leg_title, &provenance.command, &trace.0)
         })?;
         output::wrote(path);
+        let figure = crate::plot::StrideFigure {
+            cycles: &cycles,
+            norm_grf: norm,
+            treadmill: sc.treadmill.is_some(),
+        };
+        let title = format!("{title}, over the gait cycle");
+        output::write_via_temp(strides_path, |tmp| {
+            crate::plot::strides_run(tmp, &title, &provenance.command, &figure)
+        })?;
+        output::wrote(strides_path);
     }
     let non_finite =
         (!report.finite).then(|| format!("the simulation (scenario {})", report.scenario));
@@ -173,6 +220,27 @@ pub fn run(a: Args) -> Result<i32> {
         return Ok(INTERRUPTED);
     }
     Ok(0)
+}
+
+/// The adult data's vertical ground reaction at the scenario's speed, scaled by the
+/// body-weight support, for a treadmill on the adult reference (Fukuchi et al. 2018).
+fn norm_grf(sc: &Scenario) -> Result<Option<crate::plot::NormGrf>> {
+    let (Some(t), pma_leg::gait::GaitData::Fukuchi2018, Some(speed)) =
+        (&sc.treadmill, sc.gait.data, sc.gait.speed_m_per_s)
+    else {
+        return Ok(None);
+    };
+    let norms = pma_leg::gait::AdultNorms::at(speed)?;
+    let scale = 1.0 - t.bws_fraction;
+    let scaled = |v: &[f64]| v.iter().map(|x| x * scale).collect();
+    Ok(Some(crate::plot::NormGrf {
+        mean_bw: scaled(&norms.curves.grf_vertical_bw),
+        sd_bw: scaled(&norms.sd.grf_vertical_bw),
+        label: format!(
+            "adults' mean (Fukuchi 2018, {:.2} m/s, {} subjects) x (1 - {:.2} body-weight support)",
+            norms.speed_m_s, norms.subjects, t.bws_fraction
+        ),
+    }))
 }
 
 /// Every 10th period of a leg run, for `--plot`.
@@ -195,12 +263,16 @@ impl Trace {
     }
 }
 
-impl pma_loop::Recorder<pma_leg::SupervisedLeg, pma_leg::LegOutput> for Trace {
-    fn record(&mut self, p: &pma_loop::Period<'_, pma_leg::SupervisedLeg, pma_leg::LegOutput>) {
+impl pma_loop::Recorder<pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutput>> for Trace {
+    /// Every 10th period: the first leg's joints and muscles, every foot's ground reaction.
+    fn record(
+        &mut self,
+        p: &pma_loop::Period<'_, pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutput>>,
+    ) {
         if !p.index.is_multiple_of(10) {
             return;
         }
-        let (s, o, t) = (p.truth, p.output, &mut self.0);
+        let (s, o, t) = (&p.truth.legs[0], &p.output[0], &mut self.0);
         t.t_s.push(p.t_s);
         for (j, torque) in s.patient.total().into_iter().enumerate() {
             t.reference_deg[j].push(o.reference_rad[j].to_degrees());
@@ -211,10 +283,12 @@ impl pma_loop::Recorder<pma_leg::SupervisedLeg, pma_leg::LegOutput> for Trace {
             t.pressure_bar[i].push(p / 1e5);
             t.force_n[i].push(*f);
         }
-        if let (Some(g), Some(r)) = (&mut t.ground, s.ground) {
-            g.foot_n.push(r.vertical_n);
+        if let (Some(g), Some(r)) = (&mut t.ground, p.truth.ground) {
+            for (foot, f) in g.foot_n.iter_mut().zip(r.feet.iter()) {
+                foot.push(f.vertical_n);
+            }
             g.other_leg_n.push(r.contralateral_n);
-            g.pelvis_m.push(s.pelvis_height_m.unwrap_or(f64::NAN));
+            g.pelvis_m.push(p.truth.pelvis_m.map_or(f64::NAN, |p| p[1]));
         }
     }
 }
@@ -261,19 +335,20 @@ pub fn patient_name(loaded: &pma_leg::LoadedScenario) -> String {
     format!("hip {}, knee {}", joint(&p.hip), joint(&p.knee))
 }
 
-/// The controller of every muscle: the scenario's APRC-NDO by default, a gain file, or
-/// the controller's gains tuned for the leg (`crates/pma-leg/models/gains/`).
+/// The controller of every muscle: a gain file, or the scenario's gains for the controller
+/// (its own APRC-NDO gains for APRC-NDO, the default, and APRC; its gain set's for the
+/// others: `pma_leg::gains::scenario_gains`). One name, one gain set.
 pub fn leg_config(
     kind: Option<ControllerKind>,
     gains: Option<&std::path::Path>,
     loaded: &pma_leg::LoadedScenario,
 ) -> Result<ControllerConfig> {
     Ok(match (kind, gains) {
-        (None, _) => pma_leg::gains::base_config(loaded, ControllerKind::AprcNdo),
-        (Some(k), Some(path)) => super::load_gains(k, Some(path))?,
-        // APRC has no leg gain file of its own: the scenario's APRC-NDO gains without NDO.
-        (Some(k @ ControllerKind::Aprc), None) => pma_leg::gains::base_config(loaded, k),
-        (Some(k), None) => pma_leg::gains::leg_gains(k)?,
+        (k, Some(path)) => {
+            let k = super::kind_of_gains(Some(path), k.unwrap_or(ControllerKind::AprcNdo))?;
+            super::load_gains(k, Some(path))?
+        }
+        (k, None) => pma_leg::gains::scenario_gains(loaded, k.unwrap_or(ControllerKind::AprcNdo))?,
     })
 }
 
@@ -312,72 +387,86 @@ fn print_summary(r: &LegReport) -> Result<()> {
     print_safety(&r.safety)
 }
 
-/// The treadmill's figures: phases, ground reaction, slip, heel strikes.
+/// The treadmill's figures: the belt's load, the harness, then each foot's phases, ground
+/// reaction, slip and heel strikes.
 fn print_treadmill(t: &pma_leg::TreadmillReport) -> Result<()> {
     say!(
-        "  treadmill: belt {:.3} m/s, body-weight support {:.0} %, {} strides counted (body weight BW = {:.0} N; the system weighs {:.2} BW)",
+        "  treadmill: {} leg(s), belt {:.3} m/s, body-weight support {:.0} % (body weight BW = {:.0} N; the system weighs {:.2} BW); the belt carries {:.3} BW on average (a virtual other leg {:.3} BW) against {:.3} BW expected",
+        t.legs,
         t.belt_speed_m_s,
         100.0 * t.bws_fraction,
-        t.strides,
         t.body_weight_n,
-        t.system_weight_bw
-    );
-    say!(
-        "    vertical GRF loading peak {:.2} BW ({:.2}..{:.2}), loading rate {:.1} BW/s ({:.1}..{:.1}); mean over the strides {:.3} BW under this foot + {:.3} BW the other leg = {:.3} BW (impulse balance: {:.3})",
-        t.peak_grf_bw.mean,
-        t.peak_grf_bw.min,
-        t.peak_grf_bw.max,
-        t.loading_rate_bw_s.mean,
-        t.loading_rate_bw_s.min,
-        t.loading_rate_bw_s.max,
-        t.mean_grf_bw,
-        t.mean_other_leg_bw,
+        t.system_weight_bw,
         t.mean_belt_load_bw,
+        t.mean_other_leg_bw,
         t.expected_belt_load_bw
     );
     say!(
-        "    stance {:.1} % of the stride ({:.1}..{:.1}) against the reference's {:.1} %; slip {:.1} mm per stride, {:.3} m/s in stance; deepest penetration {:.1} mm; pelvis excursion {:.1} mm",
-        100.0 * t.stance_fraction.mean,
-        100.0 * t.stance_fraction.min,
-        100.0 * t.stance_fraction.max,
-        100.0 * t.reference_stance_fraction,
-        1e3 * t.slip_per_stride_m.mean,
-        t.mean_stance_slip_m_s,
-        t.max_penetration_mm,
-        1e3 * t.pelvis_excursion_m
+        "    pelvis: vertical excursion {:.1} mm, fore-aft {:.1} mm; the harness holds it fore-aft with {:.0} N on average ({:.0}..{:.0})",
+        1e3 * t.pelvis_excursion_m,
+        1e3 * t.pelvis_fore_aft_excursion_m,
+        t.harness_fore_aft_n.mean,
+        t.harness_fore_aft_n.min,
+        t.harness_fore_aft_n.max
     );
-    for (joint, p) in &t.tracking {
-        let h = &t.heel_strikes[joint];
+    for (side, f) in &t.feet {
         say!(
-            "    {joint:5} RMS error in stance {:.3} deg, in swing {:.3} deg; {} heel strikes: deviation {:.2} deg (max {:.2}), back within 1 deg after {:.3} s (max {:.3}; {} not within {} s), pressure rate up to {:.0} bar/s",
-            p.stance_rms_deg,
-            p.swing_rms_deg,
-            h.count,
-            h.deviation_deg.mean,
-            h.deviation_deg.max,
-            h.recovery_s.mean,
-            h.recovery_s.max,
-            h.not_recovered,
-            pma_leg::stance::HEEL_STRIKE_FOLLOW_S,
-            h.peak_pressure_rate_bar_s
+            "    {side} foot: {} strides; vertical GRF loading peak {:.2} BW ({:.2}..{:.2}), loading rate {:.1} BW/s ({:.1}..{:.1}), mean {:.3} BW; stance {:.1} % ({:.1}..{:.1}) against the reference's {:.1} %; slip {:.1} mm per stride; deepest {:.1} mm; ankle {:.1}..{:.1} deg",
+            f.strides,
+            f.peak_grf_bw.mean,
+            f.peak_grf_bw.min,
+            f.peak_grf_bw.max,
+            f.loading_rate_bw_s.mean,
+            f.loading_rate_bw_s.min,
+            f.loading_rate_bw_s.max,
+            f.mean_grf_bw,
+            100.0 * f.stance_fraction.mean,
+            100.0 * f.stance_fraction.min,
+            100.0 * f.stance_fraction.max,
+            100.0 * f.reference_stance_fraction,
+            1e3 * f.slip_per_stride_m.mean,
+            f.max_penetration_mm,
+            f.ankle_range_deg[0],
+            f.ankle_range_deg[1]
         );
+        for (joint, p) in &f.tracking {
+            let Some(h) = f.heel_strikes.get(joint) else {
+                continue;
+            };
+            say!(
+                "      {joint:5} RMS error in stance {:.3} deg, in swing {:.3} deg; {} heel strikes: deviation {:.2} deg (max {:.2}), back within 1 deg after {:.3} s (max {:.3}; {} not within {} s), pressure rate up to {:.0} bar/s",
+                p.stance_rms_deg,
+                p.swing_rms_deg,
+                h.count,
+                h.deviation_deg.mean,
+                h.deviation_deg.max,
+                h.recovery_s.mean,
+                h.recovery_s.max,
+                h.not_recovered,
+                pma_leg::stance::HEEL_STRIKE_FOLLOW_S,
+                h.peak_pressure_rate_bar_s
+            );
+        }
     }
     Ok(())
 }
 
 /// The patient's torques and one line per spasm (nothing for a passive limb).
 fn print_patient(r: &LegReport) -> Result<()> {
-    let p = &r.patient;
-    if p.hip.torque_peak_nm == 0.0 && p.knee.torque_peak_nm == 0.0 {
+    let p = &r.patient.joints;
+    if p.values().all(|j| j.torque_peak_nm == 0.0) {
         return Ok(());
     }
-    say!(
-        "  patient torque: hip RMS {:.2} N m (peak {:.1}), knee RMS {:.2} N m (peak {:.1})",
-        p.hip.torque_rms_nm,
-        p.hip.torque_peak_nm,
-        p.knee.torque_rms_nm,
-        p.knee.torque_peak_nm
-    );
+    let each: Vec<String> = p
+        .iter()
+        .map(|(joint, j)| {
+            format!(
+                "{joint} RMS {:.2} N m (peak {:.1})",
+                j.torque_rms_nm, j.torque_peak_nm
+            )
+        })
+        .collect();
+    say!("  patient torque: {}", each.join(", "));
     if let Some(e) = r.spasms.first() {
         say!(
             "  spasms (deviation and joint speed {}):",
@@ -441,10 +530,11 @@ fn print_safety(s: &pma_leg::SafetyReport) -> Result<()> {
     );
     for (name, m) in &s.muscles {
         say!(
-            "  {name:13} peak force {:.0} N = {:.2}x its {:.0} N rating ({:.3} s above it, margin {:.0} N), valve at a limit {:.2} s, peak pressure rate {:.0} bar/s",
+            "  {name:13} peak force {:.0} N = {:.2}x its {:.0} N rating ({}; {:.3} s above it, margin {:.0} N), valve at a limit {:.2} s, peak pressure rate {:.0} bar/s",
             m.peak_force_n,
             m.peak_over_rated,
             m.rated_force_n,
+            m.rating,
             m.time_over_rated_s,
             m.margin_n,
             m.valve_saturated_s,

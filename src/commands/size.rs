@@ -18,9 +18,9 @@ pub struct Args {
     /// Strides measured (after the start-up ramp and one stride).
     #[arg(long, default_value_t = 3)]
     strides: usize,
-    /// Longest muscle considered (m): up to 0.4 m fits along the thigh, longer muscles sit
-    /// on the trainer's frame and pull through cables.
-    #[arg(long, default_value_t = 1.2, allow_negative_numbers = true)]
+    /// Longest muscle considered (m, at most 2): up to 0.4 m fits along the thigh, longer
+    /// muscles sit on the trainer's frame and pull through cables.
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     max_length_m: f64,
     /// Where to write the recommended muscle geometry (nothing is written without it: no
     /// default path, so that no file is replaced unasked).
@@ -33,9 +33,9 @@ pub struct Args {
 
 /// Runs `size`.
 pub fn run(a: Args) -> Result<i32> {
-    if !(a.max_length_m.is_finite() && a.max_length_m >= 0.1) {
+    if !(a.max_length_m.is_finite() && (0.1..=2.0).contains(&a.max_length_m)) {
         bail!(
-            "--max-length-m must be at least 0.1 m (the shortest length tried; got {})",
+            "--max-length-m must be 0.1..=2 m (the lengths searched; got {})",
             a.max_length_m
         );
     }
@@ -54,6 +54,7 @@ pub fn run(a: Args) -> Result<i32> {
     let demand = stride_demand(&loaded, a.strides)?;
     let p_max = sc.plant.valve.pressure_max_pa;
     let sizing = size_joints(&demand, p_max, a.max_length_m);
+    let norms = norm_comparison(&loaded, &demand)?;
     let provenance = Provenance {
         scenario: Some(crate::provenance::named(&a.scenario, &sc.name)),
         patient: Some(super::simulate::patient_name(&loaded)),
@@ -80,6 +81,8 @@ pub fn run(a: Args) -> Result<i32> {
         let json = serde_json::json!({
             "provenance": provenance,
             "servo_max_error_deg": demand.max_error_deg,
+            "servo_raw_torque_range_nm": demand.raw_torque_range_nm,
+            "against_norms": norms,
             "treadmill": demand.treadmill,
             "sizing": sizing,
             "muscle_geometry": written.map(|p| p.display().to_string()),
@@ -87,6 +90,7 @@ pub fn run(a: Args) -> Result<i32> {
         say!("{}", serde_json::to_string(&json)?);
     } else {
         print_summary(&sizing, &demand, &sc.name)?;
+        print_norms(&norms)?;
         say!("{}", provenance.line());
     }
     match (geometry, written) {
@@ -110,6 +114,37 @@ pub fn run(a: Args) -> Result<i32> {
     }
 }
 
+/// The demand beside the adult normative moments, for a scenario on the adult reference.
+fn norm_comparison(
+    loaded: &pma_leg::LoadedScenario,
+    demand: &pma_leg::demand::Demand,
+) -> Result<Vec<pma_leg::demand::NormComparison>> {
+    let g = &loaded.scenario.gait;
+    let (pma_leg::gait::GaitData::Fukuchi2018, Some(speed)) = (g.data, g.speed_m_per_s) else {
+        return Ok(Vec::new());
+    };
+    let norms = pma_leg::gait::AdultNorms::at(speed)?;
+    let (mass, bws) = loaded
+        .scenario
+        .treadmill
+        .map_or((75.0, 0.0), |t| (t.body_mass_kg, t.bws_fraction));
+    Ok(pma_leg::demand::against_norms(demand, &norms, mass, bws))
+}
+
+fn print_norms(norms: &[pma_leg::demand::NormComparison]) -> Result<()> {
+    for c in norms {
+        say!(
+            "  {:5} over the cycle: peak demand {:.2} N m/kg against the adults' {:.2} N m/kg (Fukuchi et al. 2018); RMS difference {:.2} N m/kg, {:.2} against the moments scaled by the support",
+            c.joint,
+            c.peak_demand_nm_kg,
+            c.peak_normative_nm_kg,
+            c.rms_difference_nm_kg,
+            c.rms_difference_supported_nm_kg
+        );
+    }
+    Ok(())
+}
+
 fn print_summary(s: &Sizing, demand: &pma_leg::demand::Demand, scenario: &str) -> Result<()> {
     say!(
         "{scenario}: what a stride asks of the joints (servos along the reference, within {:.2} / {:.2} deg at hip / knee), and the muscles that supply it",
@@ -117,15 +152,17 @@ fn print_summary(s: &Sizing, demand: &pma_leg::demand::Demand, scenario: &str) -
         demand.max_error_deg[1]
     );
     if let Some(t) = &demand.treadmill {
-        say!(
-            "  on the belt at {:.3} m/s with {:.0} % support: GRF loading peak {:.2} BW, stance {:.1} % (reference {:.1} %), slip {:.1} mm per stride",
-            t.belt_speed_m_s,
-            100.0 * t.bws_fraction,
-            t.peak_grf_bw.mean,
-            100.0 * t.stance_fraction.mean,
-            100.0 * t.reference_stance_fraction,
-            1e3 * t.slip_per_stride_m.mean
-        );
+        for (side, f) in &t.feet {
+            say!(
+                "  on the belt at {:.3} m/s with {:.0} % support, {side} foot: GRF loading peak {:.2} BW, stance {:.1} % (reference {:.1} %), slip {:.1} mm per stride",
+                t.belt_speed_m_s,
+                100.0 * t.bws_fraction,
+                f.peak_grf_bw.mean,
+                100.0 * f.stance_fraction.mean,
+                100.0 * f.reference_stance_fraction,
+                1e3 * f.slip_per_stride_m.mean
+            );
+        }
     }
     for j in &s.joints {
         print_joint(j)?;
@@ -142,7 +179,7 @@ fn print_summary(s: &Sizing, demand: &pma_leg::demand::Demand, scenario: &str) -
 
 fn print_joint(j: &JointSizing) -> Result<()> {
     say!(
-        "  {:5} range {:.1}..{:.1} deg, torque {:.1}..{:.1} N m, up to {:.0} deg/s",
+        "  {:5} range {:.1}..{:.1} deg, torque {:.1}..{:.1} N m (averaged over 10 ms), up to {:.0} deg/s",
         j.joint,
         j.range_deg[0],
         j.range_deg[1],
@@ -179,6 +216,9 @@ fn print_joint(j: &JointSizing) -> Result<()> {
             100.0 * d.pressure_headroom
         ),
         None => say!("    no design works"),
+    }
+    if let Some(why) = &j.at_edge {
+        say!("    at the edge of the search: {why}");
     }
     Ok(())
 }

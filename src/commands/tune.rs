@@ -335,8 +335,15 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
             t.evaluations
         );
     }
+    if t.objective >= pma_studies::leg_tune::OVER_RATING {
+        bail!(
+            "every one of the {} runs pulled a muscle past its rating (the best to {:.2} times it): no gains to report",
+            t.evaluations,
+            1.0 + (t.objective - pma_studies::leg_tune::OVER_RATING) / 100.0
+        );
+    }
     let text = format!(
-        "# Tuned by `pma-exo tune-leg {} --controller {} --population {} --generations {} --duration {} --seed {}`\n# ({} runs, objective {:.4}: hip RMS + knee RMS in deg + 0.01 x bar/s)\n{}",
+        "# Tuned by `pma-exo tune-leg {} --controller {} --population {} --generations {} --duration {} --seed {}`\n# ({} runs, objective {:.4}: hip RMS + knee RMS in deg + 0.01 x bar/s, every muscle within its rating)\n{}",
         a.scenario,
         a.controller,
         a.population,

@@ -109,6 +109,13 @@ impl Diagnostics {
     };
 }
 
+impl Default for Diagnostics {
+    /// All states absent ([`Diagnostics::NONE`]).
+    fn default() -> Self {
+        Self::NONE
+    }
+}
+
 /// One period's result.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ControlOutput {

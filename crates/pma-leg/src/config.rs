@@ -1,6 +1,6 @@
 //! Scenario and muscle-geometry files (TOML, `deny_unknown_fields`, units in the names).
 use crate::error::{invalid, LegError};
-use crate::gait::GaitSpeed;
+use crate::gait::{GaitData, GaitReference, GaitSpeed};
 use crate::ground::TreadmillSettings;
 use crate::patient::PatientSettings;
 use pma_control::AprcGains;
@@ -14,9 +14,10 @@ use std::path::{Path, PathBuf};
 
 /// The embedded leg model (`crates/pma-leg/models/exo_leg.urdf`).
 pub const EMBEDDED_URDF: &str = include_str!("../models/exo_leg.urdf");
-/// The embedded treadmill leg (`crates/pma-leg/models/exo_leg_foot.urdf`): pelvis on a
-/// vertical slide, foot with contact spheres.
-pub const EMBEDDED_FOOT_URDF: &str = include_str!("../models/exo_leg_foot.urdf");
+/// The embedded trainer (`crates/pma-leg/models/exo_trainer.urdf`): the pelvis on fore-aft
+/// and vertical slides, two legs with passive ankles and feet with contact spheres (a
+/// one-leg treadmill keeps the right leg).
+pub const EMBEDDED_TRAINER_URDF: &str = include_str!("../models/exo_trainer.urdf");
 /// The embedded muscle geometry (`crates/pma-leg/models/muscles.toml`).
 pub const EMBEDDED_MUSCLES: &str = include_str!("../models/muscles.toml");
 /// The embedded treadmill muscles (`crates/pma-leg/models/muscles_treadmill.toml`): Festo
@@ -28,7 +29,7 @@ pub const EMBEDDED_GAIT_TRAINING: &str = include_str!("../models/scenarios/gait_
 pub const EMBEDDED_GAIT_REALISTIC: &str = include_str!("../models/scenarios/gait_realistic.toml");
 
 /// Every embedded scenario: name and text (`crates/pma-leg/models/scenarios/<name>.toml`).
-pub const EMBEDDED_SCENARIOS: [(&str, &str); 7] = [
+pub const EMBEDDED_SCENARIOS: [(&str, &str); 8] = [
     ("gait_training", EMBEDDED_GAIT_TRAINING),
     ("gait_realistic", EMBEDDED_GAIT_REALISTIC),
     (
@@ -51,10 +52,14 @@ pub const EMBEDDED_SCENARIOS: [(&str, &str); 7] = [
         "gait_treadmill_spastic",
         include_str!("../models/scenarios/gait_treadmill_spastic.toml"),
     ),
+    (
+        "gait_treadmill_one_leg",
+        include_str!("../models/scenarios/gait_treadmill_one_leg.toml"),
+    ),
 ];
 
 /// The embedded scenarios' names, for help texts and messages.
-pub const EMBEDDED_SCENARIO_NAMES: &str = "gait_training, gait_realistic, gait_spastic, gait_spasms, gait_resistive, gait_treadmill, gait_treadmill_spastic";
+pub const EMBEDDED_SCENARIO_NAMES: &str = "gait_training, gait_realistic, gait_spastic, gait_spasms, gait_resistive, gait_treadmill, gait_treadmill_spastic, gait_treadmill_one_leg";
 
 fn embedded_text(name: &str) -> Option<&'static str> {
     EMBEDDED_SCENARIOS
@@ -212,13 +217,61 @@ pub struct Joints {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GaitSettings {
-    /// Normative speed class whose curve shape is used.
+    /// The normative data: `schwartz2008` (children, the default) or `fukuchi2018`
+    /// (adults on a treadmill).
     #[serde(default)]
-    pub speed: GaitSpeed,
+    pub data: GaitData,
+    /// Speed class of the children's data whose curve shape is used (default `slow`).
+    #[serde(default)]
+    pub speed: Option<GaitSpeed>,
+    /// Treadmill speed of the adults' data (m/s): one of its conditions.
+    #[serde(default)]
+    pub speed_m_per_s: Option<f64>,
     /// Stride period (s).
     pub stride_period_s: f64,
     /// Smooth start from standing (s).
     pub ramp_s: f64,
+}
+
+impl GaitSettings {
+    /// The reference's name as outputs show it (`slow`, `adult 0.50 m/s`).
+    pub fn speed_label(&self) -> String {
+        match (self.data, self.speed_m_per_s) {
+            (GaitData::Fukuchi2018, Some(v)) => format!("adult {v:.2} m/s"),
+            _ => self.speed.unwrap_or_default().to_string(),
+        }
+    }
+
+    /// The reference these settings describe (the first leg's; see
+    /// [`GaitReference::for_leg`]).
+    pub fn reference(&self) -> Result<GaitReference, LegError> {
+        match (self.data, self.speed, self.speed_m_per_s) {
+            (GaitData::Schwartz2008, _, Some(_)) => Err(invalid(
+                "gait.speed_m_per_s",
+                self.speed_m_per_s.unwrap_or(f64::NAN),
+                "is for gait.data = \"fukuchi2018\" (adults); the children's data takes gait.speed (very-slow ... very-fast)",
+            )),
+            (GaitData::Schwartz2008, speed, None) => GaitReference::normative(
+                speed.unwrap_or_default(),
+                self.stride_period_s,
+                self.ramp_s,
+            ),
+            (GaitData::Fukuchi2018, Some(s), _) => Err(pma_model::Invalid::new(
+                "gait.speed",
+                f64::NAN,
+                format!("(`{s}`) is a speed class of the children's data: the adults' (fukuchi2018) takes gait.speed_m_per_s"),
+            )
+            .into()),
+            (GaitData::Fukuchi2018, None, None) => Err(invalid(
+                "gait.speed_m_per_s",
+                f64::NAN,
+                "is missing: gait.data = \"fukuchi2018\" needs one of its treadmill speeds",
+            )),
+            (GaitData::Fukuchi2018, None, Some(v)) => {
+                GaitReference::adult(v, self.stride_period_s, self.ramp_s)
+            }
+        }
+    }
 }
 
 /// Joint angle sensor (encoder) of each joint; both muscles of a joint read their
@@ -262,18 +315,34 @@ pub struct PlantSettings {
     /// Per-muscle factors on Table I (muscle name -> factors); absent = nominal.
     #[serde(default)]
     pub muscle_scale: BTreeMap<String, MuscleScale>,
-    /// Rated pulling force of every muscle (N), against which the run's peak force is
-    /// reported. Default 1500 N: Festo's maximum for the paper's DMSP-20 (at 6 bar and no
-    /// contraction).
-    #[serde(default = "default_rated_force")]
-    pub muscle_rated_force_n: f64,
+    /// Rated pulling force of every eq. (1) muscle (N), against which the run's peak force
+    /// is reported. Default: what Table I's muscle itself pulls at the valve's limit and no
+    /// contraction (4124 N at 6 bar), the rating of the muscle it models. (A Festo
+    /// DMSP-20, 1500 N, is 2.8 times weaker than Table I's "similar PMA": a file of Festo
+    /// muscles, `size`, is held against the Festo rating.)
+    #[serde(default)]
+    pub muscle_rated_force_n: Option<f64>,
 }
 
 /// Festo DMSP-20's rated (maximum) force (N).
 pub const DMSP20_RATED_FORCE_N: f64 = 1500.0;
 
-fn default_rated_force() -> f64 {
-    DMSP20_RATED_FORCE_N
+impl PlantSettings {
+    /// An eq. (1) muscle's rating and where it comes from: the scenario's, or Table I's own
+    /// pull at the valve's limit.
+    pub fn three_element_rating(&self) -> (f64, String) {
+        match self.muscle_rated_force_n {
+            Some(f) => (f, "plant.muscle_rated_force_n".into()),
+            None => {
+                let p = self.valve.pressure_max_pa;
+                let t = pma_model::MuscleParams::TABLE_I;
+                (
+                    t.f0_n + t.f1_n_per_pa * p,
+                    format!("Table I's muscle at {:.1} bar, no contraction", p / 1e5),
+                )
+            }
+        }
+    }
 }
 
 fn default_encoder() -> EncoderSettings {
@@ -318,6 +387,10 @@ pub struct ControlSettings {
     /// lower one to see what a slower valve path does.
     #[serde(default = "default_rate_max")]
     pub pressure_rate_max_pa_per_s: f64,
+    /// Which shipped gains the other controllers take (`--controller NAME` without
+    /// `--gains`, `compare-leg`): `in-air` (default) or `treadmill`.
+    #[serde(default)]
+    pub gain_set: crate::gains::GainSet,
 }
 
 fn default_rate_max() -> f64 {
@@ -359,7 +432,7 @@ pub struct Scenario {
     /// The foot on a treadmill belt and the pelvis on body-weight support (absent: the leg
     /// swings in the air from a fixed pelvis). Its URDF needs a `foot` link and a
     /// `pelvis_z` slide; absent `urdf` and `muscle_geometry` are then the embedded
-    /// `exo_leg_foot.urdf` and `muscles_treadmill.toml`.
+    /// `exo_trainer.urdf` and `muscles_treadmill.toml`.
     #[serde(default)]
     pub treadmill: Option<TreadmillSettings>,
 }
@@ -457,7 +530,14 @@ impl Scenario {
             10.0,
             "must be 0.5..=10 s (normal strides last about 1 s, training strides 1.4-3 s)",
         )?;
-        non_negative("gait.ramp_s", self.gait.ramp_s)?;
+        within(
+            "gait.ramp_s",
+            self.gait.ramp_s,
+            0.0,
+            10.0,
+            "must be 0..=10 s (a start-up from standing over a few strides)",
+        )?;
+        self.gait.reference()?;
         for (n, j) in [("hip", self.joints.hip), ("knee", self.joints.knee)] {
             non_negative(
                 format!("joints.{n}.damping_nm_s_per_rad"),
@@ -480,10 +560,9 @@ impl Scenario {
             )?;
         }
         self.plant.valve.validate()?;
-        positive(
-            "plant.muscle_rated_force_n",
-            self.plant.muscle_rated_force_n,
-        )?;
+        if let Some(f) = self.plant.muscle_rated_force_n {
+            positive("plant.muscle_rated_force_n", f)?;
+        }
         self.plant.encoder.sensor(0).validate()?;
         positive("control.cocontraction_pa", self.control.cocontraction_pa)?;
         if self.control.cocontraction_pa > self.plant.valve.pressure_max_pa {
@@ -531,8 +610,8 @@ impl Scenario {
         if self.treadmill.is_some() {
             [
                 (
-                    EMBEDDED_FOOT_URDF,
-                    "crates/pma-leg/models/exo_leg_foot.urdf",
+                    EMBEDDED_TRAINER_URDF,
+                    "crates/pma-leg/models/exo_trainer.urdf",
                 ),
                 (
                     EMBEDDED_TREADMILL_MUSCLES,

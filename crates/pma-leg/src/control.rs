@@ -2,8 +2,9 @@
 //! muscle, a co-contraction regulator per joint, and the gait reference.
 use crate::config::{MuscleGeometry, Scenario};
 use crate::error::{invalid, LegError};
+use crate::exoskeleton::LegInertia;
 use crate::gait::{GaitReference, GaitSample, JointSample};
-use crate::leg::LegInertia;
+use crate::legs::PerLeg;
 use crate::plant::MuscleActuator;
 use pma_control::{
     build_controller, CommandLimits, Controller, ControllerConfig, Diagnostics, Measurement,
@@ -70,8 +71,8 @@ impl Lever {
     }
 }
 
-/// One period of the leg's controllers.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// One period of a leg's controllers.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct LegOutput {
     /// Reference joint angles (rad), hip and knee.
     pub reference_rad: [f64; 2],
@@ -117,6 +118,7 @@ impl LegControllers {
         muscles: &[MuscleActuator],
         inertia: &LegInertia,
         config: &ControllerConfig,
+        leg: usize,
     ) -> Result<Self, LegError> {
         let limits = CommandLimits {
             min_pa: 0.0,
@@ -169,7 +171,7 @@ impl LegControllers {
             controllers,
             cocontraction: [regulator; 2],
             regulator_at_rest: regulator,
-            gait: GaitReference::normative(sc.gait.speed, sc.gait.stride_period_s, sc.gait.ramp_s)?,
+            gait: sc.gait.reference()?.for_leg(leg),
             hold: None,
             commands: [0.0; 4],
         })
@@ -197,6 +199,7 @@ impl LegControllers {
                     angle_rad: q[1],
                     ..JointSample::default()
                 },
+                ankle: JointSample::default(),
             },
             None => self.gait.sample(t_s),
         }
@@ -213,11 +216,7 @@ impl LegControllers {
     }
 }
 
-impl Task for LegControllers {
-    type Reading = [f64; 2];
-    type Command = [f64; 4];
-    type Output = LegOutput;
-
+impl LegControllers {
     /// Resets every controller on the measured pose and the first reference and acts on
     /// that reading at once (the leg's valves get their first command at `t_0`).
     fn start(
@@ -226,7 +225,7 @@ impl Task for LegControllers {
         angles: &[f64; 2],
         resting: &[f64; 4],
         period_s: f64,
-    ) -> Option<LegOutput> {
+    ) -> LegOutput {
         self.commands = *resting;
         self.cocontraction = [self.regulator_at_rest; 2];
         let g = self.reference(t_s);
@@ -236,7 +235,7 @@ impl Task for LegControllers {
             };
             c.reset(measured, lever.reference(joint(&g, lever.joint), 0.0));
         }
-        Some(self.update(t_s, angles, period_s))
+        self.update(t_s, angles, period_s)
     }
 
     fn update(&mut self, t_s: f64, angles: &[f64; 2], dt_s: f64) -> LegOutput {
@@ -273,10 +272,6 @@ impl Task for LegControllers {
         out
     }
 
-    fn command(output: &LegOutput) -> [f64; 4] {
-        output.pressure_cmd_pa
-    }
-
     fn applied(&mut self, written: &[f64; 4]) {
         for (c, u) in self.controllers.iter_mut().zip(written) {
             c.applied(*u);
@@ -285,30 +280,111 @@ impl Task for LegControllers {
     }
 }
 
+/// Every leg's controllers: the trainer's task. Each leg runs its own [`LegControllers`]
+/// on its own readings; nothing passes between legs but the time.
+pub struct TrainerControllers {
+    legs: Vec<LegControllers>,
+}
+
+impl TrainerControllers {
+    /// One set of controllers per leg, in leg order.
+    pub fn new(legs: Vec<LegControllers>) -> Self {
+        Self { legs }
+    }
+
+    /// Leg `leg`'s controllers.
+    pub fn leg(&self, leg: usize) -> &LegControllers {
+        &self.legs[leg]
+    }
+
+    /// Every leg's controllers.
+    pub fn legs(&self) -> &[LegControllers] {
+        &self.legs
+    }
+
+    /// The first leg's gait reference (the others are it, shifted by half strides).
+    pub fn gait(&self) -> &GaitReference {
+        self.legs[0].gait()
+    }
+
+    /// Replaces every leg's gait by the constant pose `angles` (rad).
+    pub fn hold_pose(&mut self, angles: [f64; 2]) {
+        for l in &mut self.legs {
+            l.hold_pose(angles);
+        }
+    }
+}
+
+impl Task for TrainerControllers {
+    type Reading = PerLeg<[f64; 2]>;
+    type Command = PerLeg<[f64; 4]>;
+    type Output = PerLeg<LegOutput>;
+
+    fn start(
+        &mut self,
+        t_s: f64,
+        angles: &Self::Reading,
+        resting: &Self::Command,
+        period_s: f64,
+    ) -> Option<Self::Output> {
+        let legs = &mut self.legs;
+        Some(PerLeg::from_fn(legs.len(), |i| {
+            legs[i].start(t_s, &angles[i], &resting[i], period_s)
+        }))
+    }
+
+    fn update(&mut self, t_s: f64, angles: &Self::Reading, dt_s: f64) -> Self::Output {
+        let legs = &mut self.legs;
+        PerLeg::from_fn(legs.len(), |i| legs[i].update(t_s, &angles[i], dt_s))
+    }
+
+    fn command(output: &Self::Output) -> Self::Command {
+        output.map(|o| o.pressure_cmd_pa)
+    }
+
+    fn applied(&mut self, written: &Self::Command) {
+        for (l, w) in self.legs.iter_mut().zip(written.iter()) {
+            l.applied(w);
+        }
+    }
+}
+
 /// Every muscle vented, the reference followed by nothing: the gait (or a pose) is only
-/// reported, for the metrics and the logs. The limb moves under gravity and its patient.
+/// reported, for the metrics and the logs. The limbs move under gravity and the patient.
 pub struct Vented {
     gait: Option<GaitReference>,
     pose: [f64; 2],
+    legs: usize,
 }
 
 impl Vented {
-    /// Reports `gait` as the reference.
+    /// Reports `gait` as one leg's reference.
     pub fn gait(gait: GaitReference) -> Self {
         Self {
             gait: Some(gait),
             pose: [0.0; 2],
+            legs: 1,
         }
     }
 
-    /// Reports a constant pose (rad) as the reference.
+    /// Reports a constant pose (rad) as one leg's reference.
     pub fn pose(pose: [f64; 2]) -> Self {
-        Self { gait: None, pose }
+        Self {
+            gait: None,
+            pose,
+            legs: 1,
+        }
     }
 
-    fn output(&self, t_s: f64) -> LegOutput {
+    /// The same for each of `legs` legs (each leg's gait half a stride after the last).
+    pub fn on_legs(self, legs: usize) -> Self {
+        Self { legs, ..self }
+    }
+
+    fn output(&self, leg: usize, t_s: f64) -> LegOutput {
         let (reference_rad, reference_velocity_rad_s, reference_in_stance) = match &self.gait {
             Some(g) => {
+                let g = g.for_leg(leg);
                 let s = g.sample(t_s);
                 (
                     [s.hip.angle_rad, s.knee.angle_rad],
@@ -327,22 +403,32 @@ impl Vented {
             reference_in_stance,
         }
     }
+
+    fn outputs(&self, t_s: f64) -> PerLeg<LegOutput> {
+        PerLeg::from_fn(self.legs, |leg| self.output(leg, t_s))
+    }
 }
 
 impl Task for Vented {
-    type Reading = [f64; 2];
-    type Command = [f64; 4];
-    type Output = LegOutput;
+    type Reading = PerLeg<[f64; 2]>;
+    type Command = PerLeg<[f64; 4]>;
+    type Output = PerLeg<LegOutput>;
 
-    fn start(&mut self, t_s: f64, _: &[f64; 2], _: &[f64; 4], _: f64) -> Option<LegOutput> {
-        Some(self.output(t_s))
+    fn start(
+        &mut self,
+        t_s: f64,
+        _: &Self::Reading,
+        _: &Self::Command,
+        _: f64,
+    ) -> Option<Self::Output> {
+        Some(self.outputs(t_s))
     }
 
-    fn update(&mut self, t_s: f64, _: &[f64; 2], _: f64) -> LegOutput {
-        self.output(t_s)
+    fn update(&mut self, t_s: f64, _: &Self::Reading, _: f64) -> Self::Output {
+        self.outputs(t_s)
     }
 
-    fn command(output: &LegOutput) -> [f64; 4] {
-        output.pressure_cmd_pa
+    fn command(output: &Self::Output) -> Self::Command {
+        output.map(|o| o.pressure_cmd_pa)
     }
 }

@@ -1,47 +1,75 @@
-//! What a stride asks of the joints: the scenario's leg (on its treadmill, with its
+//! What a stride asks of the joints: the scenario's exoskeleton (on its treadmill, with its
 //! patient, harness and other leg) driven along the reference by stiff joint servos instead
 //! of muscles, and the torques those servos apply. It is inverse dynamics with the contact
 //! forces in it: the servos supply whatever the gait, the belt and the patient need, and
 //! the muscles that replace them must supply the same.
 use crate::config::LoadedScenario;
 use crate::error::{invalid, LegError};
+use crate::exoskeleton::{Exoskeleton, Mount};
 use crate::gait::GaitReference;
-use crate::leg::{Leg, Mount};
-use crate::sim::{build_leg, build_patient};
-use crate::stance::{GroundPeriod, TreadmillMetrics, TreadmillReport};
+use crate::legs::PerLeg;
+use crate::sim::{build_exo, build_patients};
+use crate::stance::{FootMetrics, GroundPeriod, TrainerGroundMetrics, TreadmillReport};
 
 /// Stiffness of the joint servos (N m/rad): 1 deg of error for 350 N m; tracking within a
 /// few tenths of a degree on the treadmill (reported as [`Demand::max_error_deg`]).
 pub const SERVO_STIFFNESS_NM_PER_RAD: f64 = 20_000.0;
 /// Damping of the joint servos (N m s/rad): about critical for the knee's inertia.
 pub const SERVO_DAMPING_NM_S_PER_RAD: f64 = 150.0;
+/// The servos' torques are averaged over this window (s) before they count as the
+/// stride's demand: a muscle behind a valve cannot deliver a transient shorter than the
+/// valve's lag (tens of milliseconds), and the compliant contact's stick-slip makes
+/// one-period spikes on the belt (a heel rolling off while the other foot swings: +228 then
+/// -246 N m at the knee in successive periods, docs/treadmill.md). The raw extremes are
+/// kept in [`Demand::raw_torque_range_nm`].
+pub const DEMAND_WINDOW_S: f64 = 0.01;
 
-/// One period of the servo-driven stride.
+/// One period of one leg of the servo-driven stride.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DemandSample {
     /// Time (s).
     pub t_s: f64,
+    /// The leg (0 right, 1 left).
+    pub leg: usize,
+    /// Phase of the leg's gait cycle (0-1, 0 at its initial contact).
+    pub phase: f64,
     /// Joint angles (rad), hip and knee.
     pub angle_rad: [f64; 2],
     /// Joint velocities (rad/s).
     pub velocity_rad_s: [f64; 2],
-    /// Torque the joints need (N m, flexion positive), averaged over the period's substeps.
+    /// Torque the joints need (N m, flexion positive): the servos' averaged over
+    /// [`DEMAND_WINDOW_S`] about the period.
     pub torque_nm: [f64; 2],
+    /// The leg's foot's vertical and fore-aft ground reaction (N; NaN in the air).
+    pub grf_n: [f64; 2],
+    /// The passive ankle's angle (rad; NaN without one).
+    pub ankle_rad: f64,
+    /// The pelvis frame `[fore-aft, height]` (m; NaN in the air).
+    pub pelvis_m: [f64; 2],
+    /// The foot's slip on the belt (m/s; NaN in the air).
+    pub slip_m_s: f64,
 }
 
 /// The joints' demand over whole strides.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Demand {
-    /// The periods of the strides measured, after the start-up ramp and one stride.
+    /// The periods of the strides measured, after the start-up ramp and one stride: every
+    /// leg's, period after period.
     pub samples: Vec<DemandSample>,
-    /// Largest tracking error of the servos over them (deg), hip and knee.
+    /// Number of legs.
+    pub legs: usize,
+    /// Largest tracking error of the servos over them (deg), hip and knee, of any leg.
     pub max_error_deg: [f64; 2],
+    /// The servos' own extremes, period by period before the averaging, per joint
+    /// `[extension, flexion]` (N m).
+    pub raw_torque_range_nm: [[f64; 2]; 2],
     /// The treadmill's figures of the servo-driven run (`None` in the air).
     pub treadmill: Option<TreadmillReport>,
 }
 
 impl Demand {
-    /// Largest flexion and extension torque of joint `j` (N m; extension negative).
+    /// Largest flexion and extension torque of joint `j` of any leg (N m; extension
+    /// negative).
     pub fn torque_range_nm(&self, j: usize) -> [f64; 2] {
         self.samples
             .iter()
@@ -50,97 +78,238 @@ impl Demand {
             })
     }
 
-    /// Largest |velocity| of joint `j` (rad/s).
+    /// Largest |velocity| of joint `j` of any leg (rad/s).
     pub fn peak_speed_rad_s(&self, j: usize) -> f64 {
         self.samples
             .iter()
             .map(|s| s.velocity_rad_s[j].abs())
             .fold(0.0, f64::max)
     }
+
+    /// Leg `leg`'s samples.
+    pub fn of_leg(&self, leg: usize) -> impl Iterator<Item = &DemandSample> {
+        self.samples.iter().filter(move |s| s.leg == leg)
+    }
 }
 
-/// The scenario's leg driven along its gait by the joint servos for the start-up ramp and
-/// `strides + 1` strides; the last `strides` are measured.
+/// The scenario's exoskeleton driven along its gait by the joint servos for the start-up
+/// ramp and `strides + 1` strides; the last `strides` are measured.
 pub fn stride_demand(loaded: &LoadedScenario, strides: usize) -> Result<Demand, LegError> {
     if strides == 0 {
         return Err(invalid("strides", 0.0, "must be at least 1"));
     }
     let sc = &loaded.scenario;
-    let mut leg = build_leg(loaded, Mount::default())?;
-    let mut patient = build_patient(sc, &leg)?;
-    let gait = GaitReference::normative(sc.gait.speed, sc.gait.stride_period_s, sc.gait.ramp_s)?;
+    let mut exo = build_exo(loaded, Mount::default())?;
+    let legs = exo.leg_count();
+    let mut patients = build_patients(sc, &exo)?;
+    let gait = sc.gait.reference()?;
+    let gaits: Vec<GaitReference> = (0..legs).map(|l| gait.for_leg(l)).collect();
     let stride_s = gait.stride_period_s();
     let start_s = (gait.ramp_s() / stride_s).ceil() * stride_s + stride_s;
     let end_s = start_s + strides as f64 * stride_s;
     let periods = (end_s / sc.period_s).round() as usize;
-    if let Some(p) = &mut patient {
+    for p in &mut patients {
         p.plan(end_s + sc.period_s);
         p.reset();
     }
-    let mut metrics = TreadmillMetrics::new(&leg, &gait, [0, 0, 1, 1], end_s, sc.period_s);
-    let h = leg.substep_s();
-    let mut samples = Vec::with_capacity(((end_s - start_s) / sc.period_s) as usize + 2);
+    let mut feet: Vec<FootMetrics> = gaits
+        .iter()
+        .filter_map(|g| FootMetrics::new(&exo, g, end_s, sc.period_s))
+        .collect();
+    let mut ground = TrainerGroundMetrics::new(&exo, stride_s);
+    let h = exo.substep_s();
+    let mut samples = Vec::with_capacity(legs * (((end_s - start_s) / sc.period_s) as usize + 2));
     let mut max_error = [0.0f64; 2];
     for k in 0..periods {
         let t0 = k as f64 * sc.period_s;
-        let mut sum = [0.0; 2];
-        leg.step(|l, sub| {
+        let mut sum = [[0.0; 2]; crate::legs::MAX_LEGS];
+        exo.step(|e, sub| {
             let t = t0 + sub as f64 * h;
-            let servo = servo_torques(l, &gait, t);
-            let patient_nm = match &mut patient {
-                Some(p) => p.torques(t, l.angles(), l.velocities()).total(),
-                None => [0.0; 2],
-            };
-            sum[0] += servo[0];
-            sum[1] += servo[1];
-            [servo[0] + patient_nm[0], servo[1] + patient_nm[1]]
+            PerLeg::from_fn(legs, |leg| {
+                let servo = servo_torques(e, leg, &gaits[leg], t);
+                let patient_nm = match patients.get_mut(leg) {
+                    Some(p) => p.torques(t, e.angles(leg), e.velocities(leg)).total(),
+                    None => [0.0; 2],
+                };
+                sum[leg][0] += servo[0];
+                sum[leg][1] += servo[1];
+                [servo[0] + patient_nm[0], servo[1] + patient_nm[1]]
+            })
         });
         let t = t0 + sc.period_s;
-        let (q, qd) = (leg.angles(), leg.velocities());
-        if !(q.iter().chain(&qd).all(|v| v.is_finite())) {
-            return Err(LegError::LeftPhysics {
-                t_s: t,
-                what: "the servo-driven leg: its state is not finite".into(),
-            });
+        let reaction = exo.ground_reaction();
+        if let (Some(g), Some(pelvis)) = (&reaction, exo.pelvis_position_m()) {
+            ground.push(t, sc.period_s, g, pelvis);
         }
-        let g = gait.sample(t);
-        let error_deg = [
-            (g.hip.angle_rad - q[0]).to_degrees(),
-            (g.knee.angle_rad - q[1]).to_degrees(),
-        ];
-        if let (Some(m), Some(ground)) = (&mut metrics, leg.ground_reaction()) {
-            m.push(&GroundPeriod {
-                t_s: t,
-                dt_s: sc.period_s,
-                ground,
-                pelvis_height_m: leg.pelvis_height_m().unwrap_or(f64::NAN),
-                error_deg,
-                pressure_pa: [f64::NAN; 4],
-            });
-        }
-        if t > start_s + 0.5 * sc.period_s {
-            let n = f64::from(leg.substeps());
-            samples.push(DemandSample {
-                t_s: t,
-                angle_rad: q,
-                velocity_rad_s: qd,
-                torque_nm: [sum[0] / n, sum[1] / n],
-            });
-            for j in 0..2 {
-                max_error[j] = max_error[j].max(error_deg[j].abs());
+        for leg in 0..legs {
+            let (q, qd) = (exo.angles(leg), exo.velocities(leg));
+            if !(q.iter().chain(&qd).all(|v| v.is_finite())) {
+                return Err(LegError::LeftPhysics {
+                    t_s: t,
+                    what: "the servo-driven leg: its state is not finite".into(),
+                });
+            }
+            let g = gaits[leg].sample(t);
+            let error_deg = [
+                (g.hip.angle_rad - q[0]).to_degrees(),
+                (g.knee.angle_rad - q[1]).to_degrees(),
+            ];
+            let ankle_rad = exo.ankle(leg).map_or(f64::NAN, |a| a.0);
+            let foot = reaction.as_ref().and_then(|r| r.feet.get(leg).copied());
+            if let (Some(m), Some(foot)) = (feet.get_mut(leg), foot) {
+                m.push(&GroundPeriod {
+                    t_s: t,
+                    dt_s: sc.period_s,
+                    foot,
+                    error_deg,
+                    pressure_pa: [f64::NAN; 4],
+                    ankle_rad,
+                });
+            }
+            if t > start_s + 0.5 * sc.period_s {
+                let n = f64::from(exo.substeps());
+                samples.push(DemandSample {
+                    t_s: t,
+                    leg,
+                    phase: gaits[leg].phase(t),
+                    angle_rad: q,
+                    velocity_rad_s: qd,
+                    torque_nm: [sum[leg][0] / n, sum[leg][1] / n],
+                    grf_n: foot.map_or([f64::NAN; 2], |f| [f.vertical_n, f.fore_aft_n]),
+                    ankle_rad,
+                    pelvis_m: exo.pelvis_position_m().unwrap_or([f64::NAN; 2]),
+                    slip_m_s: foot.map_or(f64::NAN, |f| f.slip_m_s),
+                });
+                for j in 0..2 {
+                    max_error[j] = max_error[j].max(error_deg[j].abs());
+                }
             }
         }
     }
+    let raw_torque_range_nm = [0, 1].map(|j| {
+        samples
+            .iter()
+            .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], s| {
+                [lo.min(s.torque_nm[j]), hi.max(s.torque_nm[j])]
+            })
+    });
+    let half = (0.5 * DEMAND_WINDOW_S / sc.period_s).round() as usize;
+    average_per_leg(&mut samples, legs, half);
     Ok(Demand {
         samples,
+        legs,
         max_error_deg: max_error,
-        treadmill: metrics.map(|m| m.report()),
+        raw_torque_range_nm,
+        treadmill: ground.report(feet.iter().map(FootMetrics::report).collect()),
     })
 }
 
-/// The servos' torques at `t_s` (N m): stiff springs and dampers to the reference.
-fn servo_torques(leg: &Leg, gait: &GaitReference, t_s: f64) -> [f64; 2] {
-    let (q, qd) = (leg.angles(), leg.velocities());
+/// Each leg's torques replaced by their centred moving average over `2 half + 1` periods
+/// (fewer at the ends); `samples` are period after period, `legs` per period.
+fn average_per_leg(samples: &mut [DemandSample], legs: usize, half: usize) {
+    if half == 0 || legs == 0 {
+        return;
+    }
+    for leg in 0..legs {
+        let raw: Vec<[f64; 2]> = samples
+            .iter()
+            .filter(|s| s.leg == leg)
+            .map(|s| s.torque_nm)
+            .collect();
+        let n = raw.len();
+        for (k, s) in samples.iter_mut().filter(|s| s.leg == leg).enumerate() {
+            let (a, b) = (k.saturating_sub(half), (k + half + 1).min(n));
+            let window = &raw[a..b];
+            s.torque_nm =
+                [0, 1].map(|j| window.iter().map(|t| t[j]).sum::<f64>() / window.len() as f64);
+        }
+    }
+}
+
+/// A joint's demand over the gait cycle beside the adult normative moment (per kilogram of
+/// the patient's body mass, flexion positive), at 0, 1, ..., 100 % of each leg's cycle.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct NormComparison {
+    /// `hip` or `knee`.
+    pub joint: String,
+    /// The servos' torque averaged over the strides and legs at each per cent of the
+    /// cycle (N m/kg).
+    pub demand_nm_kg: Vec<f64>,
+    /// The normative internal moment turned into the torque the joint needs (flexion
+    /// positive: minus the extensor moment), unsupported walking (N m/kg).
+    pub normative_nm_kg: Vec<f64>,
+    /// Largest |demand| over the cycle (N m/kg).
+    pub peak_demand_nm_kg: f64,
+    /// Largest |normative| (N m/kg).
+    pub peak_normative_nm_kg: f64,
+    /// RMS of demand minus normative over the cycle (N m/kg).
+    pub rms_difference_nm_kg: f64,
+    /// The same against the normative moment scaled by `1 - bws_fraction` (the share of
+    /// the weight the legs carry; support lowers stance moments roughly so, swing's less).
+    pub rms_difference_supported_nm_kg: f64,
+}
+
+/// Each joint's demand over the cycle beside `norms` (the adult data at the reference's
+/// speed), for a patient of `body_mass_kg` on `bws_fraction` support.
+pub fn against_norms(
+    demand: &Demand,
+    norms: &crate::gait::AdultNorms,
+    body_mass_kg: f64,
+    bws_fraction: f64,
+) -> Vec<NormComparison> {
+    let n = crate::gait::CURVE_SAMPLES;
+    let normative = [
+        &norms.curves.hip_moment_nm_kg,
+        &norms.curves.knee_moment_nm_kg,
+    ];
+    ["hip", "knee"]
+        .iter()
+        .enumerate()
+        .map(|(j, name)| {
+            let mut sum = vec![0.0; n];
+            let mut count = vec![0usize; n];
+            for s in &demand.samples {
+                let bin = ((s.phase * (n - 1) as f64).round() as usize).min(n - 1);
+                sum[bin] += s.torque_nm[j] / body_mass_kg;
+                count[bin] += 1;
+            }
+            let demand_nm_kg: Vec<f64> = sum
+                .iter()
+                .zip(&count)
+                .map(|(s, c)| if *c > 0 { s / *c as f64 } else { f64::NAN })
+                .collect();
+            let norm: Vec<f64> = normative[j].iter().map(|m| -m).collect();
+            let rms = |scale: f64| {
+                let (sq, k) = demand_nm_kg
+                    .iter()
+                    .zip(&norm)
+                    .filter(|(d, _)| d.is_finite())
+                    .fold((0.0, 0usize), |(sq, k), (d, m)| {
+                        (sq + (d - scale * m).powi(2), k + 1)
+                    });
+                (sq / k.max(1) as f64).sqrt()
+            };
+            let peak = |v: &[f64]| {
+                v.iter()
+                    .filter(|x| x.is_finite())
+                    .fold(0.0f64, |p, x| p.max(x.abs()))
+            };
+            NormComparison {
+                joint: (*name).to_owned(),
+                peak_demand_nm_kg: peak(&demand_nm_kg),
+                peak_normative_nm_kg: peak(&norm),
+                rms_difference_nm_kg: rms(1.0),
+                rms_difference_supported_nm_kg: rms(1.0 - bws_fraction),
+                demand_nm_kg,
+                normative_nm_kg: norm,
+            }
+        })
+        .collect()
+}
+
+/// Leg `leg`'s servos' torques at `t_s` (N m): stiff springs and dampers to its reference.
+fn servo_torques(exo: &Exoskeleton, leg: usize, gait: &GaitReference, t_s: f64) -> [f64; 2] {
+    let (q, qd) = (exo.angles(leg), exo.velocities(leg));
     let g = gait.sample(t_s);
     let reference = [
         (g.hip.angle_rad, g.hip.velocity_rad_s),
@@ -164,9 +333,8 @@ mod tests {
         let loaded = Scenario::load("gait_training").expect("embedded");
         let d = stride_demand(&loaded, 1).expect("demand");
         let sc = &loaded.scenario;
-        let leg = build_leg(&loaded, Mount::default()).expect("leg");
-        let gait = GaitReference::normative(sc.gait.speed, sc.gait.stride_period_s, sc.gait.ramp_s)
-            .expect("gait");
+        let exo = build_exo(&loaded, Mount::default()).expect("leg");
+        let gait = sc.gait.reference().expect("gait");
         let damping = [
             sc.joints.hip.damping_nm_s_per_rad,
             sc.joints.knee.damping_nm_s_per_rad,
@@ -180,7 +348,7 @@ mod tests {
                 [g.hip.velocity_rad_s, g.knee.velocity_rad_s],
                 [g.hip.acceleration_rad_s2, g.knee.acceleration_rad_s2],
             );
-            let id = leg.inertia().inverse_dynamics(q, qd, qdd);
+            let id = exo.inertia().inverse_dynamics(q, qd, qdd);
             for j in 0..2 {
                 let expected = id[j] + damping[j] * qd[j];
                 err2[j] += (s.torque_nm[j] - expected).powi(2);

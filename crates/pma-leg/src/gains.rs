@@ -1,5 +1,9 @@
-//! Gains tuned for the leg (`crates/pma-leg/models/gains/`), one file per controller, each found by
-//! `pma-exo tune-leg gait_training --controller NAME` with the same budget.
+//! Gains tuned for the leg, one file per controller and place: in the air
+//! (`crates/pma-leg/models/gains/`, each found by `pma-exo tune-leg gait_training
+//! --controller NAME`) and on the two-leg treadmill (`crates/pma-leg/models/gains/treadmill/`,
+//! `pma-exo tune-leg gait_treadmill --controller NAME --duration 8.9`), with the same budget.
+//! A scenario's `control.gain_set` says which set its controllers take; its own APRC-NDO
+//! gains (`control.gains`) stay the APRC-NDO's.
 use crate::config::LoadedScenario;
 use crate::error::LegError;
 use pma_control::{ControllerConfig, ControllerKind};
@@ -28,16 +32,90 @@ pub const LEG_GAINS: [(ControllerKind, &str); 5] = [
     ),
 ];
 
+/// The shipped two-leg treadmill gain files: controller and text.
+pub const TREADMILL_GAINS: [(ControllerKind, &str); 5] = [
+    (
+        ControllerKind::AprcNdo,
+        include_str!("../models/gains/treadmill/aprc-ndo.toml"),
+    ),
+    (
+        ControllerKind::Psmc,
+        include_str!("../models/gains/treadmill/psmc.toml"),
+    ),
+    (
+        ControllerKind::NdoSmc,
+        include_str!("../models/gains/treadmill/ndo-smc.toml"),
+    ),
+    (
+        ControllerKind::Sta,
+        include_str!("../models/gains/treadmill/sta.toml"),
+    ),
+    (
+        ControllerKind::Pid,
+        include_str!("../models/gains/treadmill/pid.toml"),
+    ),
+];
+
+/// Which shipped gains a scenario's controllers take (its own APRC-NDO gains aside).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GainSet {
+    /// Tuned on the in-air leg (`gait_training`).
+    #[default]
+    InAir,
+    /// Tuned on the two-leg treadmill (`gait_treadmill`).
+    Treadmill,
+}
+
+impl GainSet {
+    /// The set's name as scenarios and outputs give it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            GainSet::InAir => "in-air",
+            GainSet::Treadmill => "treadmill",
+        }
+    }
+
+    fn files(self) -> (&'static [(ControllerKind, &'static str)], &'static str) {
+        match self {
+            GainSet::InAir => (&LEG_GAINS, "crates/pma-leg/models/gains"),
+            GainSet::Treadmill => (&TREADMILL_GAINS, "crates/pma-leg/models/gains/treadmill"),
+        }
+    }
+
+    /// Where the set's files are, from the repository's root.
+    pub fn directory(self) -> &'static str {
+        self.files().1
+    }
+
+    /// `kind`'s gains of this set; its defaults if none were shipped.
+    pub fn gains(self, kind: ControllerKind) -> Result<ControllerConfig, LegError> {
+        let (files, dir) = self.files();
+        let Some((_, text)) = files.iter().find(|(k, _)| *k == kind) else {
+            return Ok(kind.default_config());
+        };
+        ControllerConfig::from_toml_str(text).map_err(|e| LegError::Parse {
+            file: format!("{dir}/{kind}.toml"),
+            message: e.to_string(),
+        })
+    }
+}
+
+/// The gains `kind` runs with on a scenario: the scenario's own for APRC-NDO (and, without
+/// its observer, APRC), the scenario's gain set's for the others. One name, one gain set.
+pub fn scenario_gains(
+    loaded: &LoadedScenario,
+    kind: ControllerKind,
+) -> Result<ControllerConfig, LegError> {
+    match kind {
+        ControllerKind::AprcNdo | ControllerKind::Aprc => Ok(base_config(loaded, kind)),
+        other => loaded.scenario.control.gain_set.gains(other),
+    }
+}
+
 /// `kind`'s shipped leg gains; its defaults if none were shipped.
 pub fn leg_gains(kind: ControllerKind) -> Result<ControllerConfig, LegError> {
-    let Some((_, text)) = LEG_GAINS.iter().find(|(k, _)| *k == kind) else {
-        return Ok(kind.default_config());
-    };
-    let config = ControllerConfig::from_toml_str(text).map_err(|e| LegError::Parse {
-        file: format!("crates/pma-leg/models/gains/{kind}.toml"),
-        message: e.to_string(),
-    })?;
-    Ok(config)
+    GainSet::InAir.gains(kind)
 }
 
 /// The configuration a tuning starts from and keeps outside its search space: the

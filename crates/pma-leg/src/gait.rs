@@ -1,7 +1,13 @@
-//! Normative gait references for the exoskeleton leg: hip and knee flexion as Fourier
-//! series fitted to Schwartz, Rozumalski & Trost (2008) (`crates/pma-leg/models/gait/`, derived by
-//! `tools/fit_gait.py`), time-scaled to a stride period, started smoothly from standing,
-//! with analytic first and second derivatives. Flexion is positive for both joints.
+//! Normative gait references for the exoskeleton's legs: hip and knee flexion (and, for an
+//! adult's, ankle dorsiflexion) as Fourier series fitted to normative data
+//! (`crates/pma-leg/models/gait/`), time-scaled to a stride period, started smoothly from
+//! standing, with analytic first and second derivatives. Flexion is positive.
+//!
+//! Two data sets: typically developing children at five speed classes (Schwartz,
+//! Rozumalski & Trost 2008, via `tools/fit_gait.py`; the in-air scenarios' reference), and
+//! adults on a treadmill at measured speeds (Fukuchi, Fukuchi & Duarte 2018, CC BY 4.0, via
+//! `tools/fit_adult_gait.py`; the treadmill's), the latter with the mean joint moments and
+//! ground reaction forces to compare a run with ([`AdultNorms`]).
 
 use crate::LegError;
 use pma_model::error::{non_negative, positive};
@@ -12,6 +18,129 @@ use std::str::FromStr;
 
 const FOURIER_FILE: &str = "crates/pma-leg/models/gait/schwartz2008_fourier.toml";
 const FOURIER_TOML: &str = include_str!("../models/gait/schwartz2008_fourier.toml");
+const ADULT_FILE: &str = "crates/pma-leg/models/gait/fukuchi2018.toml";
+const ADULT_TOML: &str = include_str!("../models/gait/fukuchi2018.toml");
+
+/// Where a gait reference comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GaitData {
+    /// Typically developing children, speed classes `very-slow` .. `very-fast` (Schwartz
+    /// et al. 2008): the in-air scenarios' reference.
+    #[default]
+    Schwartz2008,
+    /// Adults on a treadmill at their measured mean speeds (Fukuchi et al. 2018), with
+    /// the ankle's curve and the mean moments and ground reactions.
+    Fukuchi2018,
+}
+
+impl GaitData {
+    /// The name a scenario gives it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            GaitData::Schwartz2008 => "schwartz2008",
+            GaitData::Fukuchi2018 => "fukuchi2018",
+        }
+    }
+}
+
+/// Samples of the adult data's mean curves over one cycle (0, 1, ..., 100 %).
+pub const CURVE_SAMPLES: usize = 101;
+
+/// An adult condition's mean curves (101 samples from initial contact; moments internal,
+/// extensor and plantarflexor positive, N m/kg; ground reaction in body weights).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NormCurves {
+    /// Hip flexion (deg).
+    pub hip_deg: Vec<f64>,
+    /// Knee flexion (deg).
+    pub knee_deg: Vec<f64>,
+    /// Ankle dorsiflexion (deg).
+    pub ankle_deg: Vec<f64>,
+    /// Hip moment (N m/kg, extensor positive).
+    pub hip_moment_nm_kg: Vec<f64>,
+    /// Knee moment (N m/kg, extensor positive).
+    pub knee_moment_nm_kg: Vec<f64>,
+    /// Ankle moment (N m/kg, plantarflexor positive).
+    pub ankle_moment_nm_kg: Vec<f64>,
+    /// Vertical ground reaction (body weights).
+    pub grf_vertical_bw: Vec<f64>,
+    /// Fore-aft ground reaction (body weights, forward positive).
+    pub grf_fore_aft_bw: Vec<f64>,
+}
+
+/// One adult condition of the data: its speed, toe-off, angle series and mean curves.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AdultNorms {
+    /// The subjects' mean treadmill speed (m/s).
+    pub speed_m_s: f64,
+    /// Subjects averaged.
+    pub subjects: usize,
+    /// Mean toe-off phase (0-1).
+    pub toe_off: f64,
+    /// Hip flexion.
+    pub hip: FourierSeries,
+    /// Knee flexion.
+    pub knee: FourierSeries,
+    /// Ankle dorsiflexion.
+    pub ankle: FourierSeries,
+    /// Mean curves.
+    pub curves: NormCurves,
+    /// Their standard deviations over subjects.
+    pub sd: NormCurves,
+}
+
+impl AdultNorms {
+    /// The condition of the adult data at `speed_m_s` (within 5 mm/s of its mean speed);
+    /// the error names the field and lists the speeds there are.
+    pub fn at(speed_m_s: f64) -> Result<Self, LegError> {
+        let all = Self::all()?;
+        let speeds: Vec<String> = all.iter().map(|c| format!("{:.2}", c.speed_m_s)).collect();
+        all.into_iter()
+            .find(|c| (c.speed_m_s - speed_m_s).abs() < 0.005)
+            .ok_or_else(|| {
+                pma_model::Invalid::new(
+                    "gait.speed_m_per_s",
+                    speed_m_s,
+                    format!(
+                        "is not a speed of the adult data (Fukuchi et al. 2018 walked at {} m/s)",
+                        speeds.join(", ")
+                    ),
+                )
+                .into()
+            })
+    }
+
+    /// Every condition of the adult data, slowest first.
+    pub fn all() -> Result<Vec<Self>, LegError> {
+        let file: std::collections::BTreeMap<String, toml::Value> = toml::from_str(ADULT_TOML)
+            .map_err(|e| LegError::Parse {
+                file: ADULT_FILE.into(),
+                message: e.to_string(),
+            })?;
+        let mut out = Vec::new();
+        for (name, v) in file {
+            if name == "harmonics" {
+                if v.as_integer() != Some(HARMONICS as i64) {
+                    return Err(LegError::Parse {
+                        file: ADULT_FILE.into(),
+                        message: format!("{v} harmonics, expected {HARMONICS}"),
+                    });
+                }
+                continue;
+            }
+            let c: AdultNorms = v.try_into().map_err(|e: toml::de::Error| LegError::Parse {
+                file: ADULT_FILE.into(),
+                message: format!("[{name}]: {e}"),
+            })?;
+            out.push(c);
+        }
+        out.sort_by(|a, b| a.speed_m_s.total_cmp(&b.speed_m_s));
+        Ok(out)
+    }
+}
 
 /// Number of harmonics shipped.
 pub const HARMONICS: usize = 6;
@@ -145,6 +274,20 @@ pub struct GaitSample {
     pub hip: JointSample,
     /// Knee flexion.
     pub knee: JointSample,
+    /// Ankle dorsiflexion, where the reference has it (zero otherwise): the passive
+    /// ankle is not driven, its reference is only compared with.
+    pub ankle: JointSample,
+}
+
+impl GaitSample {
+    /// Hip, knee and ankle angles (rad).
+    pub fn angles_rad(&self) -> [f64; 3] {
+        [
+            self.hip.angle_rad,
+            self.knee.angle_rad,
+            self.ankle.angle_rad,
+        ]
+    }
 }
 
 /// Hip and knee flexion over time: the normative cycle of a speed class, stretched to
@@ -154,9 +297,15 @@ pub struct GaitSample {
 pub struct GaitReference {
     hip: FourierSeries,
     knee: FourierSeries,
+    /// The ankle's curve, where the data has one.
+    ankle: Option<FourierSeries>,
+    /// The adult condition's mean speed (m/s), for an adult reference.
+    data_speed_m_s: Option<f64>,
     toe_off: f64,
     stride_period_s: f64,
     ramp_s: f64,
+    /// Where in the cycle this leg is at `t = 0` (0, or 0.5 for the other leg).
+    phase_offset: f64,
 }
 
 /// Default stride period of a slow training gait (s).
@@ -191,10 +340,36 @@ impl GaitReference {
         Ok(Self {
             hip: curves.hip,
             knee: curves.knee,
+            ankle: None,
+            data_speed_m_s: None,
             toe_off: curves.toe_off,
             stride_period_s,
             ramp_s,
+            phase_offset: 0.0,
         })
+    }
+
+    /// The adult reference at `speed_m_s` (a condition of [`AdultNorms`]), with a stride
+    /// period and a start-up ramp (both s).
+    pub fn adult(speed_m_s: f64, stride_period_s: f64, ramp_s: f64) -> Result<Self, LegError> {
+        positive("stride_period_s", stride_period_s)?;
+        non_negative("ramp_s", ramp_s)?;
+        let c = AdultNorms::at(speed_m_s)?;
+        Ok(Self {
+            hip: c.hip,
+            knee: c.knee,
+            ankle: Some(c.ankle),
+            data_speed_m_s: Some(c.speed_m_s),
+            toe_off: c.toe_off,
+            stride_period_s,
+            ramp_s,
+            phase_offset: 0.0,
+        })
+    }
+
+    /// The adult data's walking speed for this reference (m/s; `None` for children's).
+    pub fn data_speed_m_s(&self) -> Option<f64> {
+        self.data_speed_m_s
     }
 
     /// Phase of toe-off in the normative cycle (0-1; phase 0 is initial contact): where
@@ -204,9 +379,9 @@ impl GaitReference {
         self.toe_off
     }
 
-    /// Phase of the cycle at `t_s` (0-1, 0 at each initial contact).
+    /// Phase of the cycle at `t_s` (0-1, 0 at each initial contact of this leg).
     pub fn phase(&self, t_s: f64) -> f64 {
-        (t_s / self.stride_period_s).rem_euclid(1.0)
+        (t_s / self.stride_period_s + self.phase_offset).rem_euclid(1.0)
     }
 
     /// Whether the reference's foot is in stance at `t_s` (after the start-up ramp: while
@@ -220,15 +395,24 @@ impl GaitReference {
         self.ramp_s
     }
 
+    /// The same reference for leg `leg` of a trainer: the second leg half a stride later,
+    /// started by the same ramp (both legs leave standing together).
+    pub fn for_leg(&self, leg: usize) -> Self {
+        Self {
+            phase_offset: (self.phase_offset + 0.5 * leg as f64).rem_euclid(1.0),
+            ..*self
+        }
+    }
+
+    /// Where in the cycle this leg is at `t = 0` (0, or 0.5 for a trainer's second leg).
+    pub fn phase_offset(&self) -> f64 {
+        self.phase_offset
+    }
+
     /// The other leg's references at `t_s`: the same cycle half a stride later, started by
     /// the same ramp (both legs leave standing together).
     pub fn sample_half_stride_later(&self, t_s: f64) -> GaitSample {
-        let ramp = self.ramp(t_s);
-        let harmonics = FourierSeries::harmonics(t_s / self.stride_period_s + 0.5);
-        GaitSample {
-            hip: self.joint(&self.hip, &harmonics, ramp),
-            knee: self.joint(&self.knee, &harmonics, ramp),
-        }
+        self.for_leg(1).sample(t_s)
     }
 
     /// Stride period (s).
@@ -270,10 +454,13 @@ impl GaitReference {
     pub fn sample(&self, t_s: f64) -> GaitSample {
         let ramp = self.ramp(t_s);
         // Both joints at the same phase: one set of sines for the two.
-        let harmonics = FourierSeries::harmonics(t_s / self.stride_period_s);
+        let harmonics = FourierSeries::harmonics(t_s / self.stride_period_s + self.phase_offset);
         GaitSample {
             hip: self.joint(&self.hip, &harmonics, ramp),
             knee: self.joint(&self.knee, &harmonics, ramp),
+            ankle: self
+                .ankle
+                .map_or_else(JointSample::default, |a| self.joint(&a, &harmonics, ramp)),
         }
     }
 }

@@ -20,7 +20,8 @@
 //! is needed. The forces go on the foot at the contact points, so the loading rate at heel
 //! strike comes from the model, not from the solver's regularisation.
 use crate::error::{invalid, LegError};
-use pma_model::error::{non_negative, positive, within};
+use crate::legs::PerLeg;
+use pma_model::error::within;
 use rapier3d::prelude::{Real, RigidBodyHandle, RigidBodySet, Vector};
 use serde::Deserialize;
 
@@ -55,18 +56,33 @@ impl Default for ContactParams {
 
 impl ContactParams {
     fn validate(&self) -> Result<(), LegError> {
-        positive(
+        within(
             "treadmill.contact.stiffness_n_per_m2",
             self.stiffness_n_per_m2,
+            1e4,
+            1e9,
+            "must be 1e4..=1e9 N/m^2 (from a soft pad to a hard sole; gait models use 1e6-2e6)",
         )?;
-        non_negative(
+        within(
             "treadmill.contact.dissipation_s_per_m",
             self.dissipation_s_per_m,
+            0.0,
+            10.0,
+            "must be 0..=10 s/m (Hunt-Crossley; gait models use 1-2)",
         )?;
-        non_negative("treadmill.contact.friction", self.friction)?;
-        non_negative(
+        within(
+            "treadmill.contact.friction",
+            self.friction,
+            0.0,
+            2.0,
+            "must be 0..=2 (shoe on belt: models use 0.7-0.9)",
+        )?;
+        within(
             "treadmill.contact.viscous_friction_s_per_m",
             self.viscous_friction_s_per_m,
+            0.0,
+            10.0,
+            "must be 0..=10 s/m (gait models use 0.5)",
         )?;
         Ok(())
     }
@@ -112,34 +128,129 @@ pub enum BwsKind {
     Spring,
 }
 
-/// What holds the pelvis up besides the harness while this leg swings: the simulation has
-/// one leg, and the other is represented here.
+/// What holds the pelvis up besides the harness while a one-leg trainer's leg swings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Contralateral {
-    /// A virtual other leg: the reference half a stride later, rigid, with this foot's
-    /// spheres and contact, pushing the pelvis up wherever its foot reaches the belt
-    /// (so it carries the pelvis through this leg's swing and shares it in double
-    /// support, as the real leg would).
+    /// A virtual other leg: the reference half a stride later, rigid (its ankle at
+    /// neutral), with this foot's spheres and contact, pushing the pelvis up wherever its
+    /// foot reaches the belt. It stands in for the other leg where one leg is enough (a
+    /// cheaper run, the one-leg rig's muscles); it is a vertical force only and lands
+    /// hard (docs/treadmill.md).
     #[default]
     Reference,
-    /// Nothing: the harness and this foot alone (physics checks of one leg).
+    /// Nothing: the harness and the simulated feet alone (a two-leg trainer, or physics
+    /// checks of one leg).
     None,
+}
+
+/// The passive ankle: an ankle-foot orthosis (or a trainer's foot lifter) as a rotational
+/// spring and damper about a rest angle, within its stops (the scenario's
+/// `[treadmill.ankle]`; defaults and their sources: docs/treadmill.md).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AnkleSettings {
+    /// Rotational stiffness about the rest angle (N m/rad).
+    pub stiffness_nm_per_rad: f64,
+    /// Rotational damping (N m s/rad).
+    pub damping_nm_s_per_rad: f64,
+    /// Rest angle (deg, dorsiflexion positive).
+    pub rest_deg: f64,
+    /// Stops `[plantarflexion, dorsiflexion]` (deg, dorsiflexion positive).
+    pub range_deg: [f64; 2],
+}
+
+impl Default for AnkleSettings {
+    fn default() -> Self {
+        Self {
+            stiffness_nm_per_rad: ANKLE_STIFFNESS_NM_PER_RAD,
+            damping_nm_s_per_rad: ANKLE_DAMPING_NM_S_PER_RAD,
+            rest_deg: ANKLE_REST_DEG,
+            range_deg: ANKLE_RANGE_DEG,
+        }
+    }
+}
+
+/// Default orthosis stiffness (N m/rad): the middle of 13 commercial carbon-composite
+/// ankle-foot orthoses, 0.58-3.66 N m/deg (33-210 N m/rad; Shuman & Russell Esposito 2021,
+/// J Biomech Eng 144(1):011004, abstract).
+pub const ANKLE_STIFFNESS_NM_PER_RAD: f64 = 100.0;
+/// Default orthosis damping (N m s/rad): no measured value was found; 1.0 damps the
+/// unloaded foot at about half of critical.
+pub const ANKLE_DAMPING_NM_S_PER_RAD: f64 = 1.0;
+/// Default rest angle (deg): 5 deg of dorsiflexion, the orthosis as a foot lifter. In
+/// swing the adult reference's ankle is at +3..+7 deg (Fukuchi et al. 2018); at neutral
+/// the toes of the compliant foot scuff the belt at 82-88 % of the cycle (docs/treadmill.md).
+pub const ANKLE_REST_DEG: f64 = 5.0;
+/// Default stops (deg): the adult reference's ankle spans -3..+14 deg at 0.5 m/s, children's
+/// at slow speed -14..+14 (Schwartz et al. 2008).
+pub const ANKLE_RANGE_DEG: [f64; 2] = [-15.0, 15.0];
+
+impl AnkleSettings {
+    fn validate(&self) -> Result<(), LegError> {
+        within(
+            "treadmill.ankle.stiffness_nm_per_rad",
+            self.stiffness_nm_per_rad,
+            0.0,
+            2000.0,
+            "must be 0..=2000 N m/rad (a free hinge to a stiff orthosis)",
+        )?;
+        within(
+            "treadmill.ankle.damping_nm_s_per_rad",
+            self.damping_nm_s_per_rad,
+            0.0,
+            20.0,
+            "must be 0..=20 N m s/rad",
+        )?;
+        let [lo, hi] = self.range_deg;
+        if !(lo.is_finite()
+            && hi.is_finite()
+            && (-45.0..0.0).contains(&lo)
+            && hi > 0.0
+            && hi <= 40.0)
+        {
+            return Err(LegError::Range {
+                name: "treadmill.ankle.range_deg".into(),
+                low: lo,
+                high: hi,
+                expected: "needs -45 <= plantarflexion < 0 < dorsiflexion <= 40 deg (the ankle's anatomical range)",
+            });
+        }
+        if !(self.rest_deg >= lo && self.rest_deg <= hi) {
+            return Err(invalid(
+                "treadmill.ankle.rest_deg",
+                self.rest_deg,
+                "must lie within treadmill.ankle.range_deg",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The orthosis's torque (N m, dorsiflexion positive) at `angle_rad`, turning at
+    /// `rate_rad_s`.
+    pub fn torque_nm(&self, angle_rad: f64, rate_rad_s: f64) -> f64 {
+        -self.stiffness_nm_per_rad * (angle_rad - self.rest_deg.to_radians())
+            - self.damping_nm_s_per_rad * rate_rad_s
+    }
 }
 
 /// The `[treadmill]` section of a scenario.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TreadmillSettings {
+    /// Legs on the belt: 1 (with a virtual other leg, or none) or 2 (a bilateral trainer,
+    /// the second leg half a stride later). Default 1.
+    #[serde(default = "one_leg")]
+    pub legs: usize,
     /// Belt speed (m/s, the belt's surface moves backwards); absent: the reference's own,
     /// the mean backward speed of its foot's contact point over its stance (see
-    /// [`crate::gait::GaitReference::toe_off_phase`]).
+    /// [`reference_belt_speed`]).
     #[serde(default)]
     pub speed_m_per_s: Option<f64>,
     /// Fraction of the body weight (patient and exoskeleton) the harness carries, 0-1.
     pub bws_fraction: f64,
-    /// The patient's body mass (kg): everything above the hips and the other leg rides on
-    /// the pelvis.
+    /// The patient's body mass (kg): everything above the hips (and a missing leg) rides
+    /// on the pelvis.
     pub body_mass_kg: f64,
     /// Constant force (default) or spring.
     #[serde(default)]
@@ -147,45 +258,60 @@ pub struct TreadmillSettings {
     /// Stiffness of a spring harness (N/m).
     #[serde(default)]
     pub bws_spring_n_per_m: f64,
-    /// The foot's contact.
+    /// The feet's contact.
     #[serde(default)]
     pub contact: ContactParams,
-    /// The other leg.
+    /// The passive ankles' orthosis.
     #[serde(default)]
-    pub contralateral: Contralateral,
+    pub ankle: AnkleSettings,
+    /// The other leg of a one-leg trainer (default: the virtual one; a two-leg trainer has
+    /// its own and takes `none` or nothing).
+    #[serde(default)]
+    pub contralateral: Option<Contralateral>,
     /// Stiffness of the harness's hold on the pelvis fore-aft (N/m), if the URDF lets the
-    /// pelvis slide fore-aft (`pelvis_x`). Default 2000: it keeps the pelvis within a few
-    /// centimetres of its place over a stride (docs/treadmill.md) while the stance foot
-    /// carries the body over itself.
+    /// pelvis slide fore-aft (`pelvis_x`). Default 200: the pelvis is nearly free fore-aft
+    /// (as LOPES's in its zero-force mode), so the stance legs carry the body over the feet
+    /// and the body's speed swings as it does in walking; the spring only keeps it from
+    /// drifting. A stiff hold (the Lokomat holds the pelvis) keeps whatever offset the
+    /// start leaves, held by the feet's static friction: docs/treadmill.md.
     #[serde(default = "default_fore_aft_stiffness")]
     pub pelvis_fore_aft_n_per_m: f64,
-    /// Damping of that hold (N s/m). Default 600: about 0.7 of critical for the 88 kg the
-    /// default patient and exoskeleton weigh.
+    /// Damping of that hold (N s/m). Default 200.
     #[serde(default = "default_fore_aft_damping")]
     pub pelvis_fore_aft_damping_n_s_per_m: f64,
 }
 
+fn one_leg() -> usize {
+    1
+}
+
 fn default_fore_aft_stiffness() -> f64 {
-    2000.0
+    200.0
 }
 
 fn default_fore_aft_damping() -> f64 {
-    600.0
+    200.0
 }
 
+/// Plausible patients' masses (kg): a small child to a heavy adult (gait trainers are
+/// rated up to 135-150 kg).
+pub const BODY_MASS_RANGE_KG: (f64, f64) = (15.0, 200.0);
+
 impl TreadmillSettings {
-    /// A treadmill carrying `bws_fraction` of a patient of `body_mass_kg`, every other
-    /// field at its default: the belt at the reference's speed, a constant-force harness,
-    /// the other leg the reference's.
+    /// A one-leg treadmill carrying `bws_fraction` of a patient of `body_mass_kg`, every
+    /// other field at its default: the belt at the reference's speed, a constant-force
+    /// harness, the other leg the reference's.
     pub fn new(bws_fraction: f64, body_mass_kg: f64) -> Self {
         Self {
+            legs: 1,
             speed_m_per_s: None,
             bws_fraction,
             body_mass_kg,
             bws: BwsKind::default(),
             bws_spring_n_per_m: 0.0,
             contact: ContactParams::default(),
-            contralateral: Contralateral::default(),
+            ankle: AnkleSettings::default(),
+            contralateral: None,
             pelvis_fore_aft_n_per_m: default_fore_aft_stiffness(),
             pelvis_fore_aft_damping_n_s_per_m: default_fore_aft_damping(),
         }
@@ -196,17 +322,40 @@ impl TreadmillSettings {
         self.speed_m_per_s.unwrap_or(0.0)
     }
 
-    /// Checks every field; the error names it.
+    /// What stands in for the other leg: the virtual one (a one-leg trainer's default) or
+    /// nothing.
+    pub fn other_leg(&self) -> Contralateral {
+        match (self.legs, self.contralateral) {
+            (_, Some(c)) => c,
+            (1, None) => Contralateral::Reference,
+            (_, None) => Contralateral::None,
+        }
+    }
+
+    /// Checks every field against a plausible range; the error names it.
     pub fn validate(&self) -> Result<(), LegError> {
+        if !(1..=crate::legs::MAX_LEGS).contains(&self.legs) {
+            return Err(invalid(
+                "treadmill.legs",
+                self.legs as f64,
+                "must be 1 (one leg, a virtual other) or 2 (both legs)",
+            ));
+        }
+        if self.legs == 2 && self.contralateral == Some(Contralateral::Reference) {
+            return Err(invalid(
+                "treadmill.contralateral",
+                2.0,
+                "a two-leg trainer has its other leg: `reference` is for one leg (use `none` or leave it out)",
+            ));
+        }
         if let Some(v) = self.speed_m_per_s {
-            non_negative("treadmill.speed_m_per_s", v)?;
-            if v > 3.0 {
-                return Err(invalid(
-                    "treadmill.speed_m_per_s",
-                    v,
-                    "a gait trainer's belt, at most 3 m/s",
-                ));
-            }
+            within(
+                "treadmill.speed_m_per_s",
+                v,
+                0.0,
+                3.0,
+                "a gait trainer's belt, 0..=3 m/s",
+            )?;
         }
         within(
             "treadmill.bws_fraction",
@@ -215,30 +364,42 @@ impl TreadmillSettings {
             1.0,
             "a fraction of the body weight, 0 to 1",
         )?;
-        positive("treadmill.body_mass_kg", self.body_mass_kg)?;
+        within(
+            "treadmill.body_mass_kg",
+            self.body_mass_kg,
+            BODY_MASS_RANGE_KG.0,
+            BODY_MASS_RANGE_KG.1,
+            "a patient's mass, 15..=200 kg",
+        )?;
         if self.bws == BwsKind::Spring {
-            positive("treadmill.bws_spring_n_per_m", self.bws_spring_n_per_m)?;
+            within(
+                "treadmill.bws_spring_n_per_m",
+                self.bws_spring_n_per_m,
+                1.0,
+                1e6,
+                "a harness spring, 1..=1e6 N/m (stiffer is a fixed pelvis)",
+            )?;
         }
-        non_negative(
+        within(
             "treadmill.pelvis_fore_aft_n_per_m",
             self.pelvis_fore_aft_n_per_m,
+            0.0,
+            1e6,
+            "must be 0..=1e6 N/m",
         )?;
-        non_negative(
+        within(
             "treadmill.pelvis_fore_aft_damping_n_s_per_m",
             self.pelvis_fore_aft_damping_n_s_per_m,
+            0.0,
+            1e5,
+            "must be 0..=1e5 N s/m",
         )?;
-        if self.body_mass_kg > 500.0 {
-            return Err(invalid(
-                "treadmill.body_mass_kg",
-                self.body_mass_kg,
-                "a patient's mass, at most 500 kg",
-            ));
-        }
-        self.contact.validate()
+        self.contact.validate()?;
+        self.ankle.validate()
     }
 }
 
-/// One contact sphere on the foot, in the foot's frame.
+/// One contact sphere on a foot, in the foot's frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FootSphere {
     /// Centre in the foot link's frame (m).
@@ -247,9 +408,9 @@ pub struct FootSphere {
     pub radius_m: f64,
 }
 
-/// What the belt did to the foot during one period (averaged over its substeps).
+/// What the belt did to one foot during one period (averaged over its substeps).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct GroundReaction {
+pub struct FootReaction {
     /// Vertical ground reaction force (N).
     pub vertical_n: f64,
     /// Horizontal (fore-aft) ground reaction force (N, forward positive).
@@ -260,10 +421,38 @@ pub struct GroundReaction {
     pub slip_m_s: f64,
     /// Spheres in contact at the end of the period.
     pub contacts: usize,
-    /// Vertical force of the virtual other leg on the pelvis (N).
+}
+
+/// What the belt, the harness and a virtual other leg did during one period (averaged
+/// over its substeps).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GroundReaction {
+    /// Each simulated foot's.
+    pub feet: PerLeg<FootReaction>,
+    /// Vertical force of the virtual other leg on the pelvis (N; 0 without one).
     pub contralateral_n: f64,
     /// The harness's upward force on the pelvis (N).
     pub support_n: f64,
+    /// The harness's fore-aft force on the pelvis (N, forward positive).
+    pub harness_fore_aft_n: f64,
+}
+
+impl Default for GroundReaction {
+    fn default() -> Self {
+        Self {
+            feet: PerLeg::one(FootReaction::default()),
+            contralateral_n: 0.0,
+            support_n: 0.0,
+            harness_fore_aft_n: 0.0,
+        }
+    }
+}
+
+impl GroundReaction {
+    /// Vertical force the belt carries: every foot's and the virtual other leg's (N).
+    pub fn belt_load_n(&self) -> f64 {
+        self.feet.iter().map(|f| f.vertical_n).sum::<f64>() + self.contralateral_n
+    }
 }
 
 /// One sphere's contact with the belt.
@@ -332,10 +521,10 @@ pub fn sphere_contact(
     })
 }
 
-/// The leg's sagittal geometry as the URDF gives it, for the virtual other leg: joint
-/// origins `[x, z]` (m) and pitch (rad, about -Y) of hip (in the pelvis frame), knee
-/// (thigh) and ankle (shank), each joint's flexion as a rotation about -Y (`+1`) or +Y
-/// (`-1`), and the foot's spheres.
+/// The leg's sagittal geometry as the URDF gives it, for the virtual other leg and the
+/// belt's speed: joint origins `[x, z]` (m) and pitch (rad, about -Y) of hip (in the pelvis
+/// frame), knee (thigh) and ankle (shank), each joint's flexion (the ankle's dorsiflexion)
+/// as a rotation about -Y (`+1`) or +Y (`-1`), 0 for a fixed ankle, and the foot's spheres.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SagittalChain {
     /// Hip, knee and ankle origins in their parents' frames (m), `[x, z]`.
@@ -343,50 +532,61 @@ pub struct SagittalChain {
     /// Hip, knee and ankle origins' rotations about -Y (rad): an anteriorly tilted pelvis
     /// turns the thigh back by its tilt.
     pub pitch_rad: [f64; 3],
-    /// Sign of each joint's flexion as a rotation about -Y (hip, knee).
-    pub flexion_sign: [f64; 2],
+    /// Sign of each joint's flexion as a rotation about -Y (hip, knee, ankle).
+    pub flexion_sign: [f64; 3],
     /// The foot's contact spheres (foot frame).
     pub spheres: Vec<FootSphere>,
 }
 
 impl SagittalChain {
-    /// Centre of sphere `i` in the pelvis frame (m, `[x, z]`) at hip and knee flexion `q`.
-    pub fn sphere_centre(&self, i: usize, q: [f64; 2]) -> [f64; 2] {
+    /// Centre of sphere `i` in the pelvis frame (m, `[x, z]`) at hip and knee flexion and
+    /// ankle dorsiflexion `q` (rad).
+    pub fn sphere_centre(&self, i: usize, q: [f64; 3]) -> [f64; 2] {
+        let c = self.spheres[i].center_m;
+        self.in_pelvis([c[0], c[2]], q)
+    }
+
+    /// A point of the foot `[x, z]` (foot frame) in the pelvis frame at `q`.
+    fn in_pelvis(&self, p: [f64; 2], q: [f64; 3]) -> [f64; 2] {
         // A rotation about -Y by `a` takes (x, z) to (x cos a - z sin a, x sin a + z cos a).
         let rot = |p: [f64; 2], a: f64| {
             let (s, c) = a.sin_cos();
             [p[0] * c - p[1] * s, p[0] * s + p[1] * c]
         };
         let add = |a: [f64; 2], b: [f64; 2]| [a[0] + b[0], a[1] + b[1]];
-        let c = self.spheres[i].center_m;
-        let in_shank = add(self.origins_m[2], rot([c[0], c[2]], self.pitch_rad[2]));
+        let ankle = self.pitch_rad[2] + self.flexion_sign[2] * q[2];
+        let in_shank = add(self.origins_m[2], rot(p, ankle));
         let knee = self.pitch_rad[1] + self.flexion_sign[1] * q[1];
         let in_thigh = add(self.origins_m[1], rot(in_shank, knee));
         let hip = self.pitch_rad[0] + self.flexion_sign[0] * q[0];
         add(self.origins_m[0], rot(in_thigh, hip))
     }
 
+    /// The ankle's centre in the pelvis frame (m, `[x, z]`) at `q`.
+    pub fn ankle_centre(&self, q: [f64; 3]) -> [f64; 2] {
+        self.in_pelvis([0.0, 0.0], q)
+    }
+
     /// The foot's rotation about -Y relative to the pelvis at `q` (rad).
-    pub fn foot_angle_rad(&self, q: [f64; 2]) -> f64 {
+    pub fn foot_angle_rad(&self, q: [f64; 3]) -> f64 {
         self.pitch_rad.iter().sum::<f64>()
             + self.flexion_sign[0] * q[0]
             + self.flexion_sign[1] * q[1]
+            + self.flexion_sign[2] * q[2]
     }
 }
 
 /// The belt speed at which `gait`'s foot does not slip: the mean backward speed, over the
 /// reference's stance (initial contact to toe-off), of the material point of the foot at
-/// its lowest sphere's lowest point, the leg at the reference's angles (by central
-/// differences, 400 samples of one stride after the start-up ramp).
+/// its lowest sphere's lowest point, the leg at the reference's angles (its ankle's, if
+/// the reference has one; by central differences, 400 samples of one stride after the
+/// start-up ramp).
 pub fn reference_belt_speed(gait: &crate::gait::GaitReference, chain: &SagittalChain) -> f64 {
     let period = gait.stride_period_s();
     let start = (gait.ramp_s() / period).ceil() * period;
     let n = 400;
     let h = 1e-5 * period;
-    let pose = |t: f64| {
-        let g = gait.sample(t);
-        [g.hip.angle_rad, g.knee.angle_rad]
-    };
+    let pose = |t: f64| gait.sample(t).angles_rad();
     let mut sum = 0.0;
     for k in 0..n {
         let t = start + (k as f64 + 0.5) / n as f64 * gait.toe_off_phase() * period;
@@ -407,7 +607,8 @@ pub fn reference_belt_speed(gait: &crate::gait::GaitReference, chain: &SagittalC
     -sum / n as f64
 }
 
-/// The virtual other leg: the reference half a stride later, rigid, on the belt.
+/// The virtual other leg: the reference half a stride later, rigid, its ankle at neutral,
+/// on the belt.
 #[derive(Debug, Clone)]
 pub(crate) struct OtherLeg {
     pub gait: crate::gait::GaitReference,
@@ -443,7 +644,7 @@ impl OtherLeg {
         let q = self.pose(t_s);
         let mut total = 0.0;
         for (i, s) in self.chain.spheres.iter().enumerate() {
-            let cz = self.chain.sphere_centre(i, q)[1];
+            let cz = self.chain.sphere_centre(i, [q[0], q[1], 0.0])[1];
             let rate = if self.previous_z[i].is_finite() {
                 (cz - self.previous_z[i]) / h_s
             } else {
@@ -457,16 +658,25 @@ impl OtherLeg {
     }
 }
 
-/// What a treadmill is made of, fixed when the leg is built.
+/// One foot as the treadmill sees it: its rigid body, its link and its spheres.
+#[derive(Debug, Clone)]
+pub struct FootSetup {
+    /// The foot's body.
+    pub(crate) body: RigidBodyHandle,
+    /// The foot's link (`foot`, `right_foot`, ...).
+    pub link: String,
+    /// Its contact spheres, in the link's frame.
+    pub spheres: Vec<FootSphere>,
+}
+
+/// What a treadmill is made of, fixed when the exoskeleton is built.
 #[derive(Debug, Clone)]
 pub(crate) struct GroundSetup {
     pub settings: TreadmillSettings,
-    pub spheres: Vec<FootSphere>,
-    /// The leg's sagittal geometry (the other leg is this one's copy).
+    /// The simulated feet, leg by leg.
+    pub feet: Vec<FootSetup>,
+    /// The first leg's sagittal geometry (the virtual other leg is its copy).
     pub chain: SagittalChain,
-    pub foot: RigidBodyHandle,
-    /// The link the spheres are on: `foot`, or `shank` with the foot folded into it.
-    pub foot_link: &'static str,
     pub pelvis: RigidBodyHandle,
     /// Everything the belt and harness carry (kg).
     pub total_mass_kg: f64,
@@ -479,45 +689,138 @@ pub(crate) struct GroundSetup {
     pub fore_aft_at_m: Option<f64>,
 }
 
-/// The treadmill acting on a leg: the belt's contacts on the foot, the harness and the
-/// virtual other leg on the pelvis, applied every physics substep.
+/// One foot's contacts, summed over a period's substeps.
+#[derive(Debug, Clone)]
+struct FootState {
+    /// Vertical and fore-aft force on the foot (N), summed over the period's substeps.
+    sum: [f64; 2],
+    deepest_m: f64,
+    fastest_slip_m_s: f64,
+    contacts: usize,
+    /// This substep's contacts, sphere by sphere (sized once).
+    current: Vec<Option<SphereContact>>,
+    /// How far the belt has sheared each sphere while it sticks (m, X and Y).
+    stick_m: Vec<[f64; 2]>,
+    last: FootReaction,
+}
+
+impl FootState {
+    fn new(spheres: usize) -> Self {
+        Self {
+            sum: [0.0; 2],
+            deepest_m: 0.0,
+            fastest_slip_m_s: 0.0,
+            contacts: 0,
+            current: vec![None; spheres],
+            stick_m: vec![[0.0; 2]; spheres],
+            last: FootReaction::default(),
+        }
+    }
+
+    /// The belt's contacts on `foot`'s spheres over a substep of `h_s`, the belt moving
+    /// backwards at `belt_m_s`.
+    fn apply(
+        &mut self,
+        foot: &FootSetup,
+        params: &ContactParams,
+        belt_m_s: f64,
+        bodies: &mut RigidBodySet,
+        h_s: f64,
+    ) {
+        let Some(rb) = bodies.get_mut(foot.body) else {
+            return;
+        };
+        let pose = *rb.position();
+        self.contacts = 0;
+        for (k, s) in foot.spheres.iter().enumerate() {
+            self.current[k] = None;
+            let c = pose.transform_point(vector(s.center_m));
+            let contact_point = c - Vector::new(0.0, 0.0, s.radius_m as Real);
+            let v = rb.velocity_at_point(contact_point);
+            let Some(contact) = sphere_contact(
+                params,
+                s.radius_m,
+                [c.x, c.y, c.z].map(f64::from),
+                [v.x, v.y, v.z].map(f64::from),
+                belt_m_s,
+                (&mut self.stick_m[k], h_s),
+            ) else {
+                continue;
+            };
+            self.current[k] = Some(contact);
+            let f = contact.force_n;
+            rb.add_force_at_point(vector(f), vector(contact.point_m), true);
+            self.sum[0] += f[2];
+            self.sum[1] += f[0];
+            self.deepest_m = self.deepest_m.max(contact.depth_m);
+            if f[2] > 0.0 {
+                self.fastest_slip_m_s = self.fastest_slip_m_s.max(contact.slip_m_s);
+            }
+            self.contacts += 1;
+        }
+    }
+
+    /// Closes a period of `n` substeps.
+    fn end_period(&mut self, n: f64) {
+        self.last = FootReaction {
+            vertical_n: self.sum[0] / n,
+            fore_aft_n: self.sum[1] / n,
+            penetration_m: self.deepest_m,
+            slip_m_s: self.fastest_slip_m_s,
+            contacts: self.contacts,
+        };
+        self.sum = [0.0; 2];
+        self.deepest_m = 0.0;
+        self.fastest_slip_m_s = 0.0;
+    }
+
+    /// Fore-aft centre of pressure of the last substep's contacts (m, world X; NaN
+    /// without one).
+    fn centre_of_pressure_x_m(&self) -> f64 {
+        let (moment, force) = self.current.iter().flatten().fold((0.0, 0.0), |(m, f), c| {
+            (m + c.point_m[0] * c.force_n[2], f + c.force_n[2])
+        });
+        if force > 0.0 {
+            moment / force
+        } else {
+            f64::NAN
+        }
+    }
+}
+
+/// The treadmill acting on the exoskeleton: the belt's contacts on every foot, the
+/// harness and a virtual other leg on the pelvis, applied every physics substep.
 #[derive(Debug, Clone)]
 pub struct Ground {
     setup: GroundSetup,
     other: Option<OtherLeg>,
-    /// Time since the leg was built (s), advanced every substep.
+    /// Time since the exoskeleton was built (s), advanced every substep.
     clock_s: f64,
     /// The belt comes up to speed over this long from the start (s), with the gait.
     belt_ramp_s: f64,
-    /// This period's sums over substeps: vertical and fore-aft force on the foot, the
-    /// other leg's and the harness's (N).
-    sum: [f64; 4],
+    feet: Vec<FootState>,
+    /// This period's sums over substeps: the other leg's and the harness's vertical
+    /// forces, the harness's fore-aft force (N).
+    sum: [f64; 3],
     substeps: u32,
-    deepest_m: f64,
-    fastest_slip_m_s: f64,
-    contacts: usize,
-    /// This substep's contacts, sphere by sphere (the foot's spheres' count, sized once).
-    current: Vec<Option<SphereContact>>,
-    /// How far the belt has sheared each sphere while it sticks (m, X and Y).
-    stick_m: Vec<[f64; 2]>,
     last: GroundReaction,
 }
 
 impl Ground {
     pub(crate) fn new(setup: GroundSetup) -> Self {
-        let n = setup.spheres.len();
+        let feet = setup
+            .feet
+            .iter()
+            .map(|f| FootState::new(f.spheres.len()))
+            .collect();
         Self {
             setup,
             other: None,
             clock_s: 0.0,
             belt_ramp_s: 0.0,
-            sum: [0.0; 4],
+            feet,
+            sum: [0.0; 3],
             substeps: 0,
-            deepest_m: 0.0,
-            fastest_slip_m_s: 0.0,
-            contacts: 0,
-            current: vec![None; n],
-            stick_m: vec![[0.0; 2]; n],
             last: GroundReaction::default(),
         }
     }
@@ -534,7 +837,7 @@ impl Ground {
         self.belt_ramp_s = ramp_s;
     }
 
-    /// The belt's speed at the leg's clock (m/s).
+    /// The belt's speed at the exoskeleton's clock (m/s).
     pub fn belt_speed_now_m_s(&self) -> f64 {
         let v = self.setup.settings.belt_speed_m_s();
         if self.belt_ramp_s <= 0.0 || self.clock_s >= self.belt_ramp_s {
@@ -554,9 +857,22 @@ impl Ground {
         self.other.is_some()
     }
 
-    /// The foot's contacts at the last substep, sphere by sphere (`None` out of contact).
-    pub fn sphere_contacts(&self) -> &[Option<SphereContact>] {
-        &self.current
+    /// The simulated feet, leg by leg.
+    pub fn feet(&self) -> &[FootSetup] {
+        &self.setup.feet
+    }
+
+    /// Foot `leg`'s contacts at the last substep, sphere by sphere (`None` out of contact).
+    pub fn sphere_contacts(&self, leg: usize) -> &[Option<SphereContact>] {
+        self.feet.get(leg).map_or(&[], |f| f.current.as_slice())
+    }
+
+    /// Fore-aft centre of pressure of foot `leg`'s last substep's contacts (m, world X;
+    /// NaN without one).
+    pub fn centre_of_pressure_x_m(&self, leg: usize) -> f64 {
+        self.feet
+            .get(leg)
+            .map_or(f64::NAN, FootState::centre_of_pressure_x_m)
     }
 
     /// The settings.
@@ -564,7 +880,7 @@ impl Ground {
         &self.setup.settings
     }
 
-    /// Mass of everything the belt and harness carry: exoskeleton, leg and the patient's
+    /// Mass of everything the belt and harness carry: exoskeleton, legs and the patient's
     /// mass on the pelvis (kg).
     pub fn total_mass_kg(&self) -> f64 {
         self.setup.total_mass_kg
@@ -582,21 +898,11 @@ impl Ground {
             * pma_model::GRAVITY_M_S2
     }
 
-    /// The contact spheres, in the frame of [`Self::foot_link_name`].
-    pub fn spheres(&self) -> &[FootSphere] {
-        &self.setup.spheres
-    }
-
     pub(crate) fn pelvis(&self) -> RigidBodyHandle {
         self.setup.pelvis
     }
 
-    /// The link the contact spheres are on (`shank` once the foot is folded into it).
-    pub fn foot_link_name(&self) -> &'static str {
-        self.setup.foot_link
-    }
-
-    /// The leg's sagittal geometry.
+    /// The first leg's sagittal geometry.
     pub fn chain(&self) -> &SagittalChain {
         &self.setup.chain
     }
@@ -625,9 +931,9 @@ impl Ground {
         }
     }
 
-    /// Adds this substep's contact forces to the foot, and the harness's and the other
-    /// leg's to the pelvis (their user forces reset by the leg at the substep's start);
-    /// `h_s` is the substep's length.
+    /// Adds this substep's contact forces to every foot, and the harness's and the other
+    /// leg's to the pelvis (their user forces reset by the exoskeleton at the substep's
+    /// start); `h_s` is the substep's length.
     pub(crate) fn apply(&mut self, bodies: &mut RigidBodySet, h_s: f64) {
         self.substeps += 1;
         if let Some(rb) = bodies.get_mut(self.setup.pelvis) {
@@ -643,8 +949,6 @@ impl Ground {
                 ),
                 None => 0.0,
             };
-            self.sum[2] += other;
-            self.sum[3] += up;
             let held = match self.setup.fore_aft_at_m {
                 Some(x0) => {
                     let t = &self.setup.settings;
@@ -653,64 +957,34 @@ impl Ground {
                 }
                 None => 0.0,
             };
+            self.sum[0] += other;
+            self.sum[1] += up;
+            self.sum[2] += held;
             rb.add_force(Vector::new(held as Real, 0.0, (up + other) as Real), true);
         }
-        self.foot_contacts(bodies, h_s);
-        self.clock_s += h_s;
-    }
-
-    /// The belt's contacts on the foot's spheres over a substep of `h_s`.
-    fn foot_contacts(&mut self, bodies: &mut RigidBodySet, h_s: f64) {
-        let Some(rb) = bodies.get_mut(self.setup.foot) else {
-            return;
-        };
-        let pose = *rb.position();
         let belt = self.belt_speed_now_m_s();
-        self.contacts = 0;
-        for (k, s) in self.setup.spheres.iter().enumerate() {
-            self.current[k] = None;
-            let c = pose.transform_point(vector(s.center_m));
-            let contact_point = c - Vector::new(0.0, 0.0, s.radius_m as Real);
-            let v = rb.velocity_at_point(contact_point);
-            let Some(contact) = sphere_contact(
-                &self.setup.settings.contact,
-                s.radius_m,
-                [c.x, c.y, c.z].map(f64::from),
-                [v.x, v.y, v.z].map(f64::from),
-                belt,
-                (&mut self.stick_m[k], h_s),
-            ) else {
-                continue;
-            };
-            self.current[k] = Some(contact);
-            let f = contact.force_n;
-            rb.add_force_at_point(vector(f), vector(contact.point_m), true);
-            self.sum[0] += f[2];
-            self.sum[1] += f[0];
-            self.deepest_m = self.deepest_m.max(contact.depth_m);
-            if f[2] > 0.0 {
-                self.fastest_slip_m_s = self.fastest_slip_m_s.max(contact.slip_m_s);
-            }
-            self.contacts += 1;
+        let params = self.setup.settings.contact;
+        for (state, foot) in self.feet.iter_mut().zip(&self.setup.feet) {
+            state.apply(foot, &params, belt, bodies, h_s);
         }
+        self.clock_s += h_s;
     }
 
     /// Closes a period: its averages become [`Self::reaction`].
     pub(crate) fn end_period(&mut self) {
         let n = f64::from(self.substeps.max(1));
+        for f in &mut self.feet {
+            f.end_period(n);
+        }
+        let feet = &self.feet;
         self.last = GroundReaction {
-            vertical_n: self.sum[0] / n,
-            fore_aft_n: self.sum[1] / n,
-            penetration_m: self.deepest_m,
-            slip_m_s: self.fastest_slip_m_s,
-            contacts: self.contacts,
-            contralateral_n: self.sum[2] / n,
-            support_n: self.sum[3] / n,
+            feet: PerLeg::from_fn(feet.len(), |i| feet[i].last),
+            contralateral_n: self.sum[0] / n,
+            support_n: self.sum[1] / n,
+            harness_fore_aft_n: self.sum[2] / n,
         };
-        self.sum = [0.0; 4];
+        self.sum = [0.0; 3];
         self.substeps = 0;
-        self.deepest_m = 0.0;
-        self.fastest_slip_m_s = 0.0;
     }
 
     /// The last period's ground reaction.
@@ -718,20 +992,7 @@ impl Ground {
         self.last
     }
 
-    /// Fore-aft centre of pressure of the last substep's contacts (m, world X; NaN
-    /// without one).
-    pub fn centre_of_pressure_x_m(&self) -> f64 {
-        let (moment, force) = self.current.iter().flatten().fold((0.0, 0.0), |(m, f), c| {
-            (m + c.point_m[0] * c.force_n[2], f + c.force_n[2])
-        });
-        if force > 0.0 {
-            moment / force
-        } else {
-            f64::NAN
-        }
-    }
-
-    /// Time since the leg was built, as the other leg's reference sees it (s).
+    /// Time since the exoskeleton was built, as the other leg's reference sees it (s).
     pub fn clock_s(&self) -> f64 {
         self.clock_s
     }

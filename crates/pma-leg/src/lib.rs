@@ -10,10 +10,11 @@ pub mod config;
 pub mod control;
 pub mod demand;
 mod error;
+pub mod exoskeleton;
 pub mod gains;
 pub mod gait;
 pub mod ground;
-pub mod leg;
+pub mod legs;
 pub mod metrics;
 pub mod patient;
 pub mod plant;
@@ -23,12 +24,15 @@ pub mod sizing;
 pub mod stance;
 
 pub use config::{LoadedScenario, MuscleGeometry, Scenario, Side};
-pub use control::{LegControllers, LegOutput, Vented};
+pub use control::{LegControllers, LegOutput, TrainerControllers, Vented};
 pub use error::LegError;
-pub use leg::{Leg, LegInertia, Mount, VisualShape};
-pub use metrics::{JointStats, LegMetrics, LegReport, MuscleStats};
+pub use exoskeleton::{Exoskeleton, LegInertia, Mount, VisualShape};
+pub use legs::{PerLeg, MAX_LEGS, SIDES};
+pub use metrics::{JointStats, LegMetrics, LegPeriod, LegRecorder, LegReport, MuscleStats, OnLeg};
 pub use patient::{Patient, PatientSettings, PatientTorques, SpasmEvent};
-pub use plant::{LegPlant, LegState, MuscleActuator, SupervisedLeg};
+pub use plant::{LegPlant, LegState, MuscleActuator, SupervisedLeg, TrainerState};
 pub use safety::{PatientMetrics, PatientReport, SafetyReport, SpasmReport};
-pub use sim::{balanced_pressures, LegFault, LegSample, LegSim};
-pub use stance::{TreadmillMetrics, TreadmillReport};
+pub use sim::{
+    balanced_pressures, FootSample, GroundSample, LegFault, LegSample, LegSim, TrainerSample,
+};
+pub use stance::{FootMetrics, FootReport, TreadmillReport};

@@ -1,11 +1,195 @@
 //! The leg's figures: tracking after the first stride, pressures, slack time, the common
 //! mode's drift and valve activity, accumulated by a [`Recorder`] without allocation.
 use crate::control::LegOutput;
-use crate::leg::JOINT_NAMES;
-use crate::plant::SupervisedLeg;
-use crate::safety::{PatientReport, SafetyReport, SpasmReport};
-use pma_loop::{Period, Recorder, Start};
+use crate::exoskeleton::JOINT_NAMES;
+use crate::legs::PerLeg;
+use crate::plant::{leg_label, LegPlant, LegState, SupervisedLeg, TrainerState};
+use crate::safety::{PatientMetrics, PatientReport, SafetyReport, SpasmReport};
+
+/// `map`'s keys as outputs name them on leg `leg` of a trainer of `legs` legs.
+fn labelled<V>(
+    legs: usize,
+    leg: usize,
+    map: BTreeMap<String, V>,
+) -> impl Iterator<Item = (String, V)> {
+    map.into_iter()
+        .map(move |(k, v)| (leg_label(legs, leg, &k), v))
+}
+use pma_loop::{End, Period, Recorder, Start};
 use std::collections::BTreeMap;
+
+impl LegReport {
+    /// The run's report from every leg's metrics (one `LegMetrics` and one
+    /// `PatientMetrics` per leg, in leg order, each patient's with the run's end): one leg's
+    /// figures keyed as in the air (`hip`, `hip_flexor`), two legs' by side (`right/hip`).
+    pub fn of_legs<'a>(
+        scenario: &str,
+        duration_s: f64,
+        wall_s: f64,
+        muscle_names: &[String],
+        metrics: impl ExactSizeIterator<Item = &'a LegMetrics>,
+        patients: impl Iterator<Item = (&'a PatientMetrics, f64)>,
+    ) -> LegReport {
+        let legs = metrics.len();
+        let mut out: Option<LegReport> = None;
+        let mut sums = (0.0, 0.0, 0.0);
+        for (leg, (m, (p, end_s))) in metrics.zip(patients).enumerate() {
+            let r = m.report(scenario, muscle_names, duration_s, wall_s);
+            sums.0 += r.cocontraction_pa.start;
+            sums.1 += r.cocontraction_pa.end;
+            sums.2 += r.command_variation_bar_per_s;
+            let all = out.get_or_insert_with(|| LegReport {
+                joints: BTreeMap::new(),
+                muscles: BTreeMap::new(),
+                ..r.clone()
+            });
+            all.joints.extend(labelled(legs, leg, r.joints));
+            all.muscles.extend(labelled(legs, leg, r.muscles));
+            all.finite &= r.finite;
+            all.patient
+                .joints
+                .extend(labelled(legs, leg, p.patient().joints));
+            all.spasms.extend(p.spasms(end_s).into_iter().map(|mut s| {
+                s.joint = leg_label(legs, leg, &s.joint);
+                s
+            }));
+            let safety = p.safety(muscle_names);
+            all.safety.joints.extend(labelled(legs, leg, safety.joints));
+            all.safety
+                .muscles
+                .extend(labelled(legs, leg, safety.muscles));
+        }
+        let mut report = out.unwrap_or_else(|| {
+            LegMetrics::new(1.0, 1.0).report(scenario, muscle_names, duration_s, wall_s)
+        });
+        let n = legs.max(1) as f64;
+        report.cocontraction_pa = CoContractionStats {
+            start: sums.0 / n,
+            end: sums.1 / n,
+        };
+        report.command_variation_bar_per_s = sums.2 / n;
+        report.spasms.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
+        report
+    }
+
+    /// A joint's RMS tracking error (deg) over the legs (`hip` or `knee`): the mean of
+    /// every leg's.
+    pub fn joint_rms_deg(&self, joint: &str) -> f64 {
+        let (sum, n) = self
+            .joints
+            .iter()
+            .filter(|(k, _)| *k == joint || k.ends_with(&format!("/{joint}")))
+            .fold((0.0, 0), |(s, n), (_, v)| (s + v.rms_deg, n + 1));
+        if n > 0 {
+            sum / f64::from(n)
+        } else {
+            f64::NAN
+        }
+    }
+}
+
+/// One leg's view of the loop's start.
+#[derive(Debug, Clone, Copy)]
+pub struct LegStart<'a> {
+    /// Time of the start (s).
+    pub t_s: f64,
+    /// The leg's state.
+    pub state: &'a LegState,
+    /// The pressures the leg's valves held at rest (Pa).
+    pub resting: &'a [f64; 4],
+    /// The whole trainer's state (the treadmill's, the other legs').
+    pub trainer: &'a TrainerState,
+}
+
+/// One leg's view of one loop period.
+#[derive(Clone, Copy)]
+pub struct LegPeriod<'a> {
+    /// The leg (0 right, 1 left).
+    pub leg: usize,
+    /// Time of the reading (s).
+    pub t_s: f64,
+    /// Time since the previous reading (s).
+    pub dt_s: f64,
+    /// The leg's state at the reading.
+    pub state: &'a LegState,
+    /// What the leg's controllers made of it.
+    pub output: &'a LegOutput,
+    /// The pressures held over the period that just ended (Pa).
+    pub held: &'a [f64; 4],
+    /// The pressures written for the next period (Pa).
+    pub written: &'a [f64; 4],
+    /// The whole trainer's state (the treadmill's, the other legs').
+    pub trainer: &'a TrainerState,
+    /// The plant.
+    pub plant: &'a LegPlant,
+}
+
+/// A recorder of one leg: the leg's figures are written once, for one leg, and run on
+/// each leg of a trainer through [`OnLeg`].
+pub trait LegRecorder {
+    /// The run has started.
+    fn start(&mut self, start: &LegStart<'_>) {
+        let _ = start;
+    }
+    /// One period.
+    fn record(&mut self, period: &LegPeriod<'_>);
+}
+
+/// Runs a one-leg recorder on leg `leg` of the trainer's loop.
+#[derive(Debug, Clone)]
+pub struct OnLeg<R> {
+    /// The leg it follows.
+    pub leg: usize,
+    /// The recorder.
+    pub inner: R,
+}
+
+impl<R> OnLeg<R> {
+    /// `inner` on leg `leg`.
+    pub fn new(leg: usize, inner: R) -> Self {
+        Self { leg, inner }
+    }
+}
+
+impl<R: LegRecorder> Recorder<SupervisedLeg, PerLeg<LegOutput>> for OnLeg<R> {
+    fn start(&mut self, s: &Start<'_, SupervisedLeg>) {
+        let (Some(state), Some(resting)) = (s.truth.legs.get(self.leg), s.resting.get(self.leg))
+        else {
+            return;
+        };
+        self.inner.start(&LegStart {
+            t_s: s.t_s,
+            state,
+            resting,
+            trainer: s.truth,
+        });
+    }
+
+    fn record(&mut self, p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>) {
+        let leg = self.leg;
+        let (Some(state), Some(output), Some(held), Some(written)) = (
+            p.truth.legs.get(leg),
+            p.output.get(leg),
+            p.held.get(leg),
+            p.written.get(leg),
+        ) else {
+            return;
+        };
+        self.inner.record(&LegPeriod {
+            leg,
+            t_s: p.t_s,
+            dt_s: p.dt_s,
+            state,
+            output,
+            held,
+            written,
+            trainer: p.truth,
+            plant: p.backend.inner(),
+        });
+    }
+
+    fn end(&mut self, _: &End<<SupervisedLeg as pma_loop::Backend>::Error>, _: f64) {}
+}
 
 /// Per-joint tracking figures (deg).
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
@@ -210,15 +394,15 @@ impl LegMetrics {
     }
 }
 
-impl Recorder<SupervisedLeg, LegOutput> for LegMetrics {
-    fn start(&mut self, s: &Start<'_, SupervisedLeg>) {
+impl LegRecorder for LegMetrics {
+    fn start(&mut self, s: &LegStart<'_>) {
         self.previous = *s.resting;
         self.t_s = s.t_s;
     }
 
     /// The figures pair the state at the reading with the commands held over the period
     /// that led to it.
-    fn record(&mut self, p: &Period<'_, SupervisedLeg, LegOutput>) {
+    fn record(&mut self, p: &LegPeriod<'_>) {
         let held = *p.held;
         self.variation += held
             .iter()
@@ -228,7 +412,7 @@ impl Recorder<SupervisedLeg, LegOutput> for LegMetrics {
             / 4.0;
         self.previous = held;
         self.t_s = p.t_s;
-        let s = p.truth;
+        let s = p.state;
         self.finite &= s.angle_rad.iter().chain(&held).all(|v| v.is_finite());
         if p.t_s > self.stride_s {
             self.push_tracking(p.output.reference_rad, s.angle_rad);

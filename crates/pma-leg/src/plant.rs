@@ -1,25 +1,35 @@
-//! The leg as a [`Backend`] of the closed loop: rapier multibody, four muscles with their
-//! valves, two joint encoders.
+//! The exoskeleton as a [`Backend`] of the closed loop: the rapier multibody, four muscles
+//! with their valves and two joint encoders per leg.
 use crate::config::{MuscleGeometry, Scenario};
 use crate::error::LegError;
+use crate::exoskeleton::{Exoskeleton, JOINT_NAMES};
 use crate::ground::GroundReaction;
-use crate::leg::{Leg, JOINT_NAMES};
+use crate::legs::{PerLeg, MAX_LEGS, SIDES};
 use crate::patient::{Patient, PatientTorques};
 use pma_loop::{Backend, Started};
 use pma_model::{MuscleModel, PositionSensor, Valve};
 
-/// A muscle on the leg: geometry, the true three-element model and its valve.
+/// Muscles per leg: a flexor and an extensor at hip and knee.
+pub const MUSCLES_PER_LEG: usize = 4;
+
+/// A muscle on a leg: geometry, the true three-element model and its valve.
 #[derive(Debug, Clone)]
 pub struct MuscleActuator {
     /// Geometry.
     pub geometry: MuscleGeometry,
+    /// The leg it is on (0 right, 1 left).
+    pub leg: usize,
+    /// Its place among its leg's four muscles (the geometry file's order).
+    pub index: usize,
     /// Joint index (0 hip, 1 knee).
     pub joint: usize,
     /// True muscle: eq. (1), or a Festo size as measured.
     pub model: MuscleModel,
-    /// Rated pulling force (N): the Festo size's, or the scenario's
-    /// `plant.muscle_rated_force_n` for an eq. (1) muscle.
+    /// Rated pulling force (N): the Festo size's, or for an eq. (1) muscle Table I's own at
+    /// the valve's limit (`plant.muscle_rated_force_n` overrides it).
     pub rated_force_n: f64,
+    /// Where the rating comes from, as outputs say it.
+    pub rating: String,
     pub(crate) valve: Valve,
 }
 
@@ -34,7 +44,7 @@ impl MuscleActuator {
         }
     }
 
-    /// Contraction (m) at joint angles `q`.
+    /// Contraction (m) at its leg's joint angles `q`.
     pub fn contraction(&self, q: [f64; 2]) -> f64 {
         self.geometry.contraction(q[self.joint])
     }
@@ -73,15 +83,31 @@ impl MuscleActuator {
     pub fn set_point(&self) -> f64 {
         self.valve.set_point()
     }
+
+    /// Its name as outputs show it: the geometry's, prefixed by the leg's side on a
+    /// two-leg trainer (`left/hip_flexor`).
+    pub fn label(&self, legs: usize) -> String {
+        leg_label(legs, self.leg, &self.geometry.name)
+    }
 }
 
-/// The leg as the loop drives it: the plant behind the safety supervisor of the rig
-/// (pressure clamp and rate limit on all four muscles, NaN and joint windows on the
-/// encoders); a fault vents all four.
+/// `name` as outputs show it on a trainer of `legs` legs: as is with one leg, prefixed by
+/// the side with two (`right/hip`).
+pub fn leg_label(legs: usize, leg: usize, name: &str) -> String {
+    if legs > 1 {
+        format!("{}/{name}", SIDES[leg])
+    } else {
+        name.to_owned()
+    }
+}
+
+/// The exoskeleton as the loop drives it: the plant behind the safety supervisor of the
+/// rig (pressure clamp and rate limit on every muscle, NaN and joint windows on every
+/// encoder); a fault vents all muscles.
 pub type SupervisedLeg = pma_control::Supervised<LegPlant>;
 
-/// The leg's true state at a reading.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// One leg's true state at a reading.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct LegState {
     /// Joint angles (rad), hip and knee.
     pub angle_rad: [f64; 2],
@@ -97,58 +123,88 @@ pub struct LegState {
     pub slack_s: [f64; 4],
     /// The patient's torques at the last substep (N m, flexion positive).
     pub patient: PatientTorques,
-    /// What the belt did to the foot over the last period, on a treadmill.
-    pub ground: Option<GroundReaction>,
-    /// Height of the pelvis frame above the belt (m), on a treadmill.
-    pub pelvis_height_m: Option<f64>,
+    /// The passive ankle's angle (rad, dorsiflexion positive; NaN without one).
+    pub ankle_rad: f64,
+    /// The orthosis's torque on the ankle (N m, dorsiflexion positive).
+    pub ankle_torque_nm: f64,
 }
 
-/// The leg in the closed loop: reads two encoder angles, takes four pressure commands.
+/// The exoskeleton's true state at a reading: each leg's, and on a treadmill what the
+/// belt and the harness did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrainerState {
+    /// Each leg's state.
+    pub legs: PerLeg<LegState>,
+    /// What the belt did to the feet over the last period, on a treadmill.
+    pub ground: Option<GroundReaction>,
+    /// Position of the pelvis frame `[fore-aft, height above the belt]` (m), on a
+    /// treadmill.
+    pub pelvis_m: Option<[f64; 2]>,
+}
+
+/// The exoskeleton in the closed loop: reads two encoder angles per leg, takes four
+/// pressure commands per leg.
 pub struct LegPlant {
-    leg: Leg,
+    exo: Exoskeleton,
+    /// Every leg's muscles, leg after leg, each leg's in the geometry file's order.
     muscles: Vec<MuscleActuator>,
-    encoders: [PositionSensor; 2],
+    encoders: Vec<[PositionSensor; 2]>,
     period_s: f64,
     periods: u64,
-    slack_s: [f64; 4],
-    patient: Option<Patient>,
+    slack_s: [[f64; 4]; MAX_LEGS],
+    /// Each leg's patient (empty: the passive limb).
+    patients: Vec<Patient>,
     muscles_attached: bool,
 }
 
 impl LegPlant {
     pub(crate) fn new(
-        leg: Leg,
+        exo: Exoskeleton,
         muscles: Vec<MuscleActuator>,
         scenario: &Scenario,
     ) -> Result<Self, LegError> {
+        let mut encoders = Vec::with_capacity(exo.leg_count());
+        for leg in 0..exo.leg_count() as u64 {
+            encoders.push([
+                PositionSensor::new(scenario.plant.encoder.sensor(2 * leg))?,
+                PositionSensor::new(scenario.plant.encoder.sensor(2 * leg + 1))?,
+            ]);
+        }
         Ok(Self {
-            leg,
+            exo,
             muscles,
-            encoders: [
-                PositionSensor::new(scenario.plant.encoder.sensor(0))?,
-                PositionSensor::new(scenario.plant.encoder.sensor(1))?,
-            ],
+            encoders,
             period_s: scenario.period_s,
             periods: 0,
-            slack_s: [0.0; 4],
-            patient: None,
+            slack_s: [[0.0; 4]; MAX_LEGS],
+            patients: Vec::new(),
             muscles_attached: true,
         })
     }
 
-    /// Puts a patient in the leg (`None`: the passive limb).
-    pub fn set_patient(&mut self, patient: Option<Patient>) {
-        self.patient = patient;
+    /// Puts a patient in each leg (empty: the passive limb).
+    pub fn set_patients(&mut self, patients: Vec<Patient>) {
+        self.patients = patients;
     }
 
-    /// The patient, if any.
+    /// The first leg's patient, if any.
     pub fn patient(&self) -> Option<&Patient> {
-        self.patient.as_ref()
+        self.patients.first()
     }
 
-    /// The patient, to plan or change it.
+    /// The first leg's patient, to plan or change it.
     pub fn patient_mut(&mut self) -> Option<&mut Patient> {
-        self.patient.as_mut()
+        self.patients.first_mut()
+    }
+
+    /// Every leg's patient, to plan or change them.
+    pub fn patients_mut(&mut self) -> &mut [Patient] {
+        &mut self.patients
+    }
+
+    /// Every leg's patient (empty for the passive limb).
+    pub fn patients(&self) -> &[Patient] {
+        &self.patients
     }
 
     /// Unhooks the muscles' cables (`false`): they pull on nothing, as for a test of the
@@ -157,19 +213,30 @@ impl LegPlant {
         self.muscles_attached = attached;
     }
 
-    /// Mutable leg (mounting, holding a joint).
-    pub fn leg_mut(&mut self) -> &mut Leg {
-        &mut self.leg
+    /// Mutable exoskeleton (mounting, holding a joint).
+    pub fn exo_mut(&mut self) -> &mut Exoskeleton {
+        &mut self.exo
     }
 
-    /// The leg (poses, angles, energy).
-    pub fn leg(&self) -> &Leg {
-        &self.leg
+    /// The exoskeleton (poses, angles, energy).
+    pub fn exo(&self) -> &Exoskeleton {
+        &self.exo
     }
 
-    /// The muscles, in the geometry file's order.
+    /// Number of legs.
+    pub fn leg_count(&self) -> usize {
+        self.exo.leg_count()
+    }
+
+    /// Every leg's muscles, leg after leg.
     pub fn muscles(&self) -> &[MuscleActuator] {
         &self.muscles
+    }
+
+    /// Leg `leg`'s four muscles.
+    pub fn leg_muscles(&self, leg: usize) -> &[MuscleActuator] {
+        let at = leg * MUSCLES_PER_LEG;
+        self.muscles.get(at..at + MUSCLES_PER_LEG).unwrap_or(&[])
     }
 
     /// Time (s): whole periods since the plant was built.
@@ -177,58 +244,79 @@ impl LegPlant {
         self.periods as f64 * self.period_s
     }
 
-    /// Puts the leg at `angles` with `velocities` (the valves keep their pressure).
-    pub fn set_state(&mut self, angles: [f64; 2], velocities: [f64; 2]) {
-        self.leg.set_state(angles, velocities);
+    /// Puts leg `leg` at `angles` with `velocities` (the valves keep their pressure).
+    pub fn set_state(&mut self, leg: usize, angles: [f64; 2], velocities: [f64; 2]) {
+        self.exo.set_state(leg, angles, velocities);
     }
 
-    /// Sets every valve to `pressures_pa` at once (a resting state).
-    pub fn set_pressures(&mut self, pressures_pa: [f64; 4]) -> Result<(), LegError> {
-        for (m, p) in self.muscles.iter_mut().zip(pressures_pa) {
+    /// Sets every valve of leg `leg` to `pressures_pa` at once (a resting state).
+    pub fn set_pressures(&mut self, leg: usize, pressures_pa: [f64; 4]) -> Result<(), LegError> {
+        let at = leg * MUSCLES_PER_LEG;
+        for (m, p) in self.muscles[at..at + MUSCLES_PER_LEG]
+            .iter_mut()
+            .zip(pressures_pa)
+        {
             m.valve = Valve::new(*m.valve.params(), p)?;
         }
         Ok(())
     }
 
+    /// Vents every valve of every leg at once.
+    pub fn vent_all(&mut self) -> Result<(), LegError> {
+        for leg in 0..self.leg_count() {
+            self.set_pressures(leg, [0.0; 4])?;
+        }
+        Ok(())
+    }
+
     /// One period with the valves commanded directly (open-loop checks).
-    pub fn apply(&mut self, commands_pa: [f64; 4]) -> LegState {
+    pub fn apply(&mut self, commands_pa: PerLeg<[f64; 4]>) -> TrainerState {
         self.command(&commands_pa);
         self.advance();
         self.state()
     }
 
-    fn command(&mut self, commands_pa: &[f64; 4]) -> [f64; 4] {
-        for (m, u) in self.muscles.iter_mut().zip(commands_pa) {
-            m.valve.command(*u);
+    fn command(&mut self, commands_pa: &PerLeg<[f64; 4]>) -> PerLeg<[f64; 4]> {
+        for m in &mut self.muscles {
+            let u = commands_pa.get(m.leg).map_or(0.0, |c| c[m.index_in_leg()]);
+            m.valve.command(u);
         }
-        std::array::from_fn(|i| match self.muscles.get(i) {
-            Some(m) => m.valve.params().clamp(commands_pa[i]),
-            None => f64::NAN,
+        let muscles = &self.muscles;
+        PerLeg::from_fn(self.exo.leg_count(), |leg| {
+            std::array::from_fn(|i| match muscles.get(leg * MUSCLES_PER_LEG + i) {
+                Some(m) => m
+                    .valve
+                    .params()
+                    .clamp(commands_pa.get(leg).map_or(0.0, |c| c[i])),
+                None => f64::NAN,
+            })
         })
     }
 
     /// Physics over one period with the valves as commanded: every substep the valves
-    /// advance and the muscles' torques go into rapier.
+    /// advance and each leg's muscles' and patient's torques go into rapier.
     fn advance(&mut self) {
         let muscles = &mut self.muscles;
-        let patient = &mut self.patient;
+        let patients = &mut self.patients;
         let attached = self.muscles_attached;
-        let h = self.period_s / f64::from(self.leg.substeps());
+        let legs = self.exo.leg_count();
+        let h = self.period_s / f64::from(self.exo.substeps());
         let t0 = self.periods as f64 * self.period_s;
-        let mut slack = [0.0; 4];
-        self.leg.step(|leg, sub| {
-            let (q, qd) = (leg.angles(), leg.velocities());
-            let mut tau = match patient {
-                Some(p) => p.torques(t0 + sub as f64 * h, q, qd).total(),
+        let mut slack = [[0.0; 4]; MAX_LEGS];
+        self.exo.step(|exo, sub| {
+            let t = t0 + sub as f64 * h;
+            let mut tau = PerLeg::from_fn(legs, |leg| match patients.get_mut(leg) {
+                Some(p) => p.torques(t, exo.angles(leg), exo.velocities(leg)).total(),
                 None => [0.0; 2],
-            };
-            for (i, m) in muscles.iter_mut().enumerate() {
+            });
+            for m in muscles.iter_mut() {
+                let (q, qd) = (exo.angles(m.leg), exo.velocities(m.leg));
                 m.valve.advance(h);
                 if m.force_unclamped(q, qd) <= 0.0 {
-                    slack[i] += h;
+                    slack[m.leg][m.index_in_leg()] += h;
                 }
                 if attached {
-                    tau[m.joint] += m.torque(q, qd);
+                    tau[m.leg][m.joint] += m.torque(q, qd);
                 }
             }
             tau
@@ -237,18 +325,22 @@ impl LegPlant {
         self.periods += 1;
     }
 
-    fn encoder_angles(&mut self) -> [f64; 2] {
-        let q = self.leg.angles();
-        [
-            self.encoders[0].measure(q[0]),
-            self.encoders[1].measure(q[1]),
-        ]
+    fn encoder_angles(&mut self) -> PerLeg<[f64; 2]> {
+        let exo = &self.exo;
+        let encoders = &mut self.encoders;
+        PerLeg::from_fn(exo.leg_count(), |leg| {
+            let q = exo.angles(leg);
+            [
+                encoders[leg][0].measure(q[0]),
+                encoders[leg][1].measure(q[1]),
+            ]
+        })
     }
 
-    /// The true state now.
-    pub fn state(&self) -> LegState {
-        let (q, qd) = (self.leg.angles(), self.leg.velocities());
-        let m = &self.muscles;
+    /// Leg `leg`'s true state now.
+    pub fn leg_state(&self, leg: usize) -> LegState {
+        let (q, qd) = (self.exo.angles(leg), self.exo.velocities(leg));
+        let m = self.leg_muscles(leg);
         let each = |f: &dyn Fn(&MuscleActuator) -> f64| -> [f64; 4] {
             std::array::from_fn(|i| m.get(i).map_or(f64::NAN, f))
         };
@@ -258,28 +350,41 @@ impl LegPlant {
             pressure_pa: each(&|m| m.pressure()),
             force_n: each(&|m| m.force(q, qd)),
             length_m: each(&|m| m.contraction(q)),
-            slack_s: self.slack_s,
+            slack_s: self.slack_s[leg],
             patient: self
-                .patient
-                .as_ref()
+                .patients
+                .get(leg)
                 .map_or_else(PatientTorques::default, Patient::last),
-            ground: self.leg.ground_reaction(),
-            pelvis_height_m: self.leg.pelvis_height_m(),
+            ankle_rad: self.exo.ankle(leg).map_or(f64::NAN, |a| a.0),
+            ankle_torque_nm: self.exo.ankle_torque_nm(leg),
         }
     }
 
-    /// Each muscle as a segment from its anchor to its joint's pulley, in world
-    /// coordinates (m), for drawing.
-    pub fn muscle_segments(&self) -> [([f64; 3], [f64; 3]); 4] {
+    /// The true state now.
+    pub fn state(&self) -> TrainerState {
+        TrainerState {
+            legs: PerLeg::from_fn(self.exo.leg_count(), |leg| self.leg_state(leg)),
+            ground: self.exo.ground_reaction(),
+            pelvis_m: self.exo.pelvis_position_m(),
+        }
+    }
+
+    /// Each of leg `leg`'s muscles as a segment from its anchor to its joint's pulley, in
+    /// world coordinates (m), for drawing.
+    pub fn muscle_segments(&self, leg: usize) -> [([f64; 3], [f64; 3]); 4] {
+        let muscles = self.leg_muscles(leg);
+        let joints = self.exo.leg(leg);
         std::array::from_fn(|i| {
-            let Some(m) = self.muscles.get(i) else {
+            let Some(m) = muscles.get(i) else {
                 return ([f64::NAN; 3], [f64::NAN; 3]);
             };
             let g = &m.geometry;
-            let anchor = self.leg.point_in_world(&g.body_link, g.anchor_m);
+            let anchor = self
+                .exo
+                .point_in_world(&joints.link_name(&g.body_link), m.anchor_m());
             // The pulley sits on the joint axis: the origin of the joint's child link.
-            let child = if m.joint == 0 { "thigh" } else { "shank" };
-            let pulley = self.leg.point_in_world(child, [0.0, g.anchor_m[1], 0.0]);
+            let child = joints.urdf_name(if m.joint == 0 { "thigh" } else { "shank" });
+            let pulley = self.exo.point_in_world(&child, [0.0, m.anchor_m()[1], 0.0]);
             (
                 anchor.unwrap_or([f64::NAN; 3]),
                 pulley.unwrap_or([f64::NAN; 3]),
@@ -290,6 +395,24 @@ impl LegPlant {
     /// Names of the joints, in reading order.
     pub fn joint_names(&self) -> [&'static str; 2] {
         JOINT_NAMES
+    }
+}
+
+impl MuscleActuator {
+    /// Its place among its leg's four muscles.
+    pub fn index_in_leg(&self) -> usize {
+        self.index
+    }
+
+    /// Its anchor in its body link's frame (m): the geometry's on the right leg, mirrored
+    /// about the pelvis's sagittal plane (Y) on the left.
+    pub fn anchor_m(&self) -> [f64; 3] {
+        let [x, y, z] = self.geometry.anchor_m;
+        if self.leg % 2 == 1 {
+            [x, -y, z]
+        } else {
+            [x, y, z]
+        }
     }
 }
 
@@ -304,91 +427,98 @@ impl LegPlant {
     /// Ends a run whose state left physical bounds: non-finite, a joint far beyond its
     /// limit or faster than any limb moves. Its figures would be garbage.
     fn check_physics(&self) -> Result<(), LegError> {
-        let (q, qd) = (self.leg.angles(), self.leg.velocities());
-        let limits = self.leg.limits_rad();
-        for (k, name) in JOINT_NAMES.iter().enumerate() {
-            let [lo, hi] = limits[k];
-            let beyond = (lo - q[k]).max(q[k] - hi);
-            let diverged = if !(q[k].is_finite() && qd[k].is_finite()) {
-                Some(format!(
-                    "its state is not finite ({} rad, {} rad/s)",
-                    q[k], qd[k]
-                ))
-            } else if beyond > LIMIT_OVERSHOOT_MAX_RAD {
-                Some(format!(
-                    "it is {beyond:.3} rad beyond its limits [{lo:.3}, {hi:.3}] rad (bound {LIMIT_OVERSHOOT_MAX_RAD} rad)"
-                ))
-            } else if qd[k].abs() > JOINT_SPEED_MAX_RAD_S {
-                Some(format!(
-                    "it turns at {:.1} rad/s (bound {JOINT_SPEED_MAX_RAD_S} rad/s)",
-                    qd[k]
-                ))
-            } else {
-                None
-            };
-            if let Some(why) = diverged {
-                return Err(LegError::LeftPhysics {
-                    t_s: self.time(),
-                    what: format!("the {name}: {why}"),
-                });
+        let legs = self.exo.leg_count();
+        for leg in 0..legs {
+            let (q, qd) = (self.exo.angles(leg), self.exo.velocities(leg));
+            let limits = self.exo.limits_rad(leg);
+            for (k, name) in JOINT_NAMES.iter().enumerate() {
+                if let Some(why) = left_physics(q[k], qd[k], limits[k]) {
+                    return Err(LegError::LeftPhysics {
+                        t_s: self.time(),
+                        what: format!("the {}: {why}", leg_label(legs, leg, name)),
+                    });
+                }
             }
         }
         self.check_ground()
     }
 
-    /// On a treadmill: the pelvis finite and the foot no deeper in the belt than its
-    /// spheres are wide (Hertz contact means nothing past that: the model has failed).
+    /// On a treadmill: the pelvis finite and no foot deeper in the belt than its spheres
+    /// are wide (Hertz contact means nothing past that: the model has failed).
     fn check_ground(&self) -> Result<(), LegError> {
-        let (Some(g), Some(r)) = (self.leg.ground(), self.leg.ground_reaction()) else {
+        let (Some(g), Some(r)) = (self.exo.ground(), self.exo.ground_reaction()) else {
             return Ok(());
         };
-        let bound_m = g
-            .spheres()
-            .iter()
-            .map(|s| 2.0 * s.radius_m)
-            .fold(0.0, f64::max);
-        let z = self.leg.pelvis_height_m().unwrap_or(f64::NAN);
-        let what = if !(z.is_finite() && r.vertical_n.is_finite()) {
-            Some(format!(
-                "the pelvis or the ground reaction is not finite ({z} m, {} N)",
-                r.vertical_n
-            ))
-        } else if r.penetration_m > bound_m {
-            Some(format!(
-                "the foot is {:.1} mm into the belt (bound {:.0} mm, its spheres' diameter)",
-                r.penetration_m * 1e3,
-                bound_m * 1e3
-            ))
-        } else {
-            None
-        };
-        match what {
-            Some(what) => Err(LegError::LeftPhysics {
-                t_s: self.time(),
-                what,
-            }),
-            None => Ok(()),
+        let z = self.exo.pelvis_height_m().unwrap_or(f64::NAN);
+        for (leg, (foot, reaction)) in g.feet().iter().zip(r.feet.iter()).enumerate() {
+            let bound_m = foot
+                .spheres
+                .iter()
+                .map(|s| 2.0 * s.radius_m)
+                .fold(0.0, f64::max);
+            let what = if !(z.is_finite() && reaction.vertical_n.is_finite()) {
+                Some(format!(
+                    "the pelvis or the ground reaction is not finite ({z} m, {} N)",
+                    reaction.vertical_n
+                ))
+            } else if reaction.penetration_m > bound_m {
+                Some(format!(
+                    "the {} is {:.1} mm into the belt (bound {:.0} mm, its spheres' diameter)",
+                    leg_label(r.feet.len(), leg, "foot"),
+                    reaction.penetration_m * 1e3,
+                    bound_m * 1e3
+                ))
+            } else {
+                None
+            };
+            if let Some(what) = what {
+                return Err(LegError::LeftPhysics {
+                    t_s: self.time(),
+                    what,
+                });
+            }
         }
+        Ok(())
+    }
+}
+
+/// Why a joint at `q` (rad) turning at `qd` (rad/s) within `[lo, hi]` has left the
+/// physics, if it has.
+fn left_physics(q: f64, qd: f64, [lo, hi]: [f64; 2]) -> Option<String> {
+    let beyond = (lo - q).max(q - hi);
+    if !(q.is_finite() && qd.is_finite()) {
+        Some(format!("its state is not finite ({q} rad, {qd} rad/s)"))
+    } else if beyond > LIMIT_OVERSHOOT_MAX_RAD {
+        Some(format!(
+            "it is {beyond:.3} rad beyond its limits [{lo:.3}, {hi:.3}] rad (bound {LIMIT_OVERSHOOT_MAX_RAD} rad)"
+        ))
+    } else if qd.abs() > JOINT_SPEED_MAX_RAD_S {
+        Some(format!(
+            "it turns at {qd:.1} rad/s (bound {JOINT_SPEED_MAX_RAD_S} rad/s)"
+        ))
+    } else {
+        None
     }
 }
 
 impl Backend for LegPlant {
-    type Reading = [f64; 2];
-    type Command = [f64; 4];
-    type Truth = LegState;
+    type Reading = PerLeg<[f64; 2]>;
+    type Command = PerLeg<[f64; 4]>;
+    type Truth = TrainerState;
     type Error = LegError;
 
-    /// The leg as it is (built at rest); the valves hold their pressures, the patient's
-    /// reflexes start from a limb at rest.
-    fn start(&mut self) -> Result<Started<[f64; 2], [f64; 4]>, LegError> {
-        if let Some(p) = &mut self.patient {
+    /// The exoskeleton as it is (built at rest); the valves hold their pressures, the
+    /// patients' reflexes start from a limb at rest.
+    fn start(&mut self) -> Result<Started<Self::Reading, Self::Command>, LegError> {
+        for p in &mut self.patients {
             p.reset();
         }
         let reading = self.encoder_angles();
+        let state = self.state();
         Ok(Started {
             t_s: self.time(),
             reading,
-            command: self.state().pressure_pa,
+            command: state.legs.map(|l| l.pressure_pa),
         })
     }
 
@@ -402,20 +532,21 @@ impl Backend for LegPlant {
         Ok(1)
     }
 
-    fn read(&mut self) -> Result<[f64; 2], LegError> {
+    fn read(&mut self) -> Result<Self::Reading, LegError> {
         Ok(self.encoder_angles())
     }
 
-    fn write(&mut self, commands_pa: &[f64; 4]) -> Result<[f64; 4], LegError> {
+    fn write(&mut self, commands_pa: &Self::Command) -> Result<Self::Command, LegError> {
         Ok(self.command(commands_pa))
     }
 
-    fn truth(&self) -> LegState {
+    fn truth(&self) -> TrainerState {
         self.state()
     }
 
     /// Vents every muscle.
     fn stop(&mut self) {
-        self.command(&[0.0; 4]);
+        let vent = PerLeg::splat(self.exo.leg_count(), [0.0; 4]);
+        self.command(&vent);
     }
 }

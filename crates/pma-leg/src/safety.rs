@@ -1,11 +1,10 @@
 //! What a run did to the patient and to the hardware: the patient's torques, each spasm's
 //! effect on tracking, time beyond the joint limits, muscle forces against their rating and
 //! valve saturation; accumulated by a [`Recorder`] whose buffers are sized before the run.
-use crate::control::LegOutput;
-use crate::leg::JOINT_NAMES;
+use crate::exoskeleton::JOINT_NAMES;
+use crate::metrics::{LegPeriod, LegRecorder, LegStart};
 use crate::patient::{SpasmDirection, SpasmEvent};
-use crate::plant::{LegPlant, SupervisedLeg};
-use pma_loop::{Period, Recorder, Start};
+use crate::plant::LegPlant;
 use std::collections::BTreeMap;
 
 /// Error within which a joint counts as recovered after a spasm (deg).
@@ -33,12 +32,11 @@ pub struct PatientJointStats {
 }
 
 /// The patient's torques, hip and knee.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
+#[serde(transparent)]
 pub struct PatientReport {
-    /// Hip.
-    pub hip: PatientJointStats,
-    /// Knee.
-    pub knee: PatientJointStats,
+    /// Per joint (`hip`, `knee`; `right/hip`, ... on a two-leg trainer).
+    pub joints: BTreeMap<String, PatientJointStats>,
 }
 
 /// One spasm and what it did.
@@ -94,12 +92,15 @@ pub struct LimitStats {
 }
 
 /// A muscle against its rating and its valve's range.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
 pub struct MuscleSafety {
     /// Largest force (N).
     pub peak_force_n: f64,
-    /// The muscle's rated force (N), `plant.muscle_rated_force_n`.
+    /// The muscle's rated force (N): its Festo size's, or Table I's own pull at the valve's
+    /// limit for an eq. (1) muscle (`plant.muscle_rated_force_n` overrides it).
     pub rated_force_n: f64,
+    /// What the rating is (`Festo DMSP-40`, `Table I's muscle at 6.0 bar, ...`).
+    pub rating: String,
     /// `peak_force_n / rated_force_n`.
     pub peak_over_rated: f64,
     /// Time the force was above the rating (s).
@@ -140,6 +141,7 @@ pub struct PatientMetrics {
     limits_rad: [[f64; 2]; 2],
     pressure_max_pa: f64,
     rated_force_n: [f64; 4],
+    rating: [String; 4],
     n: usize,
     torque_sq: [f64; 2],
     torque_peak: [f64; 2],
@@ -165,9 +167,9 @@ pub struct PatientMetrics {
 #[derive(Debug, Default)]
 pub struct BaselineTrace(pub Vec<[f64; 4]>);
 
-impl Recorder<SupervisedLeg, LegOutput> for BaselineTrace {
-    fn record(&mut self, p: &Period<'_, SupervisedLeg, LegOutput>) {
-        let s = p.truth;
+impl LegRecorder for BaselineTrace {
+    fn record(&mut self, p: &LegPeriod<'_>) {
+        let s = p.state;
         let e = |j: usize| (p.output.reference_rad[j] - s.angle_rad[j]).to_degrees();
         let w = |j: usize| s.velocity_rad_s[j].to_degrees();
         self.0.push([e(0), e(1), w(0), w(1)]);
@@ -179,14 +181,21 @@ impl PatientMetrics {
     /// spasms of the run); each muscle against its own rating.
     pub fn new(
         plant: &LegPlant,
+        leg: usize,
         events: &[SpasmEvent],
         end_s: f64,
         pressure_max_pa: f64,
         baseline: Option<Vec<[f64; 4]>>,
     ) -> Self {
-        let joint_of = std::array::from_fn(|i| plant.muscles().get(i).map_or(0, |m| m.joint));
+        let muscles = plant.leg_muscles(leg);
+        let joint_of = std::array::from_fn(|i| muscles.get(i).map_or(0, |m| m.joint));
         let rated_force_n =
-            std::array::from_fn(|i| plant.muscles().get(i).map_or(f64::NAN, |m| m.rated_force_n));
+            std::array::from_fn(|i| muscles.get(i).map_or(f64::NAN, |m| m.rated_force_n));
+        let rating = std::array::from_fn(|i| {
+            muscles
+                .get(i)
+                .map_or_else(String::new, |m| m.rating.clone())
+        });
         let spasms = events
             .iter()
             .enumerate()
@@ -211,9 +220,10 @@ impl PatientMetrics {
             .collect();
         Self {
             joint_of,
-            limits_rad: plant.leg().limits_rad(),
+            limits_rad: plant.exo().limits_rad(leg),
             pressure_max_pa,
             rated_force_n,
+            rating,
             n: 0,
             torque_sq: [0.0; 2],
             torque_peak: [0.0; 2],
@@ -276,8 +286,11 @@ impl PatientMetrics {
             torque_peak_nm: self.torque_peak[j],
         };
         PatientReport {
-            hip: stats(0),
-            knee: stats(1),
+            joints: JOINT_NAMES
+                .iter()
+                .enumerate()
+                .map(|(j, n)| ((*n).to_owned(), stats(j)))
+                .collect(),
         }
     }
 
@@ -337,6 +350,7 @@ impl PatientMetrics {
                         MuscleSafety {
                             peak_force_n: self.peak_force[i],
                             rated_force_n: self.rated_force_n[i],
+                            rating: self.rating[i].clone(),
                             peak_over_rated: self.peak_force[i] / self.rated_force_n[i],
                             time_over_rated_s: self.over_rated_s[i],
                             margin_n: self.rated_force_n[i] - self.peak_force[i],
@@ -350,13 +364,13 @@ impl PatientMetrics {
     }
 }
 
-impl Recorder<SupervisedLeg, LegOutput> for PatientMetrics {
-    fn start(&mut self, s: &Start<'_, SupervisedLeg>) {
-        self.previous_p = s.truth.pressure_pa;
+impl LegRecorder for PatientMetrics {
+    fn start(&mut self, s: &LegStart<'_>) {
+        self.previous_p = s.state.pressure_pa;
     }
 
-    fn record(&mut self, p: &Period<'_, SupervisedLeg, LegOutput>) {
-        let s = p.truth;
+    fn record(&mut self, p: &LegPeriod<'_>) {
+        let s = p.state;
         let dt = p.dt_s;
         let tau = s.patient.total();
         self.n += 1;

@@ -1,27 +1,42 @@
-//! The closed-loop gait simulation: the leg plant, its controllers and its metrics, run
-//! through the one loop of `pma-loop`.
+//! The closed-loop gait simulation: the exoskeleton plant, every leg's controllers and its
+//! metrics, run through the one loop of `pma-loop`.
 use crate::config::{LoadedScenario, MuscleGeometry, Scenario};
-use crate::control::{LegControllers, LegOutput};
+use crate::control::{LegControllers, LegOutput, TrainerControllers};
 use crate::error::{invalid, LegError};
+use crate::exoskeleton::{Exoskeleton, Mount, JOINT_NAMES};
 use crate::gait::GaitReference;
-use crate::ground::GroundReaction;
-use crate::leg::{Leg, Mount, JOINT_NAMES};
-use crate::metrics::{LegMetrics, LegReport};
+use crate::ground::{Contralateral, FootReaction};
+use crate::legs::{PerLeg, SIDES};
+use crate::metrics::{LegMetrics, LegReport, OnLeg};
 use crate::patient::{Patient, PatientTorques, SpasmEvent};
-use crate::plant::{LegPlant, LegState, MuscleActuator, SupervisedLeg, LIMIT_OVERSHOOT_MAX_RAD};
+use crate::plant::{
+    LegPlant, LegState, MuscleActuator, SupervisedLeg, TrainerState, LIMIT_OVERSHOOT_MAX_RAD,
+    MUSCLES_PER_LEG,
+};
 use crate::safety::PatientMetrics;
-use crate::stance::TreadmillMetrics;
+use crate::stance::{FootMetrics, TrainerGroundMetrics};
 use pma_control::supervisor::{ReadingWindow, Supervised, SupervisorLimits};
 use pma_control::{ControllerConfig, Diagnostics};
 use pma_loop::{LoopSettings, Period, Recorder, Schema, Signals};
 use pma_model::{DampingMode, MuscleModel, MuscleParams, Valve};
 
-/// One period of the leg as logs show it: the state at the reading and what the
-/// controllers made of it.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// What one leg's foot did in one period, on a treadmill.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FootSample {
+    /// The belt's reaction on the foot.
+    pub reaction: FootReaction,
+    /// Whether the reference's foot is in stance.
+    pub reference_stance: bool,
+    /// The passive ankle's angle (rad, dorsiflexion positive; NaN for a fixed ankle).
+    pub ankle_rad: f64,
+    /// The orthosis's torque on the ankle (N m, dorsiflexion positive).
+    pub ankle_torque_nm: f64,
+}
+
+/// One leg's channels of one period: its state at the reading and what its controllers
+/// made of it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct LegSample {
-    /// Time (s).
-    pub t_s: f64,
     /// Reference joint angles (rad).
     pub reference_rad: [f64; 2],
     /// Joint angles (rad).
@@ -47,115 +62,68 @@ pub struct LegSample {
     /// Its parts (N m): reflex, spasm (non-zero while a spasm acts on the joint), voluntary
     /// effort, passive stiffness.
     pub patient_parts_nm: PatientTorques,
-    /// On a treadmill: the belt's reaction, the pelvis's height (m) and whether the
-    /// reference's foot is in stance.
-    pub ground: Option<(GroundReaction, f64, bool)>,
+    /// Its foot on the belt, on a treadmill.
+    pub foot: Option<FootSample>,
+}
+
+/// What the harness, a virtual other leg and the pelvis did in one period, on a treadmill.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct GroundSample {
+    /// The virtual other leg's force on the pelvis (N; 0 without one).
+    pub other_leg_n: f64,
+    /// The harness's upward force (N).
+    pub support_n: f64,
+    /// The harness's fore-aft force on the pelvis (N, forward positive).
+    pub harness_fore_aft_n: f64,
+    /// The pelvis frame `[fore-aft, height above the belt]` (m).
+    pub pelvis_m: [f64; 2],
+}
+
+/// One period of the exoskeleton as logs show it: every leg's channels, and on a
+/// treadmill the harness's and the pelvis's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrainerSample {
+    /// Time (s).
+    pub t_s: f64,
+    /// Each leg's channels.
+    pub legs: PerLeg<LegSample>,
+    /// The harness and the pelvis, on a treadmill.
+    pub ground: Option<GroundSample>,
 }
 
 impl LegSample {
-    /// The leg's view of one loop period.
-    pub fn of(p: &Period<'_, SupervisedLeg, LegOutput>) -> Self {
-        let (s, o) = (p.truth, p.output);
+    /// Leg `leg`'s view of one loop period.
+    fn of(state: &TrainerState, leg: usize, output: &LegOutput, written: &[f64; 4]) -> Self {
+        let s: &LegState = &state.legs[leg];
         Self {
-            t_s: p.t_s,
-            reference_rad: o.reference_rad,
+            reference_rad: output.reference_rad,
             angle_rad: s.angle_rad,
-            reference_velocity_rad_s: o.reference_velocity_rad_s,
+            reference_velocity_rad_s: output.reference_velocity_rad_s,
             velocity_rad_s: s.velocity_rad_s,
-            pressure_cmd_pa: *p.written,
+            pressure_cmd_pa: *written,
             pressure_pa: s.pressure_pa,
-            length_ref_m: o.length_ref_m,
+            length_ref_m: output.length_ref_m,
             length_m: s.length_m,
             force_n: s.force_n,
-            diagnostics: o.diagnostics,
+            diagnostics: output.diagnostics,
             patient_nm: s.patient.total(),
             patient_parts_nm: s.patient,
-            ground: s.ground.map(|g| {
-                (
-                    g,
-                    s.pelvis_height_m.unwrap_or(f64::NAN),
-                    o.reference_in_stance,
-                )
+            foot: state.ground.and_then(|g| {
+                Some(FootSample {
+                    reaction: *g.feet.get(leg)?,
+                    reference_stance: output.reference_in_stance,
+                    ankle_rad: s.ankle_rad,
+                    ankle_torque_nm: s.ankle_torque_nm,
+                })
             }),
         }
     }
-}
 
-/// The joints' names, in reading order.
-const JOINTS: [&str; 2] = ["hip", "knee"];
-
-impl LegSample {
-    /// The treadmill's channels alone (they follow the leg's in [`Self::schema_of`]).
-    pub fn ground_schema() -> Schema {
+    /// One leg's channels (after the time) for muscles named `muscles`, its foot's on a
+    /// treadmill, as the CSV and Rerun show them.
+    pub fn schema(muscles: &[String], treadmill: bool) -> Schema {
         let mut s = Schema::new();
-        Self::push_ground_schema(&mut s);
-        s
-    }
-
-    /// The treadmill's channels, after the leg's: what the belt, the harness and the
-    /// other leg do, and the phases.
-    fn push_ground_schema(s: &mut Schema) {
-        s.push_part(
-            "ground",
-            "foot",
-            "grf_vertical_n",
-            "vertical ground reaction force (N)",
-        )
-        .push_part(
-            "ground",
-            "foot",
-            "grf_fore_aft_n",
-            "fore-aft ground reaction force (N, forward +)",
-        )
-        .push_part(
-            "ground",
-            "foot",
-            "stance",
-            "in stance (1, from contact) or swing (0)",
-        )
-        .push_part(
-            "ground",
-            "foot",
-            "reference_stance",
-            "in the reference's stance (1) or swing (0)",
-        )
-        .push_part("ground", "foot", "slip_m_s", "slip on the belt (m/s)")
-        .push_part(
-            "ground",
-            "foot",
-            "penetration_m",
-            "deepest sphere penetration (m)",
-        )
-        .push_part(
-            "ground",
-            "other_leg",
-            "force_n",
-            "(virtual) force on the pelvis (N)",
-        )
-        .push_part(
-            "ground",
-            "harness",
-            "force_n",
-            "body-weight support force (N)",
-        )
-        .push_part("ground", "pelvis", "height_m", "height above the belt (m)");
-    }
-
-    /// The leg's channels (after the time) for muscles named `muscles`, on a treadmill or
-    /// not, as the CSV and Rerun show them.
-    pub fn schema_of(muscles: &[String], treadmill: bool) -> Schema {
-        let mut s = Self::schema(muscles);
-        if treadmill {
-            Self::push_ground_schema(&mut s);
-        }
-        s
-    }
-
-    /// The leg's channels (after the time) for muscles named `muscles`, as the CSV and
-    /// Rerun show them (in the air; see [`Self::schema_of`]).
-    pub fn schema(muscles: &[String]) -> Schema {
-        let mut s = Schema::new();
-        for j in JOINTS {
+        for j in JOINT_NAMES {
             s.push_part("joints", j, "reference_deg", "reference (deg)")
                 .push_part("joints", j, "angle_deg", "angle (deg)")
                 .push_part("joints", j, "error_deg", "error (deg)")
@@ -214,17 +182,64 @@ impl LegSample {
                     "disturbance estimate (m/s^2)",
                 );
         }
+        if treadmill {
+            s.channels.extend(Self::foot_schema().channels);
+        }
         s
     }
-}
 
-impl Signals for LegSample {
-    fn values(&self, out: &mut [f64]) {
-        let mut k = 0;
-        let mut put = |v: f64| {
-            out[k] = v;
-            k += 1;
-        };
+    /// The foot's and the passive ankle's channels of a leg on a treadmill (after the
+    /// joints' and the muscles' in [`Self::schema`]).
+    pub fn foot_schema() -> Schema {
+        let mut s = Schema::new();
+        s.push_part(
+            "ground",
+            "foot",
+            "grf_vertical_n",
+            "vertical ground reaction force (N)",
+        )
+        .push_part(
+            "ground",
+            "foot",
+            "grf_fore_aft_n",
+            "fore-aft ground reaction force (N, forward +)",
+        )
+        .push_part(
+            "ground",
+            "foot",
+            "stance",
+            "in stance (1, from contact) or swing (0)",
+        )
+        .push_part(
+            "ground",
+            "foot",
+            "reference_stance",
+            "in the reference's stance (1) or swing (0)",
+        )
+        .push_part("ground", "foot", "slip_m_s", "slip on the belt (m/s)")
+        .push_part(
+            "ground",
+            "foot",
+            "penetration_m",
+            "deepest sphere penetration (m)",
+        )
+        .push_part(
+            "joints",
+            "ankle",
+            "angle_deg",
+            "angle (deg, dorsiflexion +; passive)",
+        )
+        .push_part(
+            "joints",
+            "ankle",
+            "orthosis_torque_nm",
+            "orthosis torque (N m, dorsiflexion +)",
+        );
+        s
+    }
+
+    /// Writes the leg's values in the order of [`Self::schema`].
+    fn put(&self, put: &mut impl FnMut(f64)) {
         for j in 0..2 {
             let (r, a) = (
                 self.reference_rad[j].to_degrees(),
@@ -263,18 +278,18 @@ impl Signals for LegSample {
                 put(v);
             }
         }
-        if let Some((g, pelvis_m, reference_stance)) = self.ground {
+        if let Some(f) = self.foot {
+            let g = f.reaction;
             let stance = g.vertical_n > crate::stance::CONTACT_THRESHOLD_N;
             for v in [
                 g.vertical_n,
                 g.fore_aft_n,
                 f64::from(u8::from(stance)),
-                f64::from(u8::from(reference_stance)),
+                f64::from(u8::from(f.reference_stance)),
                 g.slip_m_s,
                 g.penetration_m,
-                g.contralateral_n,
-                g.support_n,
-                pelvis_m,
+                f.ankle_rad.to_degrees(),
+                f.ankle_torque_nm,
             ] {
                 put(v);
             }
@@ -282,11 +297,105 @@ impl Signals for LegSample {
     }
 }
 
-/// The leg with its muscles, controllers, references and metrics.
+impl TrainerSample {
+    /// The exoskeleton's view of one loop period.
+    pub fn of(p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>) -> Self {
+        let s = p.truth;
+        Self {
+            t_s: p.t_s,
+            legs: PerLeg::from_fn(s.legs.len(), |leg| {
+                LegSample::of(s, leg, &p.output[leg], &p.written[leg])
+            }),
+            ground: s.ground.map(|g| GroundSample {
+                other_leg_n: g.contralateral_n,
+                support_n: g.support_n,
+                harness_fore_aft_n: g.harness_fore_aft_n,
+                pelvis_m: s.pelvis_m.unwrap_or([f64::NAN; 2]),
+            }),
+        }
+    }
+
+    /// The treadmill's channels of the pelvis and what holds it.
+    pub fn ground_schema() -> Schema {
+        let mut s = Schema::new();
+        s.push_part(
+            "ground",
+            "other_leg",
+            "force_n",
+            "(virtual) force on the pelvis (N)",
+        )
+        .push_part(
+            "ground",
+            "harness",
+            "force_n",
+            "body-weight support force (N)",
+        )
+        .push_part(
+            "ground",
+            "harness",
+            "fore_aft_n",
+            "fore-aft force on the pelvis (N, forward +)",
+        )
+        .push_part(
+            "ground",
+            "pelvis",
+            "x_m",
+            "fore-aft position (m, forward +)",
+        )
+        .push_part("ground", "pelvis", "height_m", "height above the belt (m)");
+        s
+    }
+
+    /// The channels (after the time) of a trainer of `legs` legs whose muscles (one leg's)
+    /// are named `muscles`, on a treadmill or not, as the CSV and Rerun show them: each
+    /// leg's (prefixed by its side when there are two), then the pelvis's.
+    pub fn schema(muscles: &[String], legs: usize, treadmill: bool) -> Schema {
+        let leg = LegSample::schema(muscles, treadmill);
+        let mut s = Schema::new();
+        for side in SIDES.iter().take(legs) {
+            let part = if legs > 1 {
+                leg.prefixed(side)
+            } else {
+                leg.clone()
+            };
+            s.channels.extend(part.channels);
+        }
+        if treadmill {
+            s.channels.extend(Self::ground_schema().channels);
+        }
+        s
+    }
+}
+
+impl Signals for TrainerSample {
+    fn values(&self, out: &mut [f64]) {
+        let mut k = 0;
+        let mut put = |v: f64| {
+            out[k] = v;
+            k += 1;
+        };
+        for leg in &self.legs {
+            leg.put(&mut put);
+        }
+        if let Some(g) = self.ground {
+            for v in [
+                g.other_leg_n,
+                g.support_n,
+                g.harness_fore_aft_n,
+                g.pelvis_m[0],
+                g.pelvis_m[1],
+            ] {
+                put(v);
+            }
+        }
+    }
+}
+
+/// The exoskeleton with its muscles, controllers, references and metrics.
 pub struct LegSim {
     scenario: Scenario,
     plant: SupervisedLeg,
-    controllers: LegControllers,
+    controllers: TrainerControllers,
     /// What built it, while the simulation is as built (no pose held, state set or plant
     /// touched): the spasms' baseline run is the same simulation without the spasms.
     origin: Option<Box<(LoadedScenario, ControllerConfig, Mount)>>,
@@ -341,7 +450,7 @@ fn resting_pressures(muscles: &[MuscleActuator], p_cc: f64) -> [f64; 4] {
 
 impl LegSim {
     /// Builds the simulation of a loaded scenario with the scenario's APRC-NDO gains on
-    /// every muscle, the leg standing still at rest.
+    /// every muscle, the legs standing still at rest.
     pub fn new(loaded: &LoadedScenario) -> Result<Self, LegError> {
         let config = ControllerConfig::AprcNdo(loaded.scenario.control.gains);
         Self::with_controller(loaded, &config)
@@ -363,54 +472,67 @@ impl LegSim {
     ) -> Result<Self, LegError> {
         let sc = loaded.scenario.clone();
         sc.validate()?;
-        let leg = build_leg(loaded, mount)?;
-        let patient = build_patient(&sc, &leg)?;
-        let muscles =
-            build_muscles(&sc, &loaded.muscles).map_err(|e| e.in_file(&loaded.muscles_source))?;
-        let controllers = LegControllers::new(&sc, &muscles, leg.inertia(), config)?;
-        let resting = resting_pressures(&muscles, sc.control.cocontraction_pa);
-        let limits = supervisor_limits(&sc, leg.limits_rad());
-        let mut plant = LegPlant::new(leg, muscles, &sc)?;
-        plant.set_patient(patient);
-        plant.set_state([0.0, 0.0], [0.0, 0.0]);
-        plant.set_pressures(resting)?;
+        let exo = build_exo(loaded, mount)?;
+        let legs = exo.leg_count();
+        let patients = build_patients(&sc, &exo)?;
+        let muscles = build_muscles(&sc, &loaded.muscles, legs)
+            .map_err(|e| e.in_file(&loaded.muscles_source))?;
+        let mut per_leg = Vec::with_capacity(legs);
+        for leg in 0..legs {
+            let own = &muscles[leg * MUSCLES_PER_LEG..(leg + 1) * MUSCLES_PER_LEG];
+            per_leg.push(LegControllers::new(&sc, own, exo.inertia(), config, leg)?);
+        }
+        let limits = supervisor_limits(&sc, &exo);
+        let mut plant = LegPlant::new(exo, muscles, &sc)?;
+        plant.set_patients(patients);
+        for leg in 0..legs {
+            let resting = resting_pressures(plant.leg_muscles(leg), sc.control.cocontraction_pa);
+            plant.set_state(leg, [0.0, 0.0], [0.0, 0.0]);
+            plant.set_pressures(leg, resting)?;
+        }
         Ok(Self {
             scenario: sc,
             plant: Supervised::new(plant, limits, None),
-            controllers,
+            controllers: TrainerControllers::new(per_leg),
             origin: Some(Box::new((loaded.clone(), *config, mount))),
         })
     }
 
-    /// Replaces the gait by a constant pose (rad): the reference for a static hold. On a
-    /// treadmill the virtual other leg holds it too.
+    /// Replaces the gait by a constant pose (rad) on every leg: the reference for a static
+    /// hold. On a one-leg treadmill the virtual other leg holds it too.
     pub fn hold_pose(&mut self, angles: [f64; 2]) {
         self.origin = None;
         self.controllers.hold_pose(angles);
         self.plant
             .inner_mut()
-            .leg_mut()
+            .exo_mut()
             .hold_other_leg(Some(angles));
     }
 
-    /// Puts the leg at `angles` with `velocities` (the muscles' valves keep their pressure).
+    /// Puts every leg at `angles` with `velocities` (the muscles' valves keep their
+    /// pressure).
     pub fn set_state(&mut self, angles: [f64; 2], velocities: [f64; 2]) {
         self.origin = None;
-        self.plant.inner_mut().set_state(angles, velocities);
+        let plant = self.plant.inner_mut();
+        for leg in 0..plant.leg_count() {
+            plant.set_state(leg, angles, velocities);
+        }
     }
 
-    /// One period with the valves commanded directly (no controllers, no supervisor):
-    /// open-loop checks.
-    pub fn step_with_commands(&mut self, commands: [f64; 4]) -> LegState {
+    /// One period with every leg's valves commanded to `commands` directly (no
+    /// controllers, no supervisor): open-loop checks.
+    pub fn step_with_commands(&mut self, commands: [f64; 4]) -> TrainerState {
         self.origin = None;
-        self.plant.inner_mut().apply(commands)
+        let plant = self.plant.inner_mut();
+        let all = PerLeg::splat(plant.leg_count(), commands);
+        plant.apply(all)
     }
 
-    /// Vents every muscle at once and unhooks its cable: the limb moves on its own.
+    /// Vents every muscle at once and unhooks its cable: the limbs move on their own.
     pub fn release_muscles(&mut self) -> Result<(), LegError> {
         self.origin = None;
         let plant = self.plant.inner_mut();
-        plant.set_pressures([0.0; 4])?;
+        plant.vent_all()?;
         plant.attach_muscles(false);
         Ok(())
     }
@@ -421,7 +543,7 @@ impl LegSim {
         self.plant.inner_mut()
     }
 
-    /// Runs `task` instead of the leg's controllers (the plant, its patient and
+    /// Runs `task` instead of the legs' controllers (the plant, its patients and
     /// `recorder` as usual).
     pub fn run_task<T, R>(
         &mut self,
@@ -430,21 +552,24 @@ impl LegSim {
         settings: &LoopSettings,
     ) -> Result<pma_loop::Outcome<std::convert::Infallible>, LegError>
     where
-        T: pma_loop::Task<Reading = [f64; 2], Command = [f64; 4], Output = LegOutput>,
-        R: Recorder<SupervisedLeg, LegOutput>,
+        T: pma_loop::Task<
+            Reading = PerLeg<[f64; 2]>,
+            Command = PerLeg<[f64; 4]>,
+            Output = PerLeg<LegOutput>,
+        >,
+        R: Recorder<SupervisedLeg, PerLeg<LegOutput>>,
     {
         let t_end = self.plant.time() + settings.duration_s();
-        if let Some(p) = self.plant.inner_mut().patient_mut() {
+        for p in self.plant.inner_mut().patients_mut() {
             p.plan(t_end + self.scenario.period_s);
         }
         let outcome = pma_loop::run(&mut self.plant, task, recorder, settings)?;
         outcome.into_result().map_err(LegError::from_fault)
     }
 
-    /// The scenario's gait reference.
+    /// The scenario's gait reference (the first leg's).
     pub fn gait_reference(&self) -> Result<GaitReference, LegError> {
-        let g = &self.scenario.gait;
-        GaitReference::normative(g.speed, g.stride_period_s, g.ramp_s)
+        self.scenario.gait.reference()
     }
 
     /// The scenario.
@@ -452,24 +577,29 @@ impl LegSim {
         &self.scenario
     }
 
-    /// The plant (leg, muscles, encoders).
+    /// The plant (exoskeleton, muscles, encoders).
     pub fn plant(&self) -> &LegPlant {
         self.plant.inner()
     }
 
-    /// The plant, the controllers and what the supervisor enforces, apart: to run the leg
+    /// The plant, the controllers and what the supervisor enforces, apart: to run the legs
     /// behind another backend (a test's faulty encoder, say).
-    pub fn into_parts(self) -> (LegPlant, LegControllers, SupervisorLimits) {
-        let limits = supervisor_limits(&self.scenario, self.plant.leg().limits_rad());
+    pub fn into_parts(self) -> (LegPlant, TrainerControllers, SupervisorLimits) {
+        let limits = supervisor_limits(&self.scenario, self.plant.exo());
         (self.plant.into_inner(), self.controllers, limits)
     }
 
-    /// The leg (poses, angles).
-    pub fn leg(&self) -> &Leg {
-        self.plant.leg()
+    /// The exoskeleton (poses, angles).
+    pub fn exo(&self) -> &Exoskeleton {
+        self.plant.exo()
     }
 
-    /// The muscles.
+    /// Number of legs.
+    pub fn leg_count(&self) -> usize {
+        self.plant.leg_count()
+    }
+
+    /// Every leg's muscles, leg after leg.
     pub fn muscles(&self) -> &[MuscleActuator] {
         self.plant.muscles()
     }
@@ -487,7 +617,7 @@ impl LegSim {
     }
 
     /// Runs for `duration_s` with `recorder` observing every period (`&mut ()` for none).
-    pub fn run<R: Recorder<SupervisedLeg, LegOutput>>(
+    pub fn run<R: Recorder<SupervisedLeg, PerLeg<LegOutput>>>(
         &mut self,
         duration_s: f64,
         recorder: &mut R,
@@ -498,7 +628,7 @@ impl LegSim {
 
     /// Runs with explicit loop settings (a stop flag, say); a supervisor's fault is an
     /// error ([`LegError::Supervisor`]).
-    pub fn run_with<R: Recorder<SupervisedLeg, LegOutput>>(
+    pub fn run_with<R: Recorder<SupervisedLeg, PerLeg<LegOutput>>>(
         &mut self,
         settings: &LoopSettings,
         recorder: &mut R,
@@ -509,57 +639,87 @@ impl LegSim {
         }
     }
 
-    /// As [`LegSim::run_with`], but a run the supervisor stopped (the muscles vented) is a
-    /// result: its report covers the run up to the fault, which comes with it. A failure
-    /// of the simulation itself is still an error.
-    pub fn run_until_fault<R: Recorder<SupervisedLeg, LegOutput>>(
-        &mut self,
-        settings: &LoopSettings,
-        recorder: &mut R,
-    ) -> Result<(LegReport, Option<LegFault>), LegError> {
-        let sc = &self.scenario;
-        let t0 = self.plant.time();
-        let t_end = t0 + settings.duration_s();
-        // Every spasm of the run is drawn now, so that the loop allocates nothing.
-        let events: Vec<SpasmEvent> = match self.plant.inner_mut().patient_mut() {
-            Some(p) => {
-                p.plan(t_end + sc.period_s);
+    /// Every leg's spasm events of a run from `t0` to `t_end` (drawn now, so that the loop
+    /// allocates nothing).
+    fn plan_spasms(&mut self, t0: f64, t_end: f64) -> Vec<Vec<SpasmEvent>> {
+        let period = self.scenario.period_s;
+        self.plant
+            .inner_mut()
+            .patients_mut()
+            .iter_mut()
+            .map(|p| {
+                p.plan(t_end + period);
                 p.events()
                     .iter()
                     .filter(|e| e.end_s() > t0 && e.t_s <= t_end)
                     .copied()
                     .collect()
-            }
-            None => Vec::new(),
-        };
+            })
+            .collect()
+    }
+
+    /// As [`LegSim::run_with`], but a run the supervisor stopped (the muscles vented) is a
+    /// result: its report covers the run up to the fault, which comes with it. A failure
+    /// of the simulation itself is still an error.
+    pub fn run_until_fault<R: Recorder<SupervisedLeg, PerLeg<LegOutput>>>(
+        &mut self,
+        settings: &LoopSettings,
+        recorder: &mut R,
+    ) -> Result<(LegReport, Option<LegFault>), LegError> {
+        let t0 = self.plant.time();
+        let t_end = t0 + settings.duration_s();
+        let events = self.plan_spasms(t0, t_end);
         // A spasm's effect is measured against the same run without the spasms (same
         // seeds, same controllers): its deviation and joint speed beyond what the gait
         // itself does there.
-        let baseline = match (&self.origin, events.is_empty(), t0 == 0.0) {
-            (Some(origin), false, true) => Some(baseline_trace(origin, settings)?),
+        let any_spasm = events.iter().any(|e| !e.is_empty());
+        let baselines = match (&self.origin, any_spasm, t0 == 0.0) {
+            (Some(origin), true, true) => Some(baseline_traces(origin, settings)?),
             _ => None,
         };
         let sc = &self.scenario;
-        let mut metrics = LegMetrics::new(sc.gait.stride_period_s, sc.period_s);
-        let mut patient = PatientMetrics::new(
-            &self.plant,
-            &events,
-            t_end,
-            sc.plant.valve.pressure_max_pa,
-            baseline,
-        );
-        let joint_of = std::array::from_fn(|i| self.plant.muscles().get(i).map_or(0, |m| m.joint));
-        let mut treadmill = TreadmillMetrics::new(
-            self.plant.leg(),
-            self.controllers.gait(),
-            joint_of,
-            settings.duration_s(),
-            sc.period_s,
-        );
+        let legs = self.plant.leg_count();
+        let mut metrics: Vec<OnLeg<LegMetrics>> = (0..legs)
+            .map(|leg| OnLeg::new(leg, LegMetrics::new(sc.gait.stride_period_s, sc.period_s)))
+            .collect();
+        let mut patients: Vec<OnLeg<PatientMetrics>> = (0..legs)
+            .map(|leg| {
+                let baseline = baselines.as_ref().and_then(|b| b.get(leg).cloned());
+                OnLeg::new(
+                    leg,
+                    PatientMetrics::new(
+                        &self.plant,
+                        leg,
+                        events.get(leg).map_or(&[], |e| e.as_slice()),
+                        t_end,
+                        sc.plant.valve.pressure_max_pa,
+                        baseline,
+                    ),
+                )
+            })
+            .collect();
+        let mut feet: Vec<OnLeg<FootMetrics>> = (0..legs)
+            .filter_map(|leg| {
+                FootMetrics::new(
+                    self.plant.exo(),
+                    self.controllers.leg(leg).gait(),
+                    settings.duration_s(),
+                    sc.period_s,
+                )
+                .map(|m| OnLeg::new(leg, m))
+            })
+            .collect();
+        let mut ground = TrainerGroundMetrics::new(self.plant.exo(), sc.gait.stride_period_s);
         let outcome = pma_loop::run(
             &mut self.plant,
             &mut self.controllers,
-            &mut (&mut metrics, &mut patient, &mut treadmill, recorder),
+            &mut (
+                &mut metrics,
+                &mut patients,
+                &mut feet,
+                &mut ground,
+                recorder,
+            ),
             settings,
         )?;
         let (interrupted, fault) = match outcome.end {
@@ -579,48 +739,63 @@ impl LegSim {
             ),
         };
         let ran_s = outcome.ran_s;
-        let names: Vec<String> = self
-            .plant
-            .muscles()
-            .iter()
-            .map(|m| m.geometry.name.clone())
-            .collect();
-        let mut report = metrics.report(&sc.name, &names, ran_s, outcome.wall_s);
+        let names: Vec<String> = (0..legs)
+            .map(|leg| {
+                self.plant
+                    .leg_muscles(leg)
+                    .iter()
+                    .map(|m| m.geometry.name.clone())
+                    .collect()
+            })
+            .collect::<Vec<Vec<String>>>()
+            .concat();
+        let mut report = LegReport::of_legs(
+            &sc.name,
+            ran_s,
+            outcome.wall_s,
+            &names[..MUSCLES_PER_LEG.min(names.len())],
+            metrics.iter().map(|m| &m.inner),
+            patients.iter().map(|p| (&p.inner, t0 + ran_s)),
+        );
         report.interrupted = interrupted;
-        report.patient = patient.patient();
-        report.spasms = patient.spasms(t0 + ran_s);
-        report.safety = patient.safety(&names);
-        report.treadmill = treadmill.map(|t| t.report());
+        report.treadmill = ground.report(feet.iter().map(|f| f.inner.report()).collect());
         Ok((report, fault))
     }
 }
 
-/// The scenario's patient in `leg` (`None`: the passive limb).
-pub(crate) fn build_patient(sc: &Scenario, leg: &Leg) -> Result<Option<Patient>, LegError> {
+/// Each leg's patient (empty: the passive limb). The second leg's spasms are drawn from
+/// the scenario's seeds plus one, so the legs do not jerk together.
+pub(crate) fn build_patients(sc: &Scenario, exo: &Exoskeleton) -> Result<Vec<Patient>, LegError> {
     if sc.patient.is_passive() {
-        return Ok(None);
+        return Ok(Vec::new());
     }
-    let gait = GaitReference::normative(sc.gait.speed, sc.gait.stride_period_s, sc.gait.ramp_s)?;
-    Ok(Some(Patient::new(
-        &sc.patient,
-        leg.substep_s(),
-        gait,
-        *leg.inertia(),
-        [
-            sc.joints.hip.damping_nm_s_per_rad,
-            sc.joints.knee.damping_nm_s_per_rad,
-        ],
-    )?))
+    let gait = sc.gait.reference()?;
+    let damping = [
+        sc.joints.hip.damping_nm_s_per_rad,
+        sc.joints.knee.damping_nm_s_per_rad,
+    ];
+    (0..exo.leg_count())
+        .map(|leg| {
+            let settings = sc.patient.for_leg(leg);
+            Patient::new(
+                &settings,
+                exo.substep_s(),
+                gait.for_leg(leg),
+                *exo.inertia(),
+                damping,
+            )
+        })
+        .collect()
 }
 
-/// The scenario's leg: fixed pelvis (as `mount` says), or on its treadmill, the belt at
-/// the reference's speed unless the scenario gives one, the other leg added and the leg
-/// standing at rest on the belt.
-pub(crate) fn build_leg(loaded: &LoadedScenario, mount: Mount) -> Result<Leg, LegError> {
+/// The scenario's exoskeleton: a fixed pelvis (as `mount` says), or its treadmill, the
+/// belt at the reference's speed unless the scenario gives one, a one-leg trainer's
+/// virtual other leg added and the legs standing at rest on the belt.
+pub(crate) fn build_exo(loaded: &LoadedScenario, mount: Mount) -> Result<Exoskeleton, LegError> {
     let sc = &loaded.scenario;
     let joints = [sc.joints.hip, sc.joints.knee];
     let Some(treadmill) = &sc.treadmill else {
-        return Leg::mounted(
+        return Exoskeleton::mounted(
             &loaded.urdf_text,
             &loaded.urdf_source,
             joints,
@@ -635,8 +810,8 @@ pub(crate) fn build_leg(loaded: &LoadedScenario, mount: Mount) -> Result<Leg, Le
             message: "a treadmill scenario's leg stands on its belt: it cannot be mounted on a seat (pendulum test)".into(),
         });
     }
-    let gait = GaitReference::normative(sc.gait.speed, sc.gait.stride_period_s, sc.gait.ramp_s)?;
-    let mut leg = Leg::on_treadmill(
+    let gait = sc.gait.reference()?;
+    let mut exo = Exoskeleton::on_treadmill(
         &loaded.urdf_text,
         &loaded.urdf_source,
         joints,
@@ -645,22 +820,22 @@ pub(crate) fn build_leg(loaded: &LoadedScenario, mount: Mount) -> Result<Leg, Le
         treadmill,
     )?;
     if treadmill.speed_m_per_s.is_none() {
-        leg.belt_at_reference_speed(&gait);
+        exo.belt_at_reference_speed(&gait);
     }
-    leg.ramp_belt(gait.ramp_s());
-    if treadmill.contralateral == crate::ground::Contralateral::Reference {
-        leg.add_other_leg(gait);
+    exo.ramp_belt(gait.ramp_s());
+    if treadmill.other_leg() == Contralateral::Reference {
+        exo.add_other_leg(gait);
     }
-    leg.rest_on_belt();
-    Ok(leg)
+    exo.rest_on_belt();
+    Ok(exo)
 }
 
-/// The joint errors and velocities (deg, deg/s) of every period of `origin`'s simulation
-/// without its spasms, over `settings`' duration (no stop flag: it is short).
-fn baseline_trace(
+/// Each leg's joint errors and velocities (deg, deg/s) of every period of `origin`'s
+/// simulation without its spasms, over `settings`' duration (no stop flag: it is short).
+fn baseline_traces(
     origin: &(LoadedScenario, ControllerConfig, Mount),
     settings: &LoopSettings,
-) -> Result<Vec<[f64; 4]>, LegError> {
+) -> Result<Vec<Vec<[f64; 4]>>, LegError> {
     let (loaded, config, mount) = origin;
     let mut calm = loaded.clone();
     calm.scenario.patient.hip.spasms = None;
@@ -668,10 +843,17 @@ fn baseline_trace(
     let mut sim = LegSim::mounted(&calm, config, *mount)?;
     let plain = LoopSettings::new(settings.duration_s())?;
     let periods = plain.periods(sim.scenario.period_s)?;
-    let mut trace = crate::safety::BaselineTrace(Vec::with_capacity(periods as usize + 1));
+    let mut traces: Vec<OnLeg<crate::safety::BaselineTrace>> = (0..sim.leg_count())
+        .map(|leg| {
+            OnLeg::new(
+                leg,
+                crate::safety::BaselineTrace(Vec::with_capacity(periods as usize + 1)),
+            )
+        })
+        .collect();
     // A baseline the supervisor stops still covers its periods up to the fault.
-    let _ = sim.run_until_fault(&plain, &mut trace)?;
-    Ok(trace.0)
+    let _ = sim.run_until_fault(&plain, &mut traces)?;
+    Ok(traces.into_iter().map(|t| t.inner.0).collect())
 }
 
 /// Why the supervisor stopped a leg run (it vented every muscle).
@@ -685,23 +867,32 @@ pub struct LegFault {
     pub message: String,
 }
 
-/// What the leg's supervisor enforces: every muscle's pressure within its valve's range
-/// and the scenario's rate limit, each encoder finite and inside its joint's limits (with
-/// [`LIMIT_OVERSHOOT_MAX_RAD`] to spare: rapier holds a limit to milliradians).
-fn supervisor_limits(sc: &Scenario, joint_limits_rad: [[f64; 2]; 2]) -> SupervisorLimits {
-    let window = |k: usize| {
-        let [lo, hi] = joint_limits_rad[k];
-        ReadingWindow {
-            name: ["hip angle", "knee angle"][k],
-            unit: "rad",
-            min: lo - LIMIT_OVERSHOOT_MAX_RAD,
-            max: hi + LIMIT_OVERSHOOT_MAX_RAD,
+/// What the supervisor enforces: every muscle's pressure within its valve's range and the
+/// scenario's rate limit, each encoder finite and inside its joint's limits (with
+/// [`LIMIT_OVERSHOOT_MAX_RAD`] to spare: rapier holds a limit to milliradians), leg after
+/// leg.
+fn supervisor_limits(sc: &Scenario, exo: &Exoskeleton) -> SupervisorLimits {
+    const NAMES: [[&str; 2]; 2] = [
+        ["hip angle", "knee angle"],
+        ["left hip angle", "left knee angle"],
+    ];
+    let mut windows = Vec::with_capacity(2 * exo.leg_count());
+    for leg in 0..exo.leg_count() {
+        let limits = exo.limits_rad(leg);
+        for k in 0..2 {
+            let [lo, hi] = limits[k];
+            windows.push(ReadingWindow {
+                name: NAMES[leg.min(1)][k],
+                unit: "rad",
+                min: lo - LIMIT_OVERSHOOT_MAX_RAD,
+                max: hi + LIMIT_OVERSHOOT_MAX_RAD,
+            });
         }
-    };
+    }
     SupervisorLimits {
         pressure_max_pa: sc.plant.valve.pressure_max_pa,
         pressure_rate_max_pa_per_s: sc.control.pressure_rate_max_pa_per_s,
-        windows: vec![window(0), window(1)],
+        windows,
         sensor_stuck_periods: 0,
         watchdog_periods: 0,
         overrun_max_consecutive_periods: u32::MAX,
@@ -709,9 +900,11 @@ fn supervisor_limits(sc: &Scenario, joint_limits_rad: [[f64; 2]; 2]) -> Supervis
     }
 }
 
+/// Each leg's four muscles from the geometry (one leg's), leg after leg.
 fn build_muscles(
     sc: &Scenario,
     geometry: &[MuscleGeometry],
+    legs: usize,
 ) -> Result<Vec<MuscleActuator>, LegError> {
     if geometry.len() != 4 {
         return Err(invalid(
@@ -723,7 +916,7 @@ fn build_muscles(
     let links: [(&str, [&str; 2]); 2] =
         [("hip", ["pelvis", "thigh"]), ("knee", ["thigh", "shank"])];
     let mut out = Vec::with_capacity(4);
-    for g in geometry {
+    for (index, g) in geometry.iter().enumerate() {
         let err = |message: String| LegError::Muscle {
             muscle: g.name.clone(),
             message,
@@ -744,8 +937,14 @@ fn build_muscles(
             )));
         }
         let scale = sc.plant.muscle_scale.get(&g.name).copied();
-        let (model, rated_force_n) = match (g.festo()?, scale) {
-            (Some(festo), None) => (MuscleModel::Festo(festo), festo.size.rated_force_n()),
+        let (model, (rated_force_n, rating)) = match (g.festo()?, scale) {
+            (Some(festo), None) => (
+                MuscleModel::Festo(festo),
+                (
+                    festo.size.rated_force_n(),
+                    format!("Festo {}", festo.size.name().to_uppercase()),
+                ),
+            ),
             (Some(_), Some(_)) => return Err(err(
                 "is a Festo muscle (`size`): plant.muscle_scale applies to Table I muscles only"
                     .into(),
@@ -755,15 +954,18 @@ fn build_muscles(
                 params.validate()?;
                 (
                     MuscleModel::ThreeElement(params),
-                    sc.plant.muscle_rated_force_n,
+                    sc.plant.three_element_rating(),
                 )
             }
         };
         out.push(MuscleActuator {
             geometry: g.clone(),
+            leg: 0,
+            index,
             joint,
             model,
             rated_force_n,
+            rating,
             valve: Valve::new(sc.plant.valve, 0.0)?,
         });
     }
@@ -789,5 +991,10 @@ fn build_muscles(
             ));
         }
     }
-    Ok(out)
+    let one = out;
+    let mut all = Vec::with_capacity(legs * one.len());
+    for leg in 0..legs {
+        all.extend(one.iter().cloned().map(|m| MuscleActuator { leg, ..m }));
+    }
+    Ok(all)
 }

@@ -15,7 +15,7 @@
 //! the range where it is longest (a DMSP must not be stretched beyond its nominal length).
 use crate::config::{MuscleGeometry, Side};
 use crate::demand::Demand;
-use crate::leg::JOINT_NAMES;
+use crate::exoskeleton::JOINT_NAMES;
 use pma_model::festo::{DmspSize, FestoMuscle, REST_LENGTH_RANGE_M};
 use pma_model::DampingMode;
 
@@ -30,10 +30,13 @@ pub const PULLEY_RADII_M: [f64; 23] = [
     0.010, 0.015, 0.020, 0.025, 0.030, 0.035, 0.040, 0.045, 0.050, 0.055, 0.060, 0.065, 0.070,
     0.075, 0.080, 0.085, 0.090, 0.095, 0.100, 0.105, 0.110, 0.115, 0.120,
 ];
-/// Nominal lengths tried (m): 100 mm to 1.2 m every 100 mm. Up to 400 mm a muscle fits
-/// along the 429 mm thigh; longer ones sit on the trainer's frame and pull the pulley
-/// through a cable.
-pub const REST_LENGTHS_M: [f64; 12] = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2];
+/// Nominal lengths tried (m): 100 mm to 2 m every 100 mm (up to `size --max-length-m`).
+/// Up to 400 mm a muscle fits along the 429 mm thigh; longer ones sit on the trainer's frame
+/// and pull the pulley through a cable (a 2 m muscle runs from the frame's top to the hip).
+pub const REST_LENGTHS_M: [f64; 20] = [
+    0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.4, 1.5, 1.6, 1.7, 1.8, 1.9,
+    2.0,
+];
 /// The longest muscle that fits along the 429 mm thigh (m).
 pub const THIGH_MUSCLE_MAX_M: f64 = 0.4;
 /// Co-contraction pressures tried (Pa): 0.5 to 5 bar every 0.25 bar.
@@ -113,6 +116,9 @@ pub struct JointSizing {
     /// The co-contraction pressures (Pa) at which the recommended geometry works, lowest
     /// and highest of those tried (the regulator need not hold it exactly).
     pub recommended_cocontraction_range_pa: Option<[f64; 2]>,
+    /// Why the recommendation sits at an edge of the range searched, if it does (the
+    /// longest muscle or the largest pulley tried): a longer search could find a better one.
+    pub at_edge: Option<String>,
 }
 
 /// The sizing of both joints.
@@ -238,8 +244,15 @@ fn cocontraction_grid(p_max: f64) -> impl Iterator<Item = f64> {
         .take_while(move |p| *p <= 0.85 * p_max)
 }
 
-/// The best design among `designs`: the smallest size that works, then the largest
-/// margin, then the shortest muscle.
+/// The least margin a recommended design keeps on force, pressure and speed (0-1): a tenth
+/// of the rating, the valve's range and the useful speed, left for what the stride's servos
+/// do not show (a controller's own activity, a heavier patient).
+pub const MARGIN_MIN: f64 = 0.1;
+
+/// The best design among `designs`: the smallest size that works; among its designs with
+/// at least [`MARGIN_MIN`], the shortest muscle, then the smallest pulley, then the largest
+/// margin (a compact actuator, not the longest one allowed); if none keeps that margin,
+/// the largest margin, then the shortest muscle.
 fn best(designs: &[PairDesign]) -> Option<PairDesign> {
     let rank = |d: &PairDesign| {
         DmspSize::ALL
@@ -248,13 +261,23 @@ fn best(designs: &[PairDesign]) -> Option<PairDesign> {
             .unwrap_or(usize::MAX)
     };
     let smallest = designs.iter().map(rank).min()?;
-    designs
-        .iter()
-        .filter(|d| rank(d) == smallest)
-        .max_by(|a, b| {
-            a.margin
-                .total_cmp(&b.margin)
-                .then(b.rest_length_m.total_cmp(&a.rest_length_m))
+    let of_size = designs.iter().filter(|d| rank(d) == smallest);
+    let compact = of_size
+        .clone()
+        .filter(|d| d.margin >= MARGIN_MIN)
+        .min_by(|a, b| {
+            a.rest_length_m
+                .total_cmp(&b.rest_length_m)
+                .then(a.pulley_radius_m.total_cmp(&b.pulley_radius_m))
+                .then(b.margin.total_cmp(&a.margin))
+        });
+    compact
+        .or_else(|| {
+            of_size.max_by(|a, b| {
+                a.margin
+                    .total_cmp(&b.margin)
+                    .then(b.rest_length_m.total_cmp(&a.rest_length_m))
+            })
         })
         .copied()
 }
@@ -331,6 +354,7 @@ pub fn size_joints(demand: &Demand, p_max: f64, max_length_m: f64) -> Sizing {
                     })
                     .collect(),
                 rejected_per_size,
+                at_edge: recommended.and_then(|d| edge_of(&d, max_length_m)),
                 recommended,
                 recommended_cocontraction_range_pa: recommended.and_then(|d| {
                     let same = all.iter().filter(|o| {
@@ -351,6 +375,31 @@ pub fn size_joints(demand: &Demand, p_max: f64, max_length_m: f64) -> Sizing {
         cocontraction_pa: common.map(|(p, _)| p),
         pressure_max_pa: p_max,
     }
+}
+
+/// Why `d` sits at an edge of the search (the longest length allowed, the largest pulley):
+/// longer muscles contract less and can shorten faster for the same joint motion, larger
+/// pulleys give more torque per newton, so the best design may lie beyond.
+fn edge_of(d: &PairDesign, max_length_m: f64) -> Option<String> {
+    let longest = REST_LENGTHS_M
+        .iter()
+        .copied()
+        .filter(|&l| l <= max_length_m)
+        .fold(0.0, f64::max);
+    let largest = PULLEY_RADII_M[PULLEY_RADII_M.len() - 1];
+    let mut why = Vec::new();
+    if (d.rest_length_m - longest).abs() < 1e-9 {
+        why.push(format!(
+            "its length is the longest searched ({longest:.1} m): a longer muscle strains less and has more useful speed for the same joint motion (--max-length-m searches further, up to 2 m)"
+        ));
+    }
+    if (d.pulley_radius_m - largest).abs() < 1e-9 {
+        why.push(format!(
+            "its pulley is the largest searched ({:.0} mm)",
+            largest * 1e3
+        ));
+    }
+    (!why.is_empty()).then(|| why.join("; "))
 }
 
 /// The muscle geometry of a sizing: a flexor and an extensor per joint with the
@@ -514,13 +563,21 @@ mod tests {
                     let q = 0.4 * (f64::from(k) * 0.05).sin();
                     DemandSample {
                         t_s: f64::from(k) * 1e-3,
+                        leg: 0,
+                        phase: 0.0,
                         angle_rad: [q, 0.3 + q],
                         velocity_rad_s: [0.2, 0.2],
                         torque_nm: [20.0 * q, 5.0],
+                        grf_n: [f64::NAN; 2],
+                        ankle_rad: f64::NAN,
+                        pelvis_m: [f64::NAN; 2],
+                        slip_m_s: f64::NAN,
                     }
                 })
                 .collect(),
+            legs: 1,
             max_error_deg: [0.0; 2],
+            raw_torque_range_nm: [[0.0; 2]; 2],
             treadmill: None,
         };
         let sizing = size_joints(&demand, 6e5, 0.4);

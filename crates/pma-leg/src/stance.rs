@@ -4,9 +4,11 @@
 //! belt, tracking per phase, and each heel strike as a shock; accumulated by a
 //! [`Recorder`] whose buffers are sized before the run.
 use crate::control::LegOutput;
+use crate::exoskeleton::{Exoskeleton, JOINT_NAMES};
 use crate::gait::GaitReference;
-use crate::ground::GroundReaction;
-use crate::leg::{Leg, JOINT_NAMES};
+use crate::ground::{FootReaction, GroundReaction};
+use crate::legs::{PerLeg, SIDES};
+use crate::metrics::{LegPeriod, LegRecorder};
 use crate::plant::SupervisedLeg;
 use pma_loop::{Period, Recorder};
 use std::collections::BTreeMap;
@@ -100,7 +102,39 @@ pub struct HeelStrikeStats {
     pub peak_pressure_rate_bar_s: f64,
 }
 
-/// The treadmill's figures of a run.
+/// One foot's figures of a run.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct FootReport {
+    /// Complete strides after the first (heel strike to heel strike).
+    pub strides: usize,
+    /// Loading peak of the vertical GRF per stride (body weights).
+    pub peak_grf_bw: Spread,
+    /// Loading rate at heel strike per stride (body weights per second).
+    pub loading_rate_bw_s: Spread,
+    /// Stance fraction per stride, detected from contact.
+    pub stance_fraction: Spread,
+    /// The reference's stance fraction (its toe-off phase).
+    pub reference_stance_fraction: f64,
+    /// Mean vertical GRF over the counted strides (body weights).
+    pub mean_grf_bw: f64,
+    /// Distance the foot slipped on the belt per stride, in stance (m).
+    pub slip_per_stride_m: Spread,
+    /// Mean slip speed in stance (m/s).
+    pub mean_stance_slip_m_s: f64,
+    /// Deepest penetration into the belt (mm).
+    pub max_penetration_mm: f64,
+    /// The passive ankle's smallest and largest angle after the first stride (deg,
+    /// dorsiflexion positive; NaN for a fixed ankle).
+    pub ankle_range_deg: [f64; 2],
+    /// Tracking error per phase and joint (deg, RMS).
+    pub tracking: BTreeMap<String, PhaseTracking>,
+    /// What the heel strikes did to each joint.
+    pub heel_strikes: BTreeMap<String, HeelStrikeStats>,
+    /// Every counted stride.
+    pub per_stride: Vec<StrideReport>,
+}
+
+/// The treadmill's figures of a run: the belt, the harness, the pelvis and every foot.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct TreadmillReport {
     /// Belt speed (m/s).
@@ -111,77 +145,53 @@ pub struct TreadmillReport {
     pub body_weight_n: f64,
     /// The system's weight over the patient's (exoskeleton included).
     pub system_weight_bw: f64,
-    /// Complete strides after the first (heel strike to heel strike).
-    pub strides: usize,
-    /// Loading peak of the vertical GRF per stride (body weights).
-    pub peak_grf_bw: Spread,
-    /// Loading rate at heel strike per stride (body weights per second).
-    pub loading_rate_bw_s: Spread,
-    /// Stance fraction per stride, detected from contact.
-    pub stance_fraction: Spread,
-    /// The reference's stance fraction (toe-off phase of the normative cycle).
-    pub reference_stance_fraction: f64,
-    /// Mean vertical GRF under this foot over the strides (body weights).
-    pub mean_grf_bw: f64,
-    /// Mean force of the virtual other leg over the strides (body weights).
-    pub mean_other_leg_bw: f64,
-    /// `mean_grf_bw + mean_other_leg_bw`, against `(1 - bws) x system_weight_bw` by impulse
-    /// balance: whatever the gait, the belt carries the unsupported weight on average.
+    /// Legs on the belt.
+    pub legs: usize,
+    /// Mean vertical force the belt carries after the first stride: every foot's and a
+    /// virtual other leg's (body weights).
     pub mean_belt_load_bw: f64,
-    /// `(1 - bws_fraction) x system_weight_bw`.
+    /// What it must carry on average: `(1 - bws_fraction) x system weight` (body weights).
     pub expected_belt_load_bw: f64,
-    /// Slip of the foot on the belt per stride (m).
-    pub slip_per_stride_m: Spread,
-    /// Mean slip speed during stance (m/s).
-    pub mean_stance_slip_m_s: f64,
-    /// Deepest penetration of a foot sphere into the belt (mm).
-    pub max_penetration_mm: f64,
-    /// Range of the pelvis's height over the strides (m): the stride's vertical excursion.
+    /// The virtual other leg's mean force (body weights; 0 without one).
+    pub mean_other_leg_bw: f64,
+    /// The pelvis's vertical excursion after the first stride (m).
     pub pelvis_excursion_m: f64,
-    /// Tracking per phase (`hip`, `knee`).
-    pub tracking: BTreeMap<String, PhaseTracking>,
-    /// Heel strikes as shocks (`hip`, `knee`).
-    pub heel_strikes: BTreeMap<String, HeelStrikeStats>,
-    /// Every complete stride after the first.
-    pub per_stride: Vec<StrideReport>,
+    /// The pelvis's fore-aft excursion after the first stride (m).
+    pub pelvis_fore_aft_excursion_m: f64,
+    /// The harness's mean and largest fore-aft force on the pelvis after the first stride
+    /// (N, forward positive): what the legs push the body with.
+    pub harness_fore_aft_n: Spread,
+    /// Each foot's figures, by side.
+    pub feet: BTreeMap<String, FootReport>,
 }
 
-/// Time integrals over a stride, or over every counted stride.
 #[derive(Debug, Clone, Copy)]
 struct StrideSums {
-    /// Of this foot's vertical GRF and the other leg's (N s).
-    impulse_n_s: [f64; 2],
+    /// Of this foot's vertical GRF (N s).
+    impulse_n_s: f64,
     duration_s: f64,
     stance_s: f64,
     /// Of the slip speed in stance (m).
     slip_m: f64,
-    /// Lowest and highest pelvis (m).
-    pelvis_m: (f64, f64),
 }
 
 impl Default for StrideSums {
     fn default() -> Self {
         Self {
-            impulse_n_s: [0.0; 2],
+            impulse_n_s: 0.0,
             duration_s: 0.0,
             stance_s: 0.0,
             slip_m: 0.0,
-            pelvis_m: (f64::INFINITY, f64::NEG_INFINITY),
         }
     }
 }
 
 impl StrideSums {
     fn add(&mut self, o: &StrideSums) {
-        self.impulse_n_s[0] += o.impulse_n_s[0];
-        self.impulse_n_s[1] += o.impulse_n_s[1];
+        self.impulse_n_s += o.impulse_n_s;
         self.duration_s += o.duration_s;
         self.stance_s += o.stance_s;
         self.slip_m += o.slip_m;
-        self.pelvis_m = (
-            self.pelvis_m.0.min(o.pelvis_m.0),
-            self.pelvis_m.1.max(o.pelvis_m.1),
-        );
     }
 }
 
@@ -198,15 +208,14 @@ struct Strike {
 
 /// Accumulates the [`TreadmillReport`].
 #[derive(Debug, Clone)]
-pub struct TreadmillMetrics {
+pub struct FootMetrics {
     stride_s: f64,
     period_s: f64,
     reference_stance: f64,
-    belt_speed_m_s: f64,
-    bws_fraction: f64,
     body_weight_n: f64,
-    system_weight_n: f64,
     joint_of: [usize; 4],
+    /// The ankle's smallest and largest angle after the first stride (rad).
+    ankle_rad: [f64; 2],
     in_stance: bool,
     /// When the foot last left the belt (s).
     left_s: f64,
@@ -227,30 +236,28 @@ pub struct TreadmillMetrics {
     previous_p: [f64; 4],
 }
 
-impl TreadmillMetrics {
-    /// Figures for `leg` on its treadmill walking `gait`, over a run of `duration_s` at
-    /// `period_s`, muscle `i` acting on joint `joint_of[i]`; `None` off a treadmill.
+impl FootMetrics {
+    /// Figures for a foot of `exo` on its treadmill walking `gait` (its leg's), over a run
+    /// of `duration_s` at `period_s`; `None` off a treadmill.
     pub fn new(
-        leg: &Leg,
+        exo: &Exoskeleton,
         gait: &GaitReference,
-        joint_of: [usize; 4],
         duration_s: f64,
         period_s: f64,
     ) -> Option<Self> {
-        let ground = leg.ground()?;
+        let ground = exo.ground()?;
         let settings = ground.settings();
         let g = pma_model::GRAVITY_M_S2;
+        let joint_of = JOINT_OF;
         let stride_s = gait.stride_period_s();
         let strides = (duration_s / stride_s).ceil() as usize + 2;
         Some(Self {
             stride_s,
             period_s,
             reference_stance: gait.toe_off_phase(),
-            belt_speed_m_s: settings.belt_speed_m_s(),
-            bws_fraction: settings.bws_fraction,
             body_weight_n: settings.body_mass_kg * g,
-            system_weight_n: ground.total_mass_kg() * g,
             joint_of,
+            ankle_rad: [f64::INFINITY, f64::NEG_INFINITY],
             in_stance: true,
             left_s: f64::NEG_INFINITY,
             stride_start_s: None,
@@ -340,19 +347,10 @@ impl TreadmillMetrics {
     }
 
     /// The report of the run so far.
-    pub fn report(&self) -> TreadmillReport {
+    pub fn report(&self) -> FootReport {
         let bw = self.body_weight_n;
         let s = &self.strides;
         let t = &self.total;
-        let per_counted = |v: f64| {
-            if t.duration_s > 0.0 {
-                v / t.duration_s / bw
-            } else {
-                f64::NAN
-            }
-        };
-        let (mean_grf, mean_other) = (per_counted(t.impulse_n_s[0]), per_counted(t.impulse_n_s[1]));
-        let system = self.system_weight_n / bw;
         let rms = |j: usize, k: usize| {
             if self.phase_n[j][k] > 0 {
                 (self.phase_sq[j][k] / self.phase_n[j][k] as f64).sqrt()
@@ -378,11 +376,7 @@ impl TreadmillMetrics {
             .enumerate()
             .map(|(j, n)| ((*n).to_owned(), self.strike_stats(j)))
             .collect();
-        TreadmillReport {
-            belt_speed_m_s: self.belt_speed_m_s,
-            bws_fraction: self.bws_fraction,
-            body_weight_n: bw,
-            system_weight_bw: system,
+        FootReport {
             strides: s.len(),
             peak_grf_bw: Spread::of(s.iter().map(|r| r.peak_grf_bw)),
             loading_rate_bw_s: Spread::of(
@@ -392,10 +386,11 @@ impl TreadmillMetrics {
             ),
             stance_fraction: Spread::of(s.iter().map(|r| r.stance_fraction)),
             reference_stance_fraction: self.reference_stance,
-            mean_grf_bw: mean_grf,
-            mean_other_leg_bw: mean_other,
-            mean_belt_load_bw: mean_grf + mean_other,
-            expected_belt_load_bw: (1.0 - self.bws_fraction) * system,
+            mean_grf_bw: if t.duration_s > 0.0 {
+                t.impulse_n_s / t.duration_s / bw
+            } else {
+                f64::NAN
+            },
             slip_per_stride_m: Spread::of(s.iter().map(|r| r.slip_m)),
             mean_stance_slip_m_s: if t.stance_s > 0.0 {
                 t.slip_m / t.stance_s
@@ -403,10 +398,10 @@ impl TreadmillMetrics {
                 f64::NAN
             },
             max_penetration_mm: self.deepest_m * 1e3,
-            pelvis_excursion_m: if t.pelvis_m.1 >= t.pelvis_m.0 {
-                t.pelvis_m.1 - t.pelvis_m.0
+            ankle_range_deg: if self.ankle_rad[1] >= self.ankle_rad[0] {
+                self.ankle_rad.map(f64::to_degrees)
             } else {
-                f64::NAN
+                [f64::NAN; 2]
             },
             tracking,
             heel_strikes,
@@ -431,26 +426,27 @@ impl TreadmillMetrics {
 }
 
 /// What [`TreadmillMetrics`] takes from one period.
+/// One period of one foot, as [`FootMetrics::push`] takes it.
 #[derive(Debug, Clone, Copy)]
 pub struct GroundPeriod {
-    /// Time of the reading (s) and since the previous one (s).
+    /// Time (s).
     pub t_s: f64,
-    /// Length of the period (s).
+    /// Period (s).
     pub dt_s: f64,
-    /// The belt's reaction over the period.
-    pub ground: GroundReaction,
-    /// Pelvis height (m).
-    pub pelvis_height_m: f64,
-    /// Tracking errors (deg), hip and knee.
+    /// The belt's reaction on the foot.
+    pub foot: FootReaction,
+    /// The leg's tracking errors (deg), hip and knee.
     pub error_deg: [f64; 2],
-    /// Muscle pressures (Pa; NaN without muscles).
+    /// The leg's muscle pressures (Pa; NaN without muscles).
     pub pressure_pa: [f64; 4],
+    /// The ankle's angle (rad; NaN for a fixed ankle).
+    pub ankle_rad: f64,
 }
 
-impl TreadmillMetrics {
-    /// Accumulates one period.
+impl FootMetrics {
+    /// One period.
     pub fn push(&mut self, p: &GroundPeriod) {
-        let (t, dt, g, error_deg) = (p.t_s, p.dt_s, p.ground, p.error_deg);
+        let (t, dt, g, error_deg) = (p.t_s, p.dt_s, p.foot, p.error_deg);
         let rate: [f64; 4] = std::array::from_fn(|i| (p.pressure_pa[i] - self.previous_p[i]) / dt);
         self.previous_p = p.pressure_pa;
         let contact = g.vertical_n > CONTACT_THRESHOLD_N;
@@ -472,15 +468,12 @@ impl TreadmillMetrics {
                 self.grf.push(g.vertical_n);
             }
             let st = &mut self.stride;
-            st.impulse_n_s[0] += g.vertical_n * dt;
-            st.impulse_n_s[1] += g.contralateral_n * dt;
+            st.impulse_n_s += g.vertical_n * dt;
             st.duration_s += dt;
             if self.in_stance {
                 st.stance_s += dt;
                 st.slip_m += g.slip_m_s * dt;
             }
-            let z = p.pelvis_height_m;
-            st.pelvis_m = (st.pelvis_m.0.min(z), st.pelvis_m.1.max(z));
         }
         self.follow_strike(t, error_deg, rate);
         self.deepest_m = self.deepest_m.max(g.penetration_m);
@@ -490,25 +483,165 @@ impl TreadmillMetrics {
                 self.phase_sq[j][phase] += e * e;
                 self.phase_n[j][phase] += 1;
             }
+            if p.ankle_rad.is_finite() {
+                self.ankle_rad = [
+                    self.ankle_rad[0].min(p.ankle_rad),
+                    self.ankle_rad[1].max(p.ankle_rad),
+                ];
+            }
         }
     }
 }
 
-impl Recorder<SupervisedLeg, LegOutput> for TreadmillMetrics {
-    fn record(&mut self, p: &Period<'_, SupervisedLeg, LegOutput>) {
-        let s = p.truth;
-        let Some(ground) = s.ground else {
+impl LegRecorder for FootMetrics {
+    fn record(&mut self, p: &LegPeriod<'_>) {
+        let Some(ground) = p.trainer.ground else {
             return;
         };
+        let Some(foot) = ground.feet.get(p.leg) else {
+            return;
+        };
+        let s = p.state;
         self.push(&GroundPeriod {
             t_s: p.t_s,
             dt_s: p.dt_s,
-            ground,
-            pelvis_height_m: s.pelvis_height_m.unwrap_or(f64::NAN),
+            foot: *foot,
             error_deg: std::array::from_fn(|j| {
                 (p.output.reference_rad[j] - s.angle_rad[j]).to_degrees()
             }),
             pressure_pa: s.pressure_pa,
+            ankle_rad: s.ankle_rad,
         });
+    }
+}
+
+/// Muscle `i` of a leg acts on joint `JOINT_OF[i]` in the shipped geometries' order; the
+/// heel strikes' pressure rates are per joint.
+const JOINT_OF: [usize; 4] = [0, 0, 1, 1];
+
+/// The treadmill's figures that belong to no one foot: the belt's load, the harness and
+/// the pelvis, after the first stride.
+#[derive(Debug, Clone)]
+pub struct TrainerGroundMetrics {
+    stride_s: f64,
+    belt_speed_m_s: f64,
+    bws_fraction: f64,
+    body_weight_n: f64,
+    system_weight_n: f64,
+    legs: usize,
+    time_s: f64,
+    belt_impulse_n_s: f64,
+    other_impulse_n_s: f64,
+    pelvis_z_m: [f64; 2],
+    pelvis_x_m: [f64; 2],
+    harness: (f64, f64, f64),
+    active: bool,
+}
+
+impl TrainerGroundMetrics {
+    /// For `exo`'s treadmill (nothing off one), strides of `stride_s`.
+    pub fn new(exo: &Exoskeleton, stride_s: f64) -> Self {
+        let g = pma_model::GRAVITY_M_S2;
+        let (active, speed, bws, body, system) = match exo.ground() {
+            Some(ground) => {
+                let s = ground.settings();
+                (
+                    true,
+                    s.belt_speed_m_s(),
+                    s.bws_fraction,
+                    s.body_mass_kg * g,
+                    ground.total_mass_kg() * g,
+                )
+            }
+            None => (false, 0.0, 0.0, 1.0, 1.0),
+        };
+        Self {
+            stride_s,
+            belt_speed_m_s: speed,
+            bws_fraction: bws,
+            body_weight_n: body,
+            system_weight_n: system,
+            legs: exo.leg_count(),
+            time_s: 0.0,
+            belt_impulse_n_s: 0.0,
+            other_impulse_n_s: 0.0,
+            pelvis_z_m: [f64::INFINITY, f64::NEG_INFINITY],
+            pelvis_x_m: [f64::INFINITY, f64::NEG_INFINITY],
+            harness: (0.0, f64::INFINITY, f64::NEG_INFINITY),
+            active,
+        }
+    }
+
+    /// The run's treadmill report with every foot's (in leg order); `None` off a treadmill.
+    pub fn report(&self, feet: Vec<FootReport>) -> Option<TreadmillReport> {
+        if !self.active {
+            return None;
+        }
+        let bw = self.body_weight_n;
+        let per = |v: f64| {
+            if self.time_s > 0.0 {
+                v / self.time_s
+            } else {
+                f64::NAN
+            }
+        };
+        let range = |r: [f64; 2]| if r[1] >= r[0] { r[1] - r[0] } else { f64::NAN };
+        Some(TreadmillReport {
+            belt_speed_m_s: self.belt_speed_m_s,
+            bws_fraction: self.bws_fraction,
+            body_weight_n: bw,
+            system_weight_bw: self.system_weight_n / bw,
+            legs: self.legs,
+            mean_belt_load_bw: per(self.belt_impulse_n_s) / bw,
+            expected_belt_load_bw: (1.0 - self.bws_fraction) * self.system_weight_n / bw,
+            mean_other_leg_bw: per(self.other_impulse_n_s) / bw,
+            pelvis_excursion_m: range(self.pelvis_z_m),
+            pelvis_fore_aft_excursion_m: range(self.pelvis_x_m),
+            harness_fore_aft_n: Spread {
+                mean: per(self.harness.0),
+                min: self.harness.1,
+                max: self.harness.2,
+            },
+            feet: feet
+                .into_iter()
+                .enumerate()
+                .map(|(leg, f)| (SIDES[leg.min(SIDES.len() - 1)].to_owned(), f))
+                .collect(),
+        })
+    }
+}
+
+impl Recorder<SupervisedLeg, PerLeg<LegOutput>> for TrainerGroundMetrics {
+    fn record(&mut self, p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>) {
+        if let (Some(g), Some(pelvis)) = (p.truth.ground, p.truth.pelvis_m) {
+            self.push(p.t_s, p.dt_s, &g, pelvis);
+        }
+    }
+}
+
+impl TrainerGroundMetrics {
+    /// One period of `dt` ending at `t_s`: the ground's reaction and the pelvis's position
+    /// `[fore-aft, height]` (m).
+    pub fn push(&mut self, t_s: f64, dt: f64, g: &GroundReaction, pelvis: [f64; 2]) {
+        if t_s <= self.stride_s {
+            return;
+        }
+        self.time_s += dt;
+        self.belt_impulse_n_s += g.belt_load_n() * dt;
+        self.other_impulse_n_s += g.contralateral_n * dt;
+        self.pelvis_x_m = [
+            self.pelvis_x_m[0].min(pelvis[0]),
+            self.pelvis_x_m[1].max(pelvis[0]),
+        ];
+        self.pelvis_z_m = [
+            self.pelvis_z_m[0].min(pelvis[1]),
+            self.pelvis_z_m[1].max(pelvis[1]),
+        ];
+        let h = g.harness_fore_aft_n;
+        self.harness = (
+            self.harness.0 + h * dt,
+            self.harness.1.min(h),
+            self.harness.2.max(h),
+        );
     }
 }

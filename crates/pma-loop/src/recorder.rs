@@ -35,6 +35,25 @@ impl<B: Backend, O, R: Recorder<B, O> + ?Sized> Recorder<B, O> for &mut R {
 }
 
 /// Records if present: optional outputs (a CSV file, a viewer) without optional closures.
+/// Records into each, in order (one recorder per leg, say).
+impl<B: Backend, O, R: Recorder<B, O>> Recorder<B, O> for Vec<R> {
+    fn start(&mut self, start: &Start<'_, B>) {
+        for r in self.iter_mut() {
+            r.start(start);
+        }
+    }
+    fn record(&mut self, period: &Period<'_, B, O>) {
+        for r in self.iter_mut() {
+            r.record(period);
+        }
+    }
+    fn end(&mut self, end: &End<B::Error>, t_s: f64) {
+        for r in self.iter_mut() {
+            r.end(end, t_s);
+        }
+    }
+}
+
 impl<B: Backend, O, R: Recorder<B, O>> Recorder<B, O> for Option<R> {
     fn start(&mut self, start: &Start<'_, B>) {
         if let Some(r) = self {
@@ -79,6 +98,7 @@ macro_rules! tuple_recorder {
 tuple_recorder!(R1, R2);
 tuple_recorder!(R1, R2, R3);
 tuple_recorder!(R1, R2, R3, R4);
+tuple_recorder!(R1, R2, R3, R4, R5);
 
 /// A closure called with every period.
 pub struct FnRecorder<F>(pub F);

@@ -53,6 +53,22 @@ impl Schema {
         self
     }
 
+    /// The same channels for one of several like parts (a trainer's `left` leg): columns
+    /// `<prefix>_<name>`, paths `<prefix>/<path>`, docs prefixed.
+    pub fn prefixed(&self, prefix: &str) -> Schema {
+        Schema {
+            channels: self
+                .channels
+                .iter()
+                .map(|c| Channel {
+                    name: format!("{prefix}_{}", c.name),
+                    path: format!("{prefix}/{}", c.path),
+                    doc: format!("{prefix} {}", c.doc),
+                })
+                .collect(),
+        }
+    }
+
     /// Number of channels.
     pub fn len(&self) -> usize {
         self.channels.len()
@@ -99,5 +115,9 @@ mod tests {
         assert!(s
             .markdown()
             .contains("| `hip_angle_deg` | `joints/hip/angle_deg` |"));
+        let left = s.prefixed("left");
+        assert_eq!(left.columns(), ["left_t_s", "left_hip_angle_deg"]);
+        assert_eq!(left.channels[1].path, "left/joints/hip/angle_deg");
+        assert_eq!(left.channels[1].doc, "left hip angle (deg)");
     }
 }

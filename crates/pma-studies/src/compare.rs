@@ -82,26 +82,47 @@ pub struct TreadmillRow {
 }
 
 impl TreadmillRow {
+    /// The row of a run's treadmill figures: over every foot, the mean of each foot's
+    /// figure (tracking, loading, stance, slip) and the worst of the heel strikes.
     fn of(t: &pma_leg::TreadmillReport) -> Self {
+        let feet: Vec<&pma_leg::FootReport> = t.feet.values().collect();
+        let mean = |f: &dyn Fn(&pma_leg::FootReport) -> f64| {
+            feet.iter().map(|r| f(r)).sum::<f64>() / feet.len().max(1) as f64
+        };
         let phases = |j: &str| {
-            t.tracking
-                .get(j)
-                .map_or([f64::NAN; 2], |p| [p.stance_rms_deg, p.swing_rms_deg])
+            [0, 1].map(|k| {
+                mean(&|r| {
+                    r.tracking
+                        .get(j)
+                        .map_or(f64::NAN, |p| [p.stance_rms_deg, p.swing_rms_deg][k])
+                })
+            })
         };
         let strikes = |f: fn(&pma_leg::stance::HeelStrikeStats) -> f64| {
-            ["hip", "knee"].map(|j| t.heel_strikes.get(j).map_or(f64::NAN, f))
+            ["hip", "knee"].map(|j| {
+                feet.iter()
+                    .filter_map(|r| r.heel_strikes.get(j).map(f))
+                    .fold(f64::NAN, f64::max)
+            })
         };
         Self {
             hip_stance_swing_rms_deg: phases("hip"),
             knee_stance_swing_rms_deg: phases("knee"),
-            peak_grf_bw: t.peak_grf_bw.mean,
-            loading_rate_bw_s: t.loading_rate_bw_s.mean,
-            stance_fraction: [t.stance_fraction.mean, t.reference_stance_fraction],
-            slip_per_stride_m: t.slip_per_stride_m.mean,
+            peak_grf_bw: mean(&|r| r.peak_grf_bw.mean),
+            loading_rate_bw_s: mean(&|r| r.loading_rate_bw_s.mean),
+            stance_fraction: [
+                mean(&|r| r.stance_fraction.mean),
+                mean(&|r| r.reference_stance_fraction),
+            ],
+            slip_per_stride_m: mean(&|r| r.slip_per_stride_m.mean),
             heel_strike_max_deviation_deg: strikes(|h| h.deviation_deg.max),
             heel_strike_max_recovery_s: strikes(|h| h.recovery_s.max),
-            heel_strikes_unrecovered: ["hip", "knee"]
-                .map(|j| t.heel_strikes.get(j).map_or(0, |h| h.not_recovered)),
+            heel_strikes_unrecovered: ["hip", "knee"].map(|j| {
+                feet.iter()
+                    .filter_map(|r| r.heel_strikes.get(j))
+                    .map(|h| h.not_recovered)
+                    .sum()
+            }),
         }
     }
 }
@@ -109,7 +130,7 @@ impl TreadmillRow {
 impl CompareRow {
     /// The row of `report`, a run of `controller`.
     pub fn of(report: &LegReport, controller: &str) -> Self {
-        let rms = |j: &str| report.joints.get(j).map_or(f64::NAN, |s| s.rms_deg);
+        let rms = |j: &str| report.joint_rms_deg(j);
         let spasms = &report.spasms;
         // `None` where there is nothing to take the largest of (no spasm, none recovered).
         let fold = |f: fn(&pma_leg::SpasmReport) -> Option<f64>| {
@@ -173,18 +194,19 @@ impl CompareRow {
     }
 }
 
-/// Runs every controller of `controllers` on every scenario for `duration_s`, in parallel
+/// Runs every scenario with its controllers (`controllers[i]` on `scenarios[i]`) for `duration_s`, in parallel
 /// on rayon's pool (the caller's `install` sets its size); rows in scenario-major order,
 /// the same for any thread count. `progress` counts the runs done (for a progress bar).
 pub fn compare(
     scenarios: &[LoadedScenario],
-    controllers: &[ControllerConfig],
+    controllers: &[Vec<ControllerConfig>],
     duration_s: f64,
     progress: Option<&std::sync::atomic::AtomicUsize>,
 ) -> Result<Vec<CompareRow>, LegError> {
     let pairs: Vec<(&LoadedScenario, &ControllerConfig)> = scenarios
         .iter()
-        .flat_map(|s| controllers.iter().map(move |c| (s, c)))
+        .zip(controllers)
+        .flat_map(|(s, cs)| cs.iter().map(move |c| (s, c)))
         .collect();
     pairs
         .par_iter()

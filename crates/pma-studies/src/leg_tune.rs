@@ -12,16 +12,33 @@ pub const VARIATION_WEIGHT_DEG_PER_BAR_S: f64 = 0.01;
 /// The objective of a run that failed or went non-finite.
 pub const FAILED_RUN: f64 = 1000.0;
 
+/// The objective of a run that pulled a muscle past its rating, before the excess: above
+/// any tracking figure, below a failed run, so the search climbs back within the rating.
+pub const OVER_RATING: f64 = 100.0;
+
 /// Objective of a run of `config` on every muscle: hip RMS + knee RMS (deg, after the
-/// first stride) plus [`VARIATION_WEIGHT_DEG_PER_BAR_S`] times the command variation; a
-/// failed or non-finite run scores [`FAILED_RUN`].
+/// first stride; the legs' mean on a two-leg trainer) plus [`VARIATION_WEIGHT_DEG_PER_BAR_S`]
+/// times the command variation. Gains that pull any muscle past its rated force track
+/// nothing a user may run: such a run scores [`OVER_RATING`] plus 100 times the largest
+/// excess (peak force / rating - 1), and a failed or non-finite run [`FAILED_RUN`].
 pub fn objective(loaded: &LoadedScenario, config: &ControllerConfig, duration_s: f64) -> f64 {
     let run = || -> Option<f64> {
         let mut sim = LegSim::with_controller(loaded, config).ok()?;
         let r = sim.run(duration_s, &mut ()).ok()?;
-        let j = |n: &str| r.joints.get(n).map(|s| s.rms_deg);
-        let v =
-            j("hip")? + j("knee")? + VARIATION_WEIGHT_DEG_PER_BAR_S * r.command_variation_bar_per_s;
+        let worst = r
+            .safety
+            .muscles
+            .values()
+            .map(|m| m.peak_over_rated)
+            .fold(0.0, f64::max);
+        // Every leg's mean for each joint (one leg: its own).
+        let v = if worst > 1.0 {
+            OVER_RATING + 100.0 * (worst - 1.0)
+        } else {
+            r.joint_rms_deg("hip")
+                + r.joint_rms_deg("knee")
+                + VARIATION_WEIGHT_DEG_PER_BAR_S * r.command_variation_bar_per_s
+        };
         (r.finite && v.is_finite()).then_some(v)
     };
     run().unwrap_or(FAILED_RUN)

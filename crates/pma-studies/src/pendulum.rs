@@ -18,7 +18,7 @@ use pma_leg::LegSim;
 use pma_leg::LoadedScenario;
 use pma_leg::Mount;
 use pma_leg::SupervisedLeg;
-use pma_leg::{LegOutput, Vented};
+use pma_leg::{LegOutput, PerLeg, Vented};
 use pma_loop::{LoopSettings, Period, Recorder, Schema, Signals};
 
 /// The knee's upper limit during the test (deg): the shank may swing past vertical as far
@@ -114,8 +114,11 @@ pub struct PendulumSample {
 
 impl PendulumSample {
     /// The test's view of one period; `knee_damping_nm_s_per_rad` is the joint's damping.
-    pub fn of(p: &Period<'_, SupervisedLeg, LegOutput>, knee_damping_nm_s_per_rad: f64) -> Self {
-        let s = p.truth;
+    pub fn of(
+        p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>,
+        knee_damping_nm_s_per_rad: f64,
+    ) -> Self {
+        let s = &p.truth.legs[0];
         Self {
             t_s: p.t_s,
             angle_rad: s.angle_rad,
@@ -185,13 +188,13 @@ struct Trace {
     finite: bool,
 }
 
-impl Recorder<SupervisedLeg, LegOutput> for Trace {
-    fn record(&mut self, p: &Period<'_, SupervisedLeg, LegOutput>) {
-        let s = p.truth;
+impl Recorder<SupervisedLeg, PerLeg<LegOutput>> for Trace {
+    fn record(&mut self, p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>) {
+        let s = &p.truth.legs[0];
         self.t_s.push(p.t_s);
         self.knee.push(s.angle_rad[1]);
         self.knee_velocity.push(s.velocity_rad_s[1]);
-        self.energy.push(p.backend.leg().energy());
+        self.energy.push(p.backend.exo().energy());
         self.patient_peak = self.patient_peak.max(s.patient.total()[1].abs());
         self.finite &= s
             .angle_rad
@@ -231,7 +234,7 @@ pub fn seated(loaded: &LoadedScenario, setup: PendulumSetup) -> Result<LegSim, L
     };
     // The URDF's own knee lower limit stays; only the stop at 80 deg goes.
     let probe = LegSim::mounted(loaded, &ControllerKind::Pid.default_config(), mount)?;
-    let [[hip_lo, hip_hi], [knee_lo, _]] = probe.leg().limits_rad();
+    let [[hip_lo, hip_hi], [knee_lo, _]] = probe.exo().limits_rad(0);
     let knee_hi = KNEE_LIMIT_DEG.to_radians();
     if !(hip_lo..=hip_hi).contains(&setup.hip_rad) {
         return Err(LegError::from(pma_model::Invalid::new(
@@ -251,7 +254,7 @@ pub fn seated(loaded: &LoadedScenario, setup: PendulumSetup) -> Result<LegSim, L
     };
     let mut sim = LegSim::mounted(loaded, &ControllerKind::Pid.default_config(), mount)?;
     sim.release_muscles()?;
-    sim.plant_mut().leg_mut().hold(0, setup.hip_rad);
+    sim.plant_mut().exo_mut().hold(0, 0, setup.hip_rad);
     sim.set_state([setup.hip_rad, setup.knee_rad], [0.0, 0.0]);
     Ok(sim)
 }
@@ -267,7 +270,7 @@ fn as_given_deg(rad: f64) -> f64 {
 
 /// Runs the test on a leg from [`seated`] with the same `setup`, `recorder` observing
 /// every period.
-pub fn run<R: Recorder<SupervisedLeg, LegOutput>>(
+pub fn run<R: Recorder<SupervisedLeg, PerLeg<LegOutput>>>(
     mut sim: LegSim,
     setup: PendulumSetup,
     settings: &LoopSettings,
@@ -289,11 +292,11 @@ pub fn run<R: Recorder<SupervisedLeg, LegOutput>>(
         patient_peak: 0.0,
         finite: true,
     };
-    let e0 = sim.leg().energy();
+    let e0 = sim.exo().energy();
     let pitch = std::f64::consts::FRAC_PI_2 - setup.hip_rad;
     // The shank hangs when its absolute angle (hip + pitch - knee) is zero.
     let hanging = [setup.hip_rad, setup.hip_rad + pitch];
-    let e_hanging = sim.leg().inertia().energy(hanging, [0.0, 0.0]);
+    let e_hanging = sim.exo().inertia().energy(hanging, [0.0, 0.0]);
     let mut task = Vented::pose([setup.hip_rad, setup.knee_rad]);
     let outcome = sim.run_task(&mut task, &mut (&mut trace, recorder), settings)?;
     let ran_s = outcome.periods as f64 * sim.scenario().period_s;

@@ -287,8 +287,8 @@ pub struct Frame<'a> {
     pub link_poses: &'a [([f64; 3], [f64; 4])],
     /// One segment per registered muscle line: end points (m) and pressure (Pa).
     pub muscle_lines: &'a [([f64; 3], [f64; 3], f64)],
-    /// The ground reaction, if [`Viz::ground`] registered one.
-    pub ground: Option<GroundFrame<'a>>,
+    /// One ground reaction per foot [`Viz::ground`] registered, in its order.
+    pub grounds: &'a [GroundFrame<'a>],
 }
 
 /// The ground's reaction on a foot in one frame.
@@ -327,7 +327,7 @@ pub struct Viz {
     series: Vec<Columns<f64>>,
     links: Vec<Columns<([f32; 3], [f32; 4])>>,
     muscles: Vec<Columns<LineRow>>,
-    ground: Option<GroundColumns>,
+    grounds: Vec<GroundColumns>,
     pressure_max_pa: f64,
     every: i64,
     /// `None`: wait for the sink however long it takes (file, memory).
@@ -423,7 +423,7 @@ impl Viz {
             series: Vec::new(),
             links: Vec::new(),
             muscles: Vec::new(),
-            ground: None,
+            grounds: Vec::new(),
             pressure_max_pa: 6.0e5,
             every,
             flush_timeout: None,
@@ -529,9 +529,9 @@ impl Viz {
         .map_err(rr)
     }
 
-    /// Registers a ground reaction drawn at `world/<name>/grf` (an arrow at the centre of
-    /// pressure) and `world/<name>/contacts` (the contact points), in every frame's
-    /// [`Frame::ground`].
+    /// Registers a foot's ground reaction drawn at `world/<name>/grf` (an arrow at the
+    /// centre of pressure) and `world/<name>/contacts` (the contact points), the next of
+    /// every frame's [`Frame::grounds`].
     pub fn ground(&mut self, name: &str) -> Result<(), VizError> {
         let arrow_path = format!("world/{name}/grf");
         let points_path = format!("world/{name}/contacts");
@@ -551,7 +551,7 @@ impl Viz {
                     .with_radii([0.012]),
             )
             .map_err(rr)?;
-        self.ground = Some(GroundColumns {
+        self.grounds.push(GroundColumns {
             arrow_path,
             points_path,
             arrows: Vec::with_capacity(CHUNK_LEN),
@@ -666,7 +666,7 @@ impl Viz {
             m.rows
                 .push(([f32x(a), f32x(b)], pressure_color(*p, self.pressure_max_pa)));
         }
-        if let (Some(g), Some(frame)) = (&mut self.ground, &f.ground) {
+        for (g, frame) in self.grounds.iter_mut().zip(f.grounds) {
             let vector = frame.force_n.map(|v| v * GRF_ARROW_M_PER_N);
             // Out of contact the arrow has no origin: drawn as nothing at the origin.
             let origin = if frame.at_m.iter().all(|v| v.is_finite()) {
@@ -733,7 +733,7 @@ impl Viz {
             )?;
             m.rows.clear();
         }
-        if let Some(g) = &mut self.ground {
+        for g in &mut self.grounds {
             if g.arrows.len() == self.t_s.len() {
                 send(
                     &g.arrow_path,

@@ -2,8 +2,8 @@
 //! each physics substep, allocation-free once planned.
 use super::settings::*;
 use crate::error::LegError;
+use crate::exoskeleton::LegInertia;
 use crate::gait::GaitReference;
-use crate::leg::LegInertia;
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 

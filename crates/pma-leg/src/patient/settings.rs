@@ -540,6 +540,18 @@ impl EffortSettings {
 }
 
 impl PatientSettings {
+    /// The settings of leg `leg` of a trainer: the same patient, its random spasms drawn
+    /// from each seed plus `leg` (so that two legs do not jerk together).
+    pub fn for_leg(&self, leg: usize) -> Self {
+        let mut out = self.clone();
+        for j in [&mut out.hip, &mut out.knee] {
+            if let Some(s) = &mut j.spasms {
+                s.seed = s.seed.wrapping_add(leg as u64);
+            }
+        }
+        out
+    }
+
     /// Whether no part is set at either joint (the passive limb).
     pub fn is_passive(&self) -> bool {
         self.joints().iter().all(|j| {

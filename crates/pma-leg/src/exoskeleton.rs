@@ -1,10 +1,19 @@
-//! The exoskeleton leg as a rapier multibody loaded from URDF.
+//! The exoskeleton as a rapier multibody loaded from URDF: a pelvis and one or two legs.
+//!
+//! One leg is a chain `hip -> thigh -> knee -> shank` (and, on a treadmill, `ankle ->
+//! foot`); a URDF with one leg names its joints `hip`, `knee`, `ankle`, one with two legs
+//! prefixes them `right_` and `left_` (`crates/pma-leg/models/exo_trainer.urdf`). Every
+//! leg is the same code: [`LegJoints`] says where one leg's joints are, and the
+//! [`Exoskeleton`] holds one per leg on its pelvis. The pelvis is fixed (the leg swings in
+//! the air; [`Mount`]) or slides on a treadmill's harness ([`crate::ground`]).
 use crate::config::JointSettings;
 use crate::error::{one_line, LegError};
 use crate::gait::GaitReference;
 use crate::ground::{
-    FootSphere, Ground, GroundReaction, GroundSetup, OtherLeg, SagittalChain, TreadmillSettings,
+    AnkleSettings, FootSetup, FootSphere, Ground, GroundReaction, GroundSetup, OtherLeg,
+    SagittalChain, TreadmillSettings,
 };
+use crate::legs::{PerLeg, MAX_LEGS, SIDES};
 use rapier3d::prelude::*;
 use rapier3d_urdf::{urdf_rs, UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
 use std::path::Path;
@@ -12,13 +21,14 @@ use std::path::Path;
 /// Standard gravity (m/s^2), the same as the muscle bench's.
 const G: f64 = pma_model::GRAVITY_M_S2;
 
-/// Solver iterations of a leg with a held joint (see [`Leg::hold`]).
+/// Solver iterations of a leg with a held joint (see [`Exoskeleton::hold`]).
 pub const HOLD_SOLVER_ITERATIONS: usize = 8;
 
-/// Names of the two joints the leg needs, in index order.
+/// Names of the two actuated joints of a leg, in index order (a two-leg URDF prefixes
+/// them with the leg's side: `right_hip`).
 pub const JOINT_NAMES: [&str; 2] = ["hip", "knee"];
 
-/// One actuated joint: where to read it and where to apply its torque.
+/// One joint: where to read it and where to apply its torque.
 #[derive(Debug, Clone, Copy)]
 struct JointRef {
     handle: MultibodyJointHandle,
@@ -27,6 +37,34 @@ struct JointRef {
     dof: usize,
     /// Joint axis in the child body's frame.
     axis_in_child: Vector,
+}
+
+/// One leg in the multibody: its actuated joints, its passive ankle (if it has one) and
+/// the limits rapier enforces.
+#[derive(Debug, Clone)]
+pub struct LegJoints {
+    /// Prefix of the leg's URDF names (`""` for a one-leg URDF, `right_`, `left_`).
+    prefix: String,
+    joints: [JointRef; 2],
+    ankle: Option<JointRef>,
+    limits_rad: [[f64; 2]; 2],
+}
+
+impl LegJoints {
+    /// The URDF name of this leg's `name` (a link or a joint): `thigh` -> `right_thigh`.
+    pub fn urdf_name(&self, name: &str) -> String {
+        format!("{}{name}", self.prefix)
+    }
+
+    /// The URDF name of a link this leg's muscles attach to: the shared `pelvis`, or one
+    /// of the leg's own links.
+    pub fn link_name(&self, name: &str) -> String {
+        if name == "pelvis" {
+            name.to_owned()
+        } else {
+            self.urdf_name(name)
+        }
+    }
 }
 
 /// Link inertia data read from the URDF (for the controllers' nominal models).
@@ -164,19 +202,6 @@ fn visuals_of(link: &urdf_rs::Link) -> Vec<VisualShape> {
         .collect()
 }
 
-/// The leg: a rapier world with the multibody, its two joints and the gravity along -Z.
-pub struct Leg {
-    world: PhysicsWorld,
-    joints: [JointRef; 2],
-    bodies: Vec<(String, RigidBodyHandle)>,
-    visuals: Vec<Vec<VisualShape>>,
-    inertia: LegInertia,
-    substeps: u32,
-    limits_rad: [[f64; 2]; 2],
-    /// The treadmill, when the leg stands on one.
-    ground: Option<Ground>,
-}
-
 fn urdf_err(file: &str, message: impl Into<String>) -> LegError {
     LegError::Urdf {
         file: file.to_owned(),
@@ -184,13 +209,32 @@ fn urdf_err(file: &str, message: impl Into<String>) -> LegError {
     }
 }
 
-fn link_inertia(robot: &urdf_rs::Robot, name: &str, file: &str) -> Result<LinkInertia, LegError> {
-    let link = robot
+fn find_link<'a>(
+    robot: &'a urdf_rs::Robot,
+    name: &str,
+    file: &str,
+) -> Result<&'a urdf_rs::Link, LegError> {
+    robot
         .links
         .iter()
         .find(|l| l.name == name)
-        .ok_or_else(|| urdf_err(file, format!("no link named `{name}`")))?;
-    let i = &link.inertial;
+        .ok_or_else(|| urdf_err(file, format!("no link named `{name}`")))
+}
+
+fn find_joint<'a>(
+    robot: &'a urdf_rs::Robot,
+    name: &str,
+    file: &str,
+) -> Result<&'a urdf_rs::Joint, LegError> {
+    robot
+        .joints
+        .iter()
+        .find(|j| j.name == name)
+        .ok_or_else(|| urdf_err(file, format!("no joint named `{name}`")))
+}
+
+fn link_inertia(robot: &urdf_rs::Robot, name: &str, file: &str) -> Result<LinkInertia, LegError> {
+    let i = &find_link(robot, name, file)?.inertial;
     Ok(LinkInertia {
         mass_kg: i.mass.value,
         com_below_joint_m: -i.origin.xyz[2],
@@ -204,15 +248,47 @@ fn parse_urdf(text: &str, file: &str) -> Result<urdf_rs::Robot, LegError> {
         .map_err(|e| urdf_err(file, one_line(&format!("{e:#}"))))
 }
 
-/// The `foot` link's `<collision>` spheres: the treadmill's contact geometry.
-fn foot_spheres(raw: &urdf_rs::Robot, file: &str) -> Result<Vec<FootSphere>, LegError> {
-    let foot = raw.links.iter().find(|l| l.name == "foot").ok_or_else(|| {
+/// The prefixes of the URDF's legs: `""` for a one-leg URDF (`hip`, `knee`), else the
+/// sides it has (`right_hip` ...), in [`SIDES`] order.
+fn leg_prefixes(raw: &urdf_rs::Robot, file: &str) -> Result<Vec<String>, LegError> {
+    let has = |name: &str| raw.joints.iter().any(|j| j.name == name);
+    if has("hip") {
+        return Ok(vec![String::new()]);
+    }
+    let sides: Vec<String> = SIDES
+        .iter()
+        .map(|s| format!("{s}_"))
+        .filter(|p| has(&format!("{p}hip")))
+        .collect();
+    if sides.is_empty() {
+        return Err(urdf_err(
+            file,
+            "no joint named `hip` (one leg) or `right_hip` / `left_hip` (two legs)",
+        ));
+    }
+    Ok(sides)
+}
+
+/// Drops every link and joint of the legs after the first `legs` (their names start with
+/// the leg's prefix): a one-leg treadmill on a two-leg URDF keeps its right leg.
+fn keep_legs(raw: &mut urdf_rs::Robot, prefixes: &mut Vec<String>, legs: usize) {
+    let dropped: Vec<String> = prefixes.drain(legs.min(prefixes.len())..).collect();
+    let gone = |name: &str| dropped.iter().any(|p| !p.is_empty() && name.starts_with(p));
+    raw.links.retain(|l| !gone(&l.name));
+    raw.joints.retain(|j| !gone(&j.name));
+}
+
+/// The leg's `foot` link's `<collision>` spheres: the treadmill's contact geometry.
+fn foot_spheres(raw: &urdf_rs::Robot, file: &str, foot: &str) -> Result<Vec<FootSphere>, LegError> {
+    let link = raw.links.iter().find(|l| l.name == foot).ok_or_else(|| {
         urdf_err(
             file,
-            "no link named `foot`: a treadmill needs a foot (see models/exo_leg_foot.urdf)",
+            format!(
+                "no link named `{foot}`: a treadmill needs a foot (see models/exo_trainer.urdf)"
+            ),
         )
     })?;
-    let spheres: Vec<FootSphere> = foot
+    let spheres: Vec<FootSphere> = link
         .collision
         .iter()
         .filter_map(|c| match c.geometry {
@@ -226,38 +302,32 @@ fn foot_spheres(raw: &urdf_rs::Robot, file: &str) -> Result<Vec<FootSphere>, Leg
     if spheres.is_empty()
         || spheres
             .iter()
-            .any(|s| s.radius_m.is_nan() || s.radius_m <= 0.0)
+            .any(|s| !(s.radius_m.is_finite() && s.radius_m > 0.0 && s.radius_m <= 0.1))
     {
         return Err(urdf_err(
             file,
-            "the `foot` link needs <collision> spheres of positive radius (its contact points)",
+            format!("the `{foot}` link needs <collision> spheres of radius 0 < r <= 0.1 m (its contact points)"),
         ));
     }
     Ok(spheres)
 }
 
-/// The sagittal chain pelvis -> hip -> knee -> ankle of the URDF, for the virtual other
-/// leg: each joint's origin `[x, z]` and the hip's and knee's flexion sense.
+/// The sagittal chain pelvis -> hip -> knee -> ankle of the leg with `prefix`, for the
+/// virtual other leg and the belt's speed: each joint's origin `[x, z]`, pitch and flexion
+/// sense (the ankle's dorsiflexion sense; a fixed ankle turns with nothing).
 fn sagittal_chain(
     raw: &urdf_rs::Robot,
     file: &str,
+    prefix: &str,
     spheres: Vec<FootSphere>,
 ) -> Result<SagittalChain, LegError> {
-    let joint = |name: &str| {
-        raw.joints
-            .iter()
-            .find(|j| j.name == name)
-            .ok_or_else(|| urdf_err(file, format!("no joint named `{name}`")))
-    };
+    let joint = |name: &str| find_joint(raw, &format!("{prefix}{name}"), file);
     let (hip, knee, ankle) = (joint("hip")?, joint("knee")?, joint("ankle")?);
-    if ankle.joint_type != urdf_rs::JointType::Fixed {
-        return Err(urdf_err(
-            file,
-            "joint `ankle` must be fixed (the treadmill leg has no ankle actuator)",
-        ));
-    }
     let origin = |j: &urdf_rs::Joint| [j.origin.xyz[0], j.origin.xyz[2]];
     let sense = |j: &urdf_rs::Joint| {
+        if j.joint_type == urdf_rs::JointType::Fixed {
+            return Ok(0.0);
+        }
         let y = j.axis.xyz[1];
         if (y.abs() - 1.0).abs() > 1e-9 {
             Err(urdf_err(
@@ -285,87 +355,69 @@ fn sagittal_chain(
     Ok(SagittalChain {
         origins_m: [origin(hip), origin(knee), origin(ankle)],
         pitch_rad: [pitch(hip), pitch(knee), pitch(ankle)],
-        flexion_sign: [sense(hip)?, sense(knee)?],
+        flexion_sign: [sense(hip)?, sense(knee)?, sense(ankle)?],
         spheres,
     })
 }
 
-/// Folds the `foot` link into the shank it is fixed to (an unrotated fixed `ankle`): one
-/// rigid body with both masses, the inertia about their common centre (parallel axes),
-/// and the foot's shapes moved into the shank's frame. A fixed joint still costs rapier a
-/// multibody link (mass matrix, kinematics) every substep; the folded leg moves the same.
-/// Returns the ankle's offset in the shank frame (m), or `None` (nothing folded) when the
-/// ankle or either inertial frame is rotated.
-fn fold_foot_into_shank(raw: &mut urdf_rs::Robot) -> Option<[f64; 3]> {
-    let ankle = raw.joints.iter().position(|j| {
-        j.name == "ankle"
-            && j.joint_type == urdf_rs::JointType::Fixed
-            && j.parent.link == "shank"
-            && j.child.link == "foot"
-    })?;
-    let unrotated = |p: &urdf_rs::Pose| p.rpy.iter().all(|a| *a == 0.0);
-    let foot_at = raw.links.iter().position(|l| l.name == "foot")?;
-    let shank_at = raw.links.iter().position(|l| l.name == "shank")?;
-    let (foot, shank) = (&raw.links[foot_at], &raw.links[shank_at]);
-    if !unrotated(&raw.joints[ankle].origin)
-        || !unrotated(&foot.inertial.origin)
-        || !unrotated(&shank.inertial.origin)
-    {
-        return None;
-    }
-    let o = *raw.joints[ankle].origin.xyz;
-    let body = |l: &urdf_rs::Link, offset: [f64; 3]| {
-        let c = l.inertial.origin.xyz;
-        let i = &l.inertial.inertia;
-        (
-            l.inertial.mass.value,
-            [c[0] + offset[0], c[1] + offset[1], c[2] + offset[2]],
-            [
-                [i.ixx, i.ixy, i.ixz],
-                [i.ixy, i.iyy, i.iyz],
-                [i.ixz, i.iyz, i.izz],
-            ],
-        )
-    };
-    let parts = [body(shank, [0.0; 3]), body(foot, o)];
+/// Two bodies' masses, centres and inertias about the flexion axis as one (parallel
+/// axes): the shank and a foot at its neutral angle, for the nominal models.
+fn combined(parts: [(f64, [f64; 2], f64); 2]) -> (f64, [f64; 2], f64) {
     let mass: f64 = parts.iter().map(|p| p.0).sum();
-    let com: [f64; 3] =
+    let com: [f64; 2] =
         std::array::from_fn(|k| parts.iter().map(|p| p.0 * p.1[k]).sum::<f64>() / mass);
-    let mut inertia = [[0.0; 3]; 3];
-    for (m, c, i) in parts {
-        let d = [c[0] - com[0], c[1] - com[1], c[2] - com[2]];
-        let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        for a in 0..3 {
-            for b in 0..3 {
-                let delta = if a == b { dd } else { 0.0 };
-                inertia[a][b] += i[a][b] + m * (delta - d[a] * d[b]);
-            }
-        }
+    let inertia = parts
+        .iter()
+        .map(|(m, c, i)| i + m * ((c[0] - com[0]).powi(2) + (c[1] - com[1]).powi(2)))
+        .sum();
+    (mass, com, inertia)
+}
+
+/// The leg's inertia data: thigh, and shank with the foot (if it has one, at its neutral
+/// angle): the controllers' nominal models and the patient's inverse dynamics see one
+/// two-link leg.
+fn leg_inertia(
+    raw: &urdf_rs::Robot,
+    file: &str,
+    prefix: &str,
+    mount_pitch_rad: f64,
+) -> Result<LegInertia, LegError> {
+    let name = |n: &str| format!("{prefix}{n}");
+    let knee = find_joint(raw, &name("knee"), file)?;
+    let mut shank = link_inertia(raw, &name("shank"), file)?;
+    let foot = raw.links.iter().find(|l| l.name == name("foot"));
+    let ankle = raw.joints.iter().find(|j| j.name == name("ankle"));
+    if let (Some(foot), Some(ankle)) = (foot, ankle) {
+        let (o, f) = (ankle.origin.xyz, &foot.inertial);
+        let (mass, com, inertia) = combined([
+            (
+                shank.mass_kg,
+                [0.0, -shank.com_below_joint_m],
+                shank.inertia_kg_m2,
+            ),
+            (
+                f.mass.value,
+                [o[0] + f.origin.xyz[0], o[2] + f.origin.xyz[2]],
+                f.inertia.iyy,
+            ),
+        ]);
+        // The combined centre lies slightly ahead of the shank's axis; the two-link model
+        // keeps its distance below the knee.
+        shank = LinkInertia {
+            mass_kg: mass,
+            com_below_joint_m: com[0].hypot(com[1]),
+            inertia_kg_m2: inertia,
+        };
     }
-    let moved = |p: &urdf_rs::Pose| {
-        let mut p = p.clone();
-        p.xyz = urdf_rs::Vec3([p.xyz[0] + o[0], p.xyz[1] + o[1], p.xyz[2] + o[2]]);
-        p
-    };
-    let foot = raw.links.remove(foot_at);
-    let shank = raw.links.iter_mut().find(|l| l.name == "shank")?;
-    shank.inertial.mass.value = mass;
-    shank.inertial.origin.xyz = urdf_rs::Vec3(com);
-    let t = &mut shank.inertial.inertia;
-    (t.ixx, t.ixy, t.ixz) = (inertia[0][0], inertia[0][1], inertia[0][2]);
-    (t.iyy, t.iyz, t.izz) = (inertia[1][1], inertia[1][2], inertia[2][2]);
-    shank.visual.extend(foot.visual.into_iter().map(|mut v| {
-        v.origin = moved(&v.origin);
-        v
-    }));
-    shank
-        .collision
-        .extend(foot.collision.into_iter().map(|mut c| {
-            c.origin = moved(&c.origin);
-            c
-        }));
-    raw.joints.remove(ankle);
-    Some(o)
+    let hip = find_joint(raw, &name("hip"), file)?;
+    Ok(LegInertia {
+        thigh: link_inertia(raw, &name("thigh"), file)?,
+        shank,
+        thigh_length_m: -knee.origin.xyz[2],
+        // The mount's pitch, and the hip origin's (an anteriorly tilted pelvis frame turns
+        // the thigh back: a pitch about +Y is one about -Y by its negative).
+        pelvis_pitch_rad: mount_pitch_rad - hip.origin.rpy[1],
+    })
 }
 
 /// `root` and every link below it, by name.
@@ -385,22 +437,17 @@ fn carried_links(raw: &urdf_rs::Robot, root: &str) -> Vec<String> {
     out
 }
 
-/// The hip origin's pitch about +Y (rad; 0 without a `hip` joint).
-fn hip_origin_pitch(raw: &urdf_rs::Robot) -> f64 {
-    raw.joints
-        .iter()
-        .find(|j| j.name == "hip")
-        .map_or(0.0, |j| j.origin.rpy[1])
-}
+/// Winter's (2009, Table 4.1) mass fractions of one leg's segments: thigh, leg, foot.
+pub const LEG_MASS_FRACTION: f64 = 0.100 + 0.0465 + 0.0145;
 
-/// Adds the patient's trunk and other leg (the body mass less this leg's human segments,
-/// Winter's fractions thigh 0.100, leg 0.0465, foot 0.0145) to the pelvis link; returns the
-/// mass added (kg). The pelvis only slides vertically, so where that mass sits does not
-/// matter.
+/// Adds the patient's trunk (and any leg the model lacks) to the pelvis link: the body
+/// mass less `legs` legs' human segments; returns the mass added (kg). The pelvis only
+/// slides, so where that mass sits does not matter.
 fn patient_on_pelvis(
     raw: &mut urdf_rs::Robot,
     file: &str,
     body_mass_kg: f64,
+    legs: usize,
 ) -> Result<f64, LegError> {
     if !raw
         .joints
@@ -417,7 +464,7 @@ fn patient_on_pelvis(
         .iter_mut()
         .find(|l| l.name == "pelvis")
         .ok_or_else(|| urdf_err(file, "no link named `pelvis`"))?;
-    let carried = body_mass_kg * (1.0 - 0.100 - 0.0465 - 0.0145);
+    let carried = body_mass_kg * (1.0 - legs as f64 * LEG_MASS_FRACTION);
     pelvis.inertial.mass.value += carried;
     Ok(carried)
 }
@@ -432,10 +479,27 @@ pub struct Mount {
     pub knee_limits_rad: Option<[f64; 2]>,
 }
 
-impl Leg {
-    /// Loads the URDF (text; `file` names it in errors) with the pelvis fixed, sets each
-    /// joint's damping and friction explicitly, Z up, and `substeps` physics steps of
-    /// `period_s / substeps` per [`Leg::step`].
+/// The exoskeleton: a rapier world with the multibody (pelvis and legs) and gravity along
+/// -Z, on a fixed pelvis or a treadmill.
+pub struct Exoskeleton {
+    world: PhysicsWorld,
+    legs: Vec<LegJoints>,
+    bodies: Vec<(String, RigidBodyHandle)>,
+    visuals: Vec<Vec<VisualShape>>,
+    inertia: LegInertia,
+    substeps: u32,
+    /// The ankles' orthosis (on a treadmill).
+    ankle: Option<AnkleSettings>,
+    /// Each ankle's orthosis torque at the last substep (N m, dorsiflexion positive).
+    ankle_torque_nm: [f64; MAX_LEGS],
+    /// The treadmill, when the legs stand on one.
+    ground: Option<Ground>,
+}
+
+impl Exoskeleton {
+    /// Loads a one-leg URDF (text; `file` names it in errors) with the pelvis fixed, sets
+    /// each joint's damping and friction explicitly, Z up, and `substeps` physics steps of
+    /// `period_s / substeps` per [`Exoskeleton::step`].
     pub fn from_urdf_str(
         text: &str,
         file: &str,
@@ -446,7 +510,7 @@ impl Leg {
         Self::mounted(text, file, settings, period_s, substeps, Mount::default())
     }
 
-    /// As [`Leg::from_urdf_str`], mounted as `mount` says.
+    /// As [`Exoskeleton::from_urdf_str`], mounted as `mount` says (one leg, fixed pelvis).
     pub fn mounted(
         text: &str,
         file: &str,
@@ -455,22 +519,44 @@ impl Leg {
         substeps: u32,
         mount: Mount,
     ) -> Result<Self, LegError> {
-        Self::build(
-            &parse_urdf(text, file)?,
-            file,
-            settings,
-            period_s,
-            substeps,
-            mount,
-        )
+        let mut raw = parse_urdf(text, file)?;
+        if let Some(slide) = raw
+            .joints
+            .iter()
+            .find(|j| j.joint_type == urdf_rs::JointType::Prismatic)
+        {
+            return Err(urdf_err(
+                file,
+                format!(
+                    "its pelvis slides (`{}`): a treadmill's model, which an in-air scenario cannot use (give the scenario a [treadmill] section, or use exo_leg.urdf)",
+                    slide.name
+                ),
+            ));
+        }
+        let mut prefixes = leg_prefixes(&raw, file)?;
+        keep_legs(&mut raw, &mut prefixes, 1);
+        let mut exo = Self::build(&raw, file, &prefixes, period_s, substeps, mount)?;
+        if let Some([lo, hi]) = mount.knee_limits_rad {
+            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                return Err(urdf_err(
+                    file,
+                    format!("knee limits [{lo}, {hi}] rad: need finite lower < upper"),
+                ));
+            }
+            exo.set_limits(0, 1, [lo, hi]);
+        }
+        exo.set_joint_dynamics(settings);
+        Ok(exo)
     }
 
-    /// As [`Leg::from_urdf_str`] for a URDF with the pelvis on a vertical slide
-    /// (`pelvis_z`) and a `foot` link whose `<collision>` spheres touch a belt at `z = 0`:
-    /// the patient's mass rides on the pelvis, the harness carries `bws_fraction` of the
-    /// weight, and the foot's compliant contacts act every substep (see [`crate::ground`]).
-    /// The belt runs at `treadmill.speed_m_per_s` (absent: stopped); the other leg is
-    /// added by [`Leg::add_other_leg`].
+    /// As [`Exoskeleton::from_urdf_str`] for a URDF with the pelvis on a vertical slide
+    /// (`pelvis_z`) and a `foot` link per leg whose `<collision>` spheres touch a belt at
+    /// `z = 0`: the treadmill's first `treadmill.legs` legs (the others dropped), the
+    /// patient's mass on the pelvis, the harness carrying `bws_fraction` of the weight, each
+    /// foot's compliant contacts acting every substep and each ankle on its orthosis (see
+    /// [`crate::ground`]). The belt runs at `treadmill.speed_m_per_s` (absent: stopped);
+    /// the virtual other leg of a one-leg trainer is added by
+    /// [`Exoskeleton::add_other_leg`].
     pub fn on_treadmill(
         text: &str,
         file: &str,
@@ -481,27 +567,41 @@ impl Leg {
     ) -> Result<Self, LegError> {
         treadmill.validate()?;
         let mut raw = parse_urdf(text, file)?;
-        let mut spheres = foot_spheres(&raw, file)?;
-        let chain = sagittal_chain(&raw, file, spheres.clone())?;
-        let carried = patient_on_pelvis(&mut raw, file, treadmill.body_mass_kg)?;
-        let foot_link = match fold_foot_into_shank(&mut raw) {
-            Some(o) => {
-                for s in &mut spheres {
-                    s.center_m = std::array::from_fn(|k| s.center_m[k] + o[k]);
-                }
-                "shank"
-            }
-            None => "foot",
-        };
-        let mut leg = Self::build(&raw, file, settings, period_s, substeps, Mount::default())?;
-        let handle = |name: &str| {
-            leg.bodies
-                .iter()
-                .find(|(n, _)| n == name)
-                .map(|(_, h)| *h)
+        let mut prefixes = leg_prefixes(&raw, file)?;
+        if prefixes.len() < treadmill.legs {
+            return Err(urdf_err(
+                file,
+                format!(
+                    "treadmill.legs = {} but the URDF has {} leg(s) (a two-leg URDF names its joints right_hip, left_hip, ...)",
+                    treadmill.legs,
+                    prefixes.len()
+                ),
+            ));
+        }
+        keep_legs(&mut raw, &mut prefixes, treadmill.legs);
+        let mut feet = Vec::with_capacity(prefixes.len());
+        for p in &prefixes {
+            let link = format!("{p}foot");
+            let spheres = foot_spheres(&raw, file, &link)?;
+            feet.push((link, spheres));
+        }
+        let chain = sagittal_chain(&raw, file, &prefixes[0], feet[0].1.clone())?;
+        let carried = patient_on_pelvis(&mut raw, file, treadmill.body_mass_kg, prefixes.len())?;
+        let mut exo = Self::build(&raw, file, &prefixes, period_s, substeps, Mount::default())?;
+        exo.set_joint_dynamics(settings);
+        let handle = |exo: &Self, name: &str| {
+            exo.body(name)
                 .ok_or_else(|| urdf_err(file, format!("no link named `{name}`")))
         };
-        let (foot, pelvis) = (handle(foot_link)?, handle("pelvis")?);
+        let mut foot_setups = Vec::with_capacity(feet.len());
+        for (link, spheres) in feet {
+            foot_setups.push(FootSetup {
+                body: handle(&exo, &link)?,
+                link,
+                spheres,
+            });
+        }
+        let pelvis = handle(&exo, "pelvis")?;
         // What the belt and harness carry: the pelvis and everything below it (not the
         // fore-aft trolley above it, which the frame carries).
         let total_mass_kg: f64 = carried_links(&raw, "pelvis")
@@ -509,34 +609,32 @@ impl Leg {
             .filter_map(|n| raw.links.iter().find(|l| &l.name == n))
             .map(|l| l.inertial.mass.value)
             .sum();
+        let pelvis_at = exo.world.bodies.get(pelvis).map_or([0.0; 3], |rb| {
+            let t = rb.translation();
+            [f64::from(t.x), f64::from(t.y), f64::from(t.z)]
+        });
         let fore_aft_at_m = raw
             .joints
             .iter()
             .any(|j| j.name == "pelvis_x" && j.joint_type == urdf_rs::JointType::Prismatic)
-            .then(|| {
-                leg.world
-                    .bodies
-                    .get(pelvis)
-                    .map_or(0.0, |rb| f64::from(rb.translation().x))
-            });
-        let standing_z_m = leg
-            .world
-            .bodies
-            .get(pelvis)
-            .map_or(0.0, |rb| f64::from(rb.translation().z));
-        leg.ground = Some(Ground::new(GroundSetup {
+            .then_some(pelvis_at[0]);
+        exo.ankle = Some(treadmill.ankle);
+        for leg in 0..exo.legs.len() {
+            if exo.legs[leg].ankle.is_some() {
+                exo.set_ankle_range(leg, treadmill.ankle.range_deg.map(f64::to_radians));
+            }
+        }
+        exo.ground = Some(Ground::new(GroundSetup {
             settings: *treadmill,
-            spheres,
+            feet: foot_setups,
             chain,
-            foot,
-            foot_link,
             pelvis,
             total_mass_kg,
             carried_kg: carried,
-            standing_z_m,
+            standing_z_m: pelvis_at[2],
             fore_aft_at_m,
         }));
-        Ok(leg)
+        Ok(exo)
     }
 
     /// Makes the virtual other leg hold `pose` (rad; `None`: walk its reference again), as
@@ -564,8 +662,9 @@ impl Leg {
         }
     }
 
-    /// Puts the virtual other leg under the pelvis, walking `gait` half a stride later
-    /// (see [`crate::ground::Contralateral::Reference`]). Does nothing without a treadmill.
+    /// Puts the virtual other leg under the pelvis of a one-leg trainer, walking `gait`
+    /// half a stride later (see [`crate::ground::Contralateral::Reference`]). Does nothing
+    /// without a treadmill.
     pub fn add_other_leg(&mut self, gait: GaitReference) {
         if let Some(g) = &mut self.ground {
             let other = OtherLeg::new(gait, g.chain().clone());
@@ -574,10 +673,10 @@ impl Leg {
     }
 
     /// Lowers (or raises) the pelvis, at rest, to where the belt carries the unsupported
-    /// weight: the foot's spheres (and the other leg's, standing where its reference
-    /// starts) pressed into the belt by their static Hunt-Crossley penetration. A run then
-    /// starts from a standing equilibrium instead of a drop. Does nothing without a
-    /// treadmill.
+    /// weight: every foot's spheres (and the virtual other leg's, standing where its
+    /// reference starts) pressed into the belt by their static Hunt-Crossley penetration.
+    /// A run then starts from a standing equilibrium instead of a drop. Does nothing
+    /// without a treadmill.
     pub fn rest_on_belt(&mut self) {
         let Some(g) = &self.ground else {
             return;
@@ -585,10 +684,11 @@ impl Leg {
         let params = g.settings().contact;
         let weight = g.unsupported_weight_n();
         let mut gaps: Vec<(f64, f64)> = Vec::new();
-        let foot = g.foot_link_name();
-        for s in g.spheres() {
-            if let Some(c) = self.point_in_world(foot, s.center_m) {
-                gaps.push((s.radius_m, c[2] - s.radius_m));
+        for foot in g.feet() {
+            for s in &foot.spheres {
+                if let Some(c) = self.point_in_world(&foot.link, s.center_m) {
+                    gaps.push((s.radius_m, c[2] - s.radius_m));
+                }
             }
         }
         if let (Some(other), Some(z)) = (g.other_leg_pose(), self.pelvis_height_m()) {
@@ -596,7 +696,7 @@ impl Leg {
             for (i, s) in chain.spheres.iter().enumerate() {
                 gaps.push((
                     s.radius_m,
-                    z + chain.sphere_centre(i, other)[1] - s.radius_m,
+                    z + chain.sphere_centre(i, [other[0], other[1], 0.0])[1] - s.radius_m,
                 ));
             }
         }
@@ -624,7 +724,7 @@ impl Leg {
     fn build(
         raw: &urdf_rs::Robot,
         file: &str,
-        settings: [JointSettings; 2],
+        prefixes: &[String],
         period_s: f64,
         substeps: u32,
         mount: Mount,
@@ -637,30 +737,17 @@ impl Leg {
                 mount.pelvis_pitch_rad as Real,
             )),
             make_roots_fixed: true,
-            // Nothing touches the leg (fixed pelvis, no ground) and self-contacts are off,
-            // so colliders would only cost broad- and narrow-phase work (~10 % of a step).
-            // Mass properties come from the URDF's <inertial> tags, not from colliders.
+            // Nothing touches the leg through rapier (the feet's contacts are computed
+            // here) and self-contacts are off, so colliders would only cost broad- and
+            // narrow-phase work (~10 % of a step). Mass properties come from the URDF's
+            // <inertial> tags, not from colliders.
             create_colliders_from_collision_shapes: false,
             // A resting leg must still react to the muscles' torques at once.
             rigid_body_blueprint: RigidBodyBuilder::dynamic().can_sleep(false),
             ..Default::default()
         };
         let robot = UrdfRobot::from_robot(raw, options, Path::new("."));
-        let inertia = LegInertia {
-            thigh: link_inertia(raw, "thigh", file)?,
-            shank: link_inertia(raw, "shank", file)?,
-            thigh_length_m: {
-                let knee = raw
-                    .joints
-                    .iter()
-                    .find(|j| j.name == "knee")
-                    .ok_or_else(|| urdf_err(file, "no joint named `knee`"))?;
-                -knee.origin.xyz[2]
-            },
-            // The mount's pitch, and the hip origin's (an anteriorly tilted pelvis frame
-            // turns the thigh back: a pitch about +Y is one about -Y by its negative).
-            pelvis_pitch_rad: mount.pelvis_pitch_rad - hip_origin_pitch(raw),
-        };
+        let inertia = leg_inertia(raw, file, &prefixes[0], mount.pelvis_pitch_rad)?;
         // Which URDF joint and link each rapier element came from, before `robot` moves.
         let joint_names: Vec<String> = robot
             .joints
@@ -689,8 +776,8 @@ impl Leg {
         };
         world.integration_parameters.dt = (period_s / f64::from(substeps)) as Real;
         // rapier's default of 4 solver iterations substeps internally and recomputes the
-        // multibody dynamics each time; the leg's only constraints are its two joint
-        // limits, so one iteration per (explicit) substep is enough and 4x cheaper.
+        // multibody dynamics each time; the leg's only constraints are its joint limits,
+        // so one iteration per (explicit) substep is enough and 4x cheaper.
         world.integration_parameters.num_solver_iterations = 1;
         let handles = robot.insert_using_multibody_joints(
             &mut world.bodies,
@@ -709,16 +796,15 @@ impl Leg {
                 mb.forward_kinematics(&world.bodies, true);
             }
         }
-        let mut refs = Vec::with_capacity(2);
-        for name in JOINT_NAMES {
-            let i = joint_names
-                .iter()
-                .position(|n| n == name)
-                .ok_or_else(|| urdf_err(file, format!("no joint named `{name}`")))?;
+        let joint_ref = |name: &str| -> Result<Option<JointRef>, LegError> {
+            let Some(i) = joint_names.iter().position(|n| n == name) else {
+                return Ok(None);
+            };
             let h = &handles.joints[i];
-            let handle = h
-                .joint
-                .ok_or_else(|| urdf_err(file, format!("joint `{name}` could not be created")))?;
+            let Some(handle) = h.joint else {
+                // A fixed joint (an ankle without a hinge) is no degree of freedom.
+                return Ok(None);
+            };
             let (mb, link_id) = world
                 .multibody_joints
                 .get(handle)
@@ -726,45 +812,57 @@ impl Leg {
             let link = mb
                 .link(link_id)
                 .ok_or_else(|| urdf_err(file, format!("joint `{name}` has no link")))?;
-            if link.joint().ndofs() != 1 {
-                return Err(urdf_err(file, format!("joint `{name}` must be revolute")));
+            match link.joint().ndofs() {
+                0 => Ok(None),
+                1 => Ok(Some(JointRef {
+                    handle,
+                    parent: h.link1,
+                    child: h.link2,
+                    dof: link.assembly_id(),
+                    axis_in_child: joint_axes[i],
+                })),
+                _ => Err(urdf_err(file, format!("joint `{name}` must be revolute"))),
             }
-            refs.push(JointRef {
-                handle,
-                parent: h.link1,
-                child: h.link2,
-                dof: link.assembly_id(),
-                axis_in_child: joint_axes[i],
+        };
+        let mut legs = Vec::with_capacity(prefixes.len());
+        for prefix in prefixes {
+            let actuated = |n: &str| {
+                let name = format!("{prefix}{n}");
+                joint_ref(&name)?.ok_or_else(|| {
+                    urdf_err(file, format!("joint `{name}` must be a revolute joint"))
+                })
+            };
+            legs.push(LegJoints {
+                prefix: prefix.clone(),
+                joints: [actuated("hip")?, actuated("knee")?],
+                ankle: joint_ref(&format!("{prefix}ankle"))?,
+                limits_rad: [[f64::NEG_INFINITY, f64::INFINITY]; 2],
             });
         }
-        let mut leg = Self {
+        let mut exo = Self {
             world,
-            joints: [refs[0], refs[1]],
+            legs,
             bodies,
             visuals,
             inertia,
             substeps,
-            limits_rad: [[f64::NEG_INFINITY, f64::INFINITY]; 2],
+            ankle: None,
+            ankle_torque_nm: [0.0; MAX_LEGS],
             ground: None,
         };
-        if let Some([lo, hi]) = mount.knee_limits_rad {
-            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
-                return Err(urdf_err(
-                    file,
-                    format!("knee limits [{lo}, {hi}] rad: need finite lower < upper"),
-                ));
-            }
-            leg.with_joint(1, |j| {
-                j.data.set_limits(JointAxis::AngX, [lo as Real, hi as Real]);
-            });
+        for leg in 0..exo.legs.len() {
+            let joints = exo.legs[leg].joints;
+            let limits = joints.map(|j| exo.read_limits(j));
+            exo.legs[leg].limits_rad = limits;
         }
-        leg.limits_rad = [0, 1].map(|k| leg.read_limits(k));
-        leg.set_joint_dynamics(settings);
-        Ok(leg)
+        Ok(exo)
     }
 
-    fn with_joint(&mut self, k: usize, f: impl FnOnce(&mut rapier3d::dynamics::MultibodyJoint)) {
-        let j = self.joints[k];
+    fn body(&self, name: &str) -> Option<RigidBodyHandle> {
+        self.bodies.iter().find(|(n, _)| n == name).map(|(_, h)| *h)
+    }
+
+    fn with_joint(&mut self, j: JointRef, f: impl FnOnce(&mut rapier3d::dynamics::MultibodyJoint)) {
         if let Some((mb, id)) = self.world.multibody_joints.get_mut(j.handle) {
             if let Some(link) = mb.link_mut(id) {
                 f(&mut link.joint);
@@ -772,8 +870,7 @@ impl Leg {
         }
     }
 
-    fn read_limits(&self, k: usize) -> [f64; 2] {
-        let j = self.joints[k];
+    fn read_limits(&self, j: JointRef) -> [f64; 2] {
         self.world
             .multibody_joints
             .get(j.handle)
@@ -784,68 +881,122 @@ impl Leg {
             })
     }
 
-    /// Each joint's `[lower, upper]` limit (rad), as rapier enforces them.
-    pub fn limits_rad(&self) -> [[f64; 2]; 2] {
-        self.limits_rad
+    fn set_limits(&mut self, leg: usize, k: usize, [lo, hi]: [f64; 2]) {
+        let j = self.legs[leg].joints[k];
+        self.with_joint(j, |j| {
+            j.data.set_limits(JointAxis::AngX, [lo as Real, hi as Real]);
+        });
+        self.legs[leg].limits_rad[k] = [lo, hi];
     }
 
-    /// Holds joint `k` (0 hip, 1 knee) still at `angle_rad`, as a seat holds the thigh:
-    /// both of its limits at that angle. (A kinematic multibody joint would do it too, but
-    /// rapier 0.36 then solves the other joint's limit with the wrong dimension and panics.)
-    pub fn hold(&mut self, k: usize, angle_rad: f64) {
-        self.with_joint(k, |j| {
-            j.data
-                .set_limits(JointAxis::AngX, [angle_rad as Real, angle_rad as Real]);
+    /// Puts the ankle's stops at `[lo, hi]` (rad) and frees it of rapier's damping and
+    /// friction: the orthosis alone acts on it.
+    fn set_ankle_range(&mut self, leg: usize, [lo, hi]: [f64; 2]) {
+        let Some(a) = self.legs[leg].ankle else {
+            return;
+        };
+        self.with_joint(a, |j| {
+            j.data.set_limits(JointAxis::AngX, [lo as Real, hi as Real]);
         });
-        self.limits_rad[k] = [angle_rad, angle_rad];
+        if let Some((mb, _)) = self.world.multibody_joints.get_mut(a.handle) {
+            mb.damping_mut()[a.dof] = 0.0;
+            mb.frictions_mut()[a.dof] = 0.0;
+        }
+    }
+
+    /// Number of legs.
+    pub fn leg_count(&self) -> usize {
+        self.legs.len()
+    }
+
+    /// Leg `leg`'s joints in the multibody.
+    pub fn leg(&self, leg: usize) -> &LegJoints {
+        &self.legs[leg]
+    }
+
+    /// Leg `leg`'s joints' `[lower, upper]` limits (rad), as rapier enforces them.
+    pub fn limits_rad(&self, leg: usize) -> [[f64; 2]; 2] {
+        self.legs[leg].limits_rad
+    }
+
+    /// Holds joint `k` (0 hip, 1 knee) of leg `leg` still at `angle_rad`, as a seat holds
+    /// the thigh: both of its limits at that angle. (A kinematic multibody joint would do
+    /// it too, but rapier 0.36 then solves the other joint's limit with the wrong
+    /// dimension and panics.)
+    pub fn hold(&mut self, leg: usize, k: usize, angle_rad: f64) {
+        self.set_limits(leg, k, [angle_rad, angle_rad]);
         // The hold is a constraint the solver works on every substep; with one iteration
         // it bleeds ~1 % of the swing's energy per second (measured: 2.1 % over 2 s at 1,
         // 0.52 % at 4, 0.26 % at 8 iterations), so a held leg gets eight.
         self.world.integration_parameters.num_solver_iterations = HOLD_SOLVER_ITERATIONS;
     }
 
-    /// Sets each joint's viscous damping and Coulomb friction, replacing rapier's default
-    /// damping (0.1 N m s/rad per angular DOF).
+    /// Sets every leg's hip and knee viscous damping and Coulomb friction, replacing
+    /// rapier's default damping (0.1 N m s/rad per angular DOF).
     pub fn set_joint_dynamics(&mut self, settings: [JointSettings; 2]) {
-        for (j, s) in self.joints.iter().zip(settings) {
-            if let Some((mb, _)) = self.world.multibody_joints.get_mut(j.handle) {
-                mb.damping_mut()[j.dof] = s.damping_nm_s_per_rad as Real;
-                mb.frictions_mut()[j.dof] = s.friction_nm as Real;
+        for leg in &self.legs {
+            for (j, s) in leg.joints.iter().zip(settings) {
+                if let Some((mb, _)) = self.world.multibody_joints.get_mut(j.handle) {
+                    mb.damping_mut()[j.dof] = s.damping_nm_s_per_rad as Real;
+                    mb.frictions_mut()[j.dof] = s.friction_nm as Real;
+                }
             }
         }
     }
 
-    /// Inertia data read from the URDF.
+    /// Inertia data of a leg read from the URDF (every leg is the same).
     pub fn inertia(&self) -> &LegInertia {
         &self.inertia
     }
 
-    /// Joint angles `[hip, knee]` (rad, flexion positive).
-    pub fn angles(&self) -> [f64; 2] {
-        self.joints.map(|j| {
-            self.world
-                .multibody_joints
-                .get(j.handle)
-                .and_then(|(mb, id)| mb.link(id).map(|l| f64::from(l.joint().coords()[3])))
-                .unwrap_or(f64::NAN)
-        })
+    fn coordinate(&self, j: JointRef) -> f64 {
+        self.world
+            .multibody_joints
+            .get(j.handle)
+            .and_then(|(mb, id)| mb.link(id).map(|l| f64::from(l.joint().coords()[3])))
+            .unwrap_or(f64::NAN)
     }
 
-    /// Joint velocities `[hip, knee]` (rad/s).
-    pub fn velocities(&self) -> [f64; 2] {
-        self.joints.map(|j| {
-            self.world
-                .multibody_joints
-                .get(j.handle)
-                .map(|(mb, _)| f64::from(mb.generalized_velocity()[j.dof]))
-                .unwrap_or(f64::NAN)
-        })
+    fn rate(&self, j: JointRef) -> f64 {
+        self.world
+            .multibody_joints
+            .get(j.handle)
+            .map(|(mb, _)| f64::from(mb.generalized_velocity()[j.dof]))
+            .unwrap_or(f64::NAN)
     }
 
-    /// Puts the leg at `angles` (rad) with `velocities` (rad/s).
-    pub fn set_state(&mut self, angles: [f64; 2], velocities: [f64; 2]) {
-        let current = self.angles();
-        let dofs = self.joints.map(|j| j.dof);
+    /// Leg `leg`'s joint angles `[hip, knee]` (rad, flexion positive).
+    pub fn angles(&self, leg: usize) -> [f64; 2] {
+        self.legs[leg].joints.map(|j| self.coordinate(j))
+    }
+
+    /// Leg `leg`'s joint velocities `[hip, knee]` (rad/s).
+    pub fn velocities(&self, leg: usize) -> [f64; 2] {
+        self.legs[leg].joints.map(|j| self.rate(j))
+    }
+
+    /// Every leg's joint angles (rad).
+    pub fn all_angles(&self) -> PerLeg<[f64; 2]> {
+        PerLeg::from_fn(self.legs.len(), |leg| self.angles(leg))
+    }
+
+    /// Leg `leg`'s ankle angle and rate (rad, rad/s; dorsiflexion positive), if its ankle
+    /// turns.
+    pub fn ankle(&self, leg: usize) -> Option<(f64, f64)> {
+        let a = self.legs[leg].ankle?;
+        Some((self.coordinate(a), self.rate(a)))
+    }
+
+    /// The orthosis's torque on leg `leg`'s ankle at the last substep (N m, dorsiflexion
+    /// positive; 0 without one).
+    pub fn ankle_torque_nm(&self, leg: usize) -> f64 {
+        self.ankle_torque_nm[leg]
+    }
+
+    /// Puts leg `leg` at `angles` (rad) with `velocities` (rad/s).
+    pub fn set_state(&mut self, leg: usize, angles: [f64; 2], velocities: [f64; 2]) {
+        let current = self.angles(leg);
+        let dofs = self.legs[leg].joints.map(|j| j.dof);
         self.edit_multibody(|mb, disp| {
             for k in 0..2 {
                 disp[dofs[k]] = (angles[k] - current[k]) as Real;
@@ -854,10 +1005,10 @@ impl Leg {
         });
     }
 
-    /// Moves the leg's multibody by the displacements `edit` writes (one per DOF; it may
-    /// also set velocities), then puts its bodies where the new coordinates say.
+    /// Moves the multibody by the displacements `edit` writes (one per DOF; it may also set
+    /// velocities), then puts its bodies where the new coordinates say.
     fn edit_multibody(&mut self, edit: impl FnOnce(&mut Multibody, &mut [Real])) {
-        let handle = self.joints[0].handle;
+        let handle = self.legs[0].joints[0].handle;
         if let Some((mb, _)) = self.world.multibody_joints.get_mut(handle) {
             let mut disp: Vec<Real> = vec![0.0; mb.ndofs()];
             edit(mb, &mut disp);
@@ -867,10 +1018,30 @@ impl Leg {
         }
     }
 
-    /// Advances one control period with joint torques `[hip, knee]` (N m, flexion
-    /// positive) held; `torques_at` gives them for each physics substep from the state at
-    /// its start (the muscles' forces depend on it).
-    pub fn step(&mut self, mut torques_at: impl FnMut(&Self, usize) -> [f64; 2]) {
+    /// Adds `torque_nm` about joint `j`'s axis to its child and the reaction to its parent.
+    fn add_joint_torque(&mut self, j: JointRef, torque_nm: f64) {
+        let Some(axis) = self
+            .world
+            .bodies
+            .get(j.child)
+            .map(|rb| rb.position().rotation * j.axis_in_child)
+        else {
+            return;
+        };
+        let t = axis * torque_nm as Real;
+        if let Some(rb) = self.world.bodies.get_mut(j.child) {
+            rb.add_torque(t, true);
+        }
+        if let Some(rb) = self.world.bodies.get_mut(j.parent) {
+            rb.add_torque(-t, true);
+        }
+    }
+
+    /// Advances one control period with each leg's joint torques `[hip, knee]` (N m,
+    /// flexion positive); `torques_at` gives them for each physics substep from the state
+    /// at its start (the muscles' forces depend on it). The ankles' orthoses and the
+    /// treadmill act every substep.
+    pub fn step(&mut self, mut torques_at: impl FnMut(&Self, usize) -> PerLeg<[f64; 2]>) {
         for sub in 0..self.substeps as usize {
             let torques = torques_at(self, sub);
             // rapier keeps user forces and torques until they are reset: every body starts
@@ -881,19 +1052,13 @@ impl Leg {
                     rb.reset_torques(false);
                 }
             }
-            for (j, tau) in self.joints.iter().zip(torques) {
-                let axis = match self.world.bodies.get(j.child) {
-                    Some(rb) => rb.position().rotation * j.axis_in_child,
-                    None => continue,
-                };
-                let t = axis * tau as Real;
-                if let Some(rb) = self.world.bodies.get_mut(j.child) {
-                    rb.add_torque(t, true);
-                }
-                if let Some(rb) = self.world.bodies.get_mut(j.parent) {
-                    rb.add_torque(-t, true);
+            for (leg, tau) in torques.iter().enumerate().take(self.legs.len()) {
+                let joints = self.legs[leg].joints;
+                for (j, t) in joints.iter().zip(tau) {
+                    self.add_joint_torque(*j, *t);
                 }
             }
+            self.apply_orthoses();
             if let Some(ground) = &mut self.ground {
                 let h = f64::from(self.world.integration_parameters.dt);
                 ground.apply(&mut self.world.bodies, h);
@@ -905,7 +1070,22 @@ impl Leg {
         }
     }
 
-    /// What the belt did to the foot over the last period, on a treadmill.
+    /// Each turning ankle's orthosis torque for this substep, from its state at the start.
+    fn apply_orthoses(&mut self) {
+        let Some(afo) = self.ankle else {
+            return;
+        };
+        for leg in 0..self.legs.len() {
+            let (Some(j), Some((angle, rate))) = (self.legs[leg].ankle, self.ankle(leg)) else {
+                continue;
+            };
+            let tau = afo.torque_nm(angle, rate);
+            self.ankle_torque_nm[leg] = tau;
+            self.add_joint_torque(j, tau);
+        }
+    }
+
+    /// What the belt did to each foot over the last period, on a treadmill.
     pub fn ground_reaction(&self) -> Option<GroundReaction> {
         self.ground.as_ref().map(Ground::reaction)
     }
@@ -936,11 +1116,17 @@ impl Leg {
         });
     }
 
-    /// Height of the pelvis frame above the belt (m), on a treadmill.
-    pub fn pelvis_height_m(&self) -> Option<f64> {
+    /// Position of the pelvis frame `[fore-aft, height above the belt]` (m), on a treadmill.
+    pub fn pelvis_position_m(&self) -> Option<[f64; 2]> {
         let g = self.ground.as_ref()?;
         let rb = self.world.bodies.get(g.pelvis())?;
-        Some(f64::from(rb.translation().z))
+        let t = rb.translation();
+        Some([f64::from(t.x), f64::from(t.z)])
+    }
+
+    /// Height of the pelvis frame above the belt (m), on a treadmill.
+    pub fn pelvis_height_m(&self) -> Option<f64> {
+        self.pelvis_position_m().map(|p| p[1])
     }
 
     /// Physics substeps per period.
@@ -953,18 +1139,19 @@ impl Leg {
         f64::from(self.world.integration_parameters.dt)
     }
 
-    /// Mechanical energy of the leg (J) at its current state, from the URDF's inertial data
-    /// (see [`LegInertia::energy`]).
+    /// Mechanical energy of the (first) leg on a fixed pelvis (J) at its current state,
+    /// from the URDF's inertial data (see [`LegInertia::energy`]).
     pub fn energy(&self) -> f64 {
-        self.inertia.energy(self.angles(), self.velocities())
+        self.inertia.energy(self.angles(0), self.velocities(0))
     }
 
-    /// Names of the links, in the order of [`Leg::link_pose`] and [`Leg::visuals`].
+    /// Names of the links, in the order of [`Exoskeleton::link_pose`] and
+    /// [`Exoskeleton::visuals`].
     pub fn link_names(&self) -> impl Iterator<Item = &str> {
         self.bodies.iter().map(|(n, _)| n.as_str())
     }
 
-    /// Number of links (of [`Leg::link_pose`]).
+    /// Number of links (of [`Exoskeleton::link_pose`]).
     pub fn link_count(&self) -> usize {
         self.bodies.len()
     }
@@ -1000,8 +1187,7 @@ impl Leg {
 
     /// A point given in link `name`'s frame, in world coordinates (m).
     pub fn point_in_world(&self, name: &str, local: [f64; 3]) -> Option<[f64; 3]> {
-        let (_, h) = self.bodies.iter().find(|(n, _)| n == name)?;
-        let rb = self.world.bodies.get(*h)?;
+        let rb = self.world.bodies.get(self.body(name)?)?;
         let p = rb.position().transform_point(Vector::new(
             local[0] as Real,
             local[1] as Real,
@@ -1026,19 +1212,19 @@ mod tests {
     use super::*;
     use crate::config::EMBEDDED_URDF;
 
-    fn leg(damping: f64, substeps: u32) -> Leg {
+    fn leg(damping: f64, substeps: u32) -> Exoskeleton {
         let j = JointSettings {
             damping_nm_s_per_rad: damping,
             friction_nm: 0.0,
         };
-        Leg::from_urdf_str(EMBEDDED_URDF, "exo_leg.urdf", [j, j], 1e-3, substeps).unwrap()
+        Exoskeleton::from_urdf_str(EMBEDDED_URDF, "exo_leg.urdf", [j, j], 1e-3, substeps).unwrap()
     }
 
     #[test]
     fn flexion_is_positive_and_gravity_pulls_the_leg_back() {
         let mut l = leg(0.0, 1);
-        l.set_state([0.3, 0.4], [0.0, 0.0]);
-        let a = l.angles();
+        l.set_state(0, [0.3, 0.4], [0.0, 0.0]);
+        let a = l.angles(0);
         assert!(
             (a[0] - 0.3).abs() < 1e-5 && (a[1] - 0.4).abs() < 1e-5,
             "{a:?}"
@@ -1046,16 +1232,16 @@ mod tests {
         // Flexed hip: the knee is in front of the hip (+X).
         let knee_x = l.link_poses().iter().find(|p| p.0 == "shank").unwrap().1[0];
         assert!(knee_x > 0.1, "knee at x = {knee_x}");
-        l.step(|_, _| [0.0, 0.0]);
-        let v = l.velocities();
+        l.step(|_, _| PerLeg::one([0.0, 0.0]));
+        let v = l.velocities(0);
         assert!(v[0] < 0.0, "hip falls back: {v:?}");
     }
 
     #[test]
     fn joint_torque_accelerates_in_its_sign() {
         let mut l = leg(0.0, 1);
-        l.step(|_, _| [50.0, -20.0]);
-        let v = l.velocities();
+        l.step(|_, _| PerLeg::one([50.0, -20.0]));
+        let v = l.velocities(0);
         assert!(v[0] > 0.0 && v[1] < 0.0, "{v:?}");
     }
 
@@ -1071,10 +1257,10 @@ mod tests {
             ([0.6, 1.2], [0.0, 0.0], [0.0, 0.0]),
         ] {
             let mut l = leg(0.0, 1);
-            l.set_state(q, qd);
+            l.set_state(0, q, qd);
             let tau = l.inertia().inverse_dynamics(q, qd, qdd);
-            l.step(|_, _| tau);
-            let v = l.velocities();
+            l.step(|_, _| PerLeg::one(tau));
+            let v = l.velocities(0);
             for j in 0..2 {
                 let a = (v[j] - qd[j]) / h;
                 assert!(
@@ -1098,7 +1284,8 @@ mod tests {
             pelvis_pitch_rad: std::f64::consts::FRAC_PI_2,
             knee_limits_rad: None,
         };
-        let mut l = Leg::mounted(EMBEDDED_URDF, "exo_leg.urdf", [j, j], 1e-3, 2, mount).unwrap();
+        let mut l =
+            Exoskeleton::mounted(EMBEDDED_URDF, "exo_leg.urdf", [j, j], 1e-3, 2, mount).unwrap();
         let i = *l.inertia();
         let g = i.gravity_torques(0.0, 0.0);
         let static_moment = G
@@ -1108,12 +1295,12 @@ mod tests {
             (g[0] + static_moment).abs() < 1e-9,
             "{g:?} vs {static_moment}"
         );
-        l.set_state([0.1, 0.3], [0.0, 0.0]);
+        l.set_state(0, [0.1, 0.3], [0.0, 0.0]);
         let g = i.gravity_torques(0.1, 0.3);
         for _ in 0..300 {
-            l.step(|_, _| [-g[0], -g[1]]);
+            l.step(|_, _| PerLeg::one([-g[0], -g[1]]));
         }
-        let a = l.angles();
+        let a = l.angles(0);
         assert!(
             (a[0] - 0.1).abs() < 1e-3 && (a[1] - 0.3).abs() < 1e-3,
             "{a:?}"
@@ -1125,12 +1312,12 @@ mod tests {
         // Holding torques equal to minus gravity keep the leg still.
         let mut l = leg(0.0, 2);
         let q = [0.35, 0.5];
-        l.set_state(q, [0.0, 0.0]);
+        l.set_state(0, q, [0.0, 0.0]);
         let g = l.inertia().gravity_torques(q[0], q[1]);
         for _ in 0..500 {
-            l.step(|_, _| [-g[0], -g[1]]);
+            l.step(|_, _| PerLeg::one([-g[0], -g[1]]));
         }
-        let a = l.angles();
+        let a = l.angles(0);
         assert!(
             (a[0] - q[0]).abs() < 1e-3 && (a[1] - q[1]).abs() < 1e-3,
             "{a:?}"
