@@ -23,6 +23,7 @@ fn realistic_log(seconds: f64) -> IdLog {
         })
         .unzip();
     IdLog {
+        source: format!("a simulated {seconds} s excitation"),
         period_s: 1e-3,
         command_pa,
         position_m,

@@ -93,7 +93,8 @@ pub fn draw(path: &Path, plot: &Plot) -> DrawResult {
     title_block(&head, &plot.title, &plot.setting)?;
     match plot.varied {
         Varied::Controller => controller_figure(&body, plot)?,
-        Varied::Setting => setting_figure(&body, plot)?,
+        Varied::Setting => setting_figure(&body, plot, &TRACKING_LABELS)?,
+        Varied::Model => setting_figure(&body, plot, &MODEL_LABELS)?,
     }
     root.present()?;
     Ok(())
@@ -116,14 +117,40 @@ fn title_block(area: &Area, title: &str, setting: &str) -> DrawResult {
     Ok(())
 }
 
-/// One controller, one setting varied: trajectories over signed errors, legend on the right.
-fn setting_figure(area: &Area, plot: &Plot) -> DrawResult {
+/// What a figure's grey line and its error are.
+struct Labels {
+    /// The grey line in the legend (one series, or each series its own).
+    grey: (&'static str, &'static str),
+    /// The error panel's axis: grey minus coloured.
+    error: &'static str,
+}
+
+/// A run tracking its reference.
+const TRACKING_LABELS: Labels = Labels {
+    grey: ("reference x_d", "each run's x_d"),
+    error: "error x_d - x (mm)",
+};
+
+/// A model against the measurement (regression, issue 26: identification.png called the
+/// measured position "reference x_d" and the model's error "x_d - x").
+const MODEL_LABELS: Labels = Labels {
+    grey: ("measured x", "each log's measured x"),
+    error: "model error x - x_model (mm)",
+};
+
+/// One controller, one setting varied (or models against a measurement): trajectories
+/// over signed errors, legend on the right.
+fn setting_figure(area: &Area, plot: &Plot, labels: &Labels) -> DrawResult {
     let (plots, legend) = area.split_horizontally(SIZE.0 - LEGEND_WIDTH);
     let (top, bottom) = plots.split_vertically(plots.dim_in_pixel().1 / 2);
     let t_max = time_span(&plot.series);
     trajectory_panel(&top, plot, t_max)?;
-    signed_error_panel(&bottom, plot, t_max)?;
-    legend_column(&legend, &plot.legend_title, &legend_entries(&plot.series))
+    signed_error_panel(&bottom, plot, t_max, labels.error)?;
+    legend_column(
+        &legend,
+        &plot.legend_title,
+        &legend_entries(&plot.series, labels.grey),
+    )
 }
 
 /// Several controllers: trajectories and legend on top, one log error panel per run below.
@@ -132,7 +159,11 @@ fn controller_figure(area: &Area, plot: &Plot) -> DrawResult {
     let (trajectories, legend) = top.split_horizontally(SIZE.0 - LEGEND_WIDTH);
     let t_max = time_span(&plot.series);
     trajectory_panel(&trajectories, plot, t_max)?;
-    legend_column(&legend, &plot.legend_title, &legend_entries(&plot.series))?;
+    legend_column(
+        &legend,
+        &plot.legend_title,
+        &legend_entries(&plot.series, TRACKING_LABELS.grey),
+    )?;
     log_error_grid(&bottom, &plot.series, t_max)
 }
 
@@ -256,7 +287,7 @@ fn trajectory_panel(area: &Area, plot: &Plot, t_max: f64) -> DrawResult {
 }
 
 /// Signed tracking errors (mm) of every run in one panel.
-fn signed_error_panel(area: &Area, plot: &Plot, t_max: f64) -> DrawResult {
+fn signed_error_panel(area: &Area, plot: &Plot, t_max: f64, y_desc: &str) -> DrawResult {
     let errors_mm = |s: &Series| -> Vec<f64> {
         s.reference_m
             .iter()
@@ -266,7 +297,7 @@ fn signed_error_panel(area: &Area, plot: &Plot, t_max: f64) -> DrawResult {
     };
     let errors: Vec<Vec<f64>> = plot.series.iter().map(errors_mm).collect();
     let y = padded_range(errors.iter().flatten().copied());
-    let mut chart = linear_chart(area, 0.0..t_max, y.clone(), ("t (s)", "error x_d - x (mm)"))?;
+    let mut chart = linear_chart(area, 0.0..t_max, y.clone(), ("t (s)", y_desc))?;
     for (i, (s, e)) in plot.series.iter().zip(&errors).enumerate() {
         let style = colour(i).stroke_width(LINE_PX);
         chart.draw_series(LineSeries::new(points(&s.t_s, e, 1.0), style))?;
@@ -374,14 +405,9 @@ struct LegendEntry {
 }
 
 /// The reference band first, then the runs.
-fn legend_entries(series: &[Series]) -> Vec<LegendEntry> {
+fn legend_entries(series: &[Series], (one, each): (&str, &str)) -> Vec<LegendEntry> {
     let reference = LegendEntry {
-        label: if shared_reference(series) {
-            "reference x_d"
-        } else {
-            "each run's x_d"
-        }
-        .to_owned(),
+        label: if shared_reference(series) { one } else { each }.to_owned(),
         style: REFERENCE_GREY.stroke_width(REFERENCE_PX),
     };
     let runs = series.iter().enumerate().map(|(i, s)| LegendEntry {
@@ -456,20 +482,30 @@ fn legend_sample(area: &Area, (x, y): (i32, i32), e: &LegendEntry) -> DrawResult
 /// and its values.
 struct Distribution {
     panel: String,
+    /// The colour's: the controller and its gains.
     label: String,
+    /// The line's dashes: a second factor (the patient group), `""` when there is none.
+    variant: String,
     values: Vec<f64>,
 }
 
-/// Adds `value` to the distribution of `(panel, label)`, created in order of appearance.
-fn push_value(groups: &mut Vec<Distribution>, panel: &str, label: String, value: f64) {
+/// Adds `value` to the distribution of `(panel, label, variant)`, created in order of
+/// appearance.
+fn push_value(
+    groups: &mut Vec<Distribution>,
+    panel: &str,
+    (label, variant): (String, &str),
+    value: f64,
+) {
     match groups
         .iter_mut()
-        .find(|g| g.panel == panel && g.label == label)
+        .find(|g| g.panel == panel && g.label == label && g.variant == variant)
     {
         Some(g) => g.values.push(value),
         None => groups.push(Distribution {
             panel: panel.to_owned(),
             label,
+            variant: variant.to_owned(),
             values: vec![value],
         }),
     }
@@ -481,7 +517,7 @@ pub fn rte_distributions(path: &Path, name: &str, runs: &pma_studies::sweep::Run
     let mut groups = Vec::new();
     for r in runs.values().filter_map(pma_studies::sweep::Record::bench) {
         let label = format!("{} ({})", r.controller, r.gains);
-        push_value(&mut groups, &r.reference, label, r.rte_percent);
+        push_value(&mut groups, &r.reference, (label, ""), r.rte_percent);
     }
     ecdf_panels(
         path,
@@ -511,18 +547,22 @@ pub fn leg_rms_distributions(
     };
     let (scenarios, patient_groups) = (several(|r| &r.scenario), several(|r| &r.patient_group));
     let mut groups = Vec::new();
+    // One colour per controller whatever the patient (regression, issue 26: each
+    // controller and patient group had its own colour); the group is the line's dashes.
     for r in &leg {
-        let mut label = format!("{} ({})", r.controller, r.gains);
-        if patient_groups {
-            label.push_str(&format!(", {}", r.patient_group));
-        }
+        let label = format!("{} ({})", r.controller, r.gains);
+        let variant = if patient_groups {
+            r.patient_group.as_str()
+        } else {
+            ""
+        };
         for (joint, rms) in [("hip", r.hip_rms_deg), ("knee", r.knee_rms_deg)] {
             let panel = if scenarios {
                 format!("{}: {joint}", r.scenario)
             } else {
                 joint.to_owned()
             };
-            push_value(&mut groups, &panel, label.clone(), rms);
+            push_value(&mut groups, &panel, (label.clone(), variant), rms);
         }
     }
     ecdf_panels(
@@ -553,6 +593,7 @@ fn ecdf_panels(
     };
     let references = unique(groups.iter().map(|g| g.panel.clone()).collect());
     let labels = unique(groups.iter().map(|g| g.label.clone()).collect());
+    let variants = unique(groups.iter().map(|g| g.variant.clone()).collect());
     let root = BitMapBackend::new(path, SIZE).into_drawing_area();
     root.fill(&WHITE)?;
     let (head, body) = root.split_vertically(TITLE_HEIGHT);
@@ -589,6 +630,7 @@ fn ecdf_panels(
             .draw()?;
         for g in groups.iter().filter(|g| &g.panel == reference) {
             let i = labels.iter().position(|l| *l == g.label).unwrap_or(0);
+            let dash = variants.iter().position(|v| *v == g.variant).unwrap_or(0);
             let mut v: Vec<f64> = g
                 .values
                 .iter()
@@ -600,10 +642,16 @@ fn ecdf_panels(
                 .iter()
                 .enumerate()
                 .flat_map(|(k, x)| [(*x, k as f64 / n), (*x, (k + 1) as f64 / n)]);
-            chart.draw_series(LineSeries::new(steps, colour(i).stroke_width(LINE_PX)))?;
+            let style = colour(i).stroke_width(LINE_PX);
+            match DASHES[dash % DASHES.len()] {
+                None => chart.draw_series(LineSeries::new(steps, style))?,
+                Some((on, off)) => {
+                    chart.draw_series(DashedLineSeries::new(steps, on, off, style))?
+                }
+            };
         }
     }
-    let entries: Vec<LegendEntry> = labels
+    let mut entries: Vec<LegendEntry> = labels
         .iter()
         .enumerate()
         .map(|(i, l)| LegendEntry {
@@ -611,10 +659,22 @@ fn ecdf_panels(
             style: colour(i).stroke_width(3),
         })
         .collect();
-    legend_column(&legend, "controller (gains)", &entries)?;
+    let mut title = "controller (gains)".to_owned();
+    if variants.len() > 1 {
+        title.push_str(" in colour;\npatient group in dashes");
+        entries.extend(variants.iter().enumerate().map(|(k, v)| LegendEntry {
+            label: format!("{v}: {}", DASH_NAMES[k % DASHES.len()]),
+            style: BLACK.stroke_width(1),
+        }));
+    }
+    legend_column(&legend, &title, &entries)?;
     root.present()?;
     Ok(())
 }
+
+/// Dash patterns (on, off in pixels) of a second factor, solid first; and their names.
+const DASHES: [Option<(u32, u32)>; 4] = [None, Some((10, 5)), Some((3, 4)), Some((14, 4))];
+const DASH_NAMES: [&str; 4] = ["solid", "dashed", "dotted", "long dashes"];
 
 /// A shock experiment: one small panel per run with its reference (grey band), position
 /// (colour) and proxy (black, dashed) in mm on the left axis, its pressure command (bar,
@@ -699,7 +759,7 @@ fn shock_cell(
         .caption(&tr.label, caption)
         .x_label_area_size(if bottom { 40 } else { 32 })
         .y_label_area_size(44)
-        .right_y_label_area_size(36)
+        .right_y_label_area_size(52)
         .build_cartesian_2d(x.clone(), y.clone())?
         .set_secondary_coord(x.clone(), 0.0..6.0);
     let (x_span, y_span) = (x.end - x.start, y.end - y.start);
@@ -718,10 +778,12 @@ fn shock_cell(
         .bold_line_style(BLACK.mix(0.12))
         .light_line_style(BLACK.mix(0.03))
         .draw()?;
+    // The unit in every tick: plotters turns a right-hand axis title upside down
+    // (regression, issue 26: the "bar" label came out rotated and garbled).
     chart
         .configure_secondary_axes()
         .y_labels(4)
-        .y_desc("bar")
+        .y_label_formatter(&|v: &f64| format!("{v:.0} bar"))
         .label_style((FONT, SMALL_TICK_PX))
         .axis_desc_style((FONT, SMALL_TICK_PX))
         .draw()?;
@@ -1557,9 +1619,9 @@ pub fn grouped_bars(
             .flatten()
             .copied()
             .filter(|v| v.is_finite())
-            .fold(0.0f64, f64::max)
-            .max(1e-9)
-            * 1.1;
+            .fold(0.0f64, f64::max);
+        // All zero: a unit axis, not ticks of 1e-9.
+        let top = if top > 0.0 { top * 1.1 } else { 1.0 };
         let x_max = groups.len() as f64;
         let mut chart = ChartBuilder::on(area)
             .margin(10)

@@ -88,3 +88,45 @@ fn the_include_scanner_finds_what_it_should() {
         Path::new("/w/crates/x/models/a.toml")
     );
 }
+
+/// Every file under `dir` (following symbolic links), canonicalised.
+fn files_under(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).expect("read_dir").flatten() {
+        let p = entry.path();
+        if p.is_dir() {
+            files_under(&p, out);
+        } else {
+            out.push(std::fs::canonicalize(&p).expect("a link that resolves"));
+        }
+    }
+}
+
+/// Issue 26: the top-level `models/` holds every file a user edits (each a link into the
+/// crate that embeds it); a model file added to a crate and not linked there fails here.
+#[test]
+fn every_model_file_of_every_crate_is_found_under_the_top_level_models() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut linked = Vec::new();
+    files_under(&root.join("models"), &mut linked);
+    let mut missing = Vec::new();
+    let mut checked = 0;
+    for krate in std::fs::read_dir(root.join("crates"))
+        .expect("crates")
+        .flatten()
+    {
+        let models = krate.path().join("models");
+        if !models.is_dir() {
+            continue;
+        }
+        let mut files = Vec::new();
+        files_under(&models, &mut files);
+        for f in files {
+            checked += 1;
+            if !linked.contains(&f) {
+                missing.push(f.display().to_string());
+            }
+        }
+    }
+    assert!(checked > 30, "only {checked} model files found");
+    assert!(missing.is_empty(), "not under models/: {missing:?}");
+}

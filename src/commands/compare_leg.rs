@@ -172,7 +172,12 @@ fn draw_bars(dir: &std::path::Path, rows: &[CompareRow], command: &str) -> Resul
             })
             .collect()
     };
-    let panels = [
+    let ground = |f: fn(&pma_studies::compare::TreadmillRow) -> f64| {
+        table(&move |r: &CompareRow| r.treadmill.as_ref().map_or(f64::NAN, f))
+    };
+    // A panel with nothing to show is left out (regression, issue 26: an empty spasm
+    // panel with garbled ticks on the treadmill scenarios, which have no spasms).
+    let panels: Vec<crate::plot::BarPanel> = [
         ("hip RMS error (deg)", table(&|r| r.hip_rms_deg)),
         ("knee RMS error (deg)", table(&|r| r.knee_rms_deg)),
         (
@@ -183,22 +188,36 @@ fn draw_bars(dir: &std::path::Path, rows: &[CompareRow], command: &str) -> Resul
             "command variation (bar/s)",
             table(&|r| r.command_variation_bar_per_s),
         ),
+        (
+            "peak muscle force / rating",
+            table(&|r| r.peak_force_over_rated),
+        ),
+        (
+            "largest heel-strike deviation, hip|knee (deg)",
+            ground(|t| t.heel_strike_max_deviation_deg[0].max(t.heel_strike_max_deviation_deg[1])),
+        ),
+        ("vertical GRF loading peak (BW)", ground(|t| t.peak_grf_bw)),
+        (
+            "foot slip on the belt (mm per stride)",
+            ground(|t| t.slip_per_stride_m * 1e3),
+        ),
     ]
+    .into_iter()
+    .filter(|(_, values)| values.iter().flatten().any(|v| v.is_finite()))
     .map(|(y, values)| crate::plot::BarPanel {
         y_desc: y.to_owned(),
         values,
-    });
+    })
+    .collect();
     crate::plot::register_font()?;
     let path = dir.join("compare-leg.png");
+    let title = match rows.iter().filter(|r| r.treadmill.is_some()).count() {
+        0 => "Controllers on the leg in the air, per scenario",
+        n if n == rows.len() => "Controllers on the trainer's treadmill, per scenario",
+        _ => "Controllers on the leg, per scenario (in the air and on the treadmill)",
+    };
     crate::output::write_via_temp(&path, |tmp| {
-        crate::plot::grouped_bars(
-            tmp,
-            "Controllers on the leg with a patient",
-            command,
-            &groups,
-            &members,
-            &panels,
-        )
+        crate::plot::grouped_bars(tmp, title, command, &groups, &members, &panels)
     })
 }
 

@@ -2,7 +2,7 @@
 use crate::output::{self, OutFile};
 use crate::say;
 use anyhow::{bail, Context, Result};
-use pma_studies::identify::{identify_logs, read_log};
+use pma_studies::identify::{identify_logs, read_log, IdLog};
 use std::path::PathBuf;
 
 /// `identify`'s arguments.
@@ -23,7 +23,9 @@ pub struct Args {
     /// Lowest held-out fit (%) for which the plant file is written.
     #[arg(long, default_value_t = 90.0, allow_negative_numbers = true)]
     min_fit: f64,
-    /// Write the plant file even if the held-out fit is below `--min-fit`.
+    /// Write the plant file even if the held-out fit is below `--min-fit`, and read logs
+    /// that fail the checks `rig replay` makes (no digest line: cut short; edited rows;
+    /// periods missing). A plant other commands would refuse is never written.
     #[arg(long)]
     force: bool,
     /// Seed of the bootstrap.
@@ -39,12 +41,16 @@ pub fn run(a: Args) -> Result<i32> {
     let inputs: Vec<(&str, &std::path::Path)> =
         a.logs.iter().map(|l| ("log", l.as_path())).collect();
     output::refuse_input_as_output(&inputs, &[("--out", &a.out)])?;
-    let out = OutFile::create(&a.out)?;
+    if !(a.min_fit.is_finite() && (0.0..=100.0).contains(&a.min_fit)) {
+        bail!("--min-fit {} must be 0..=100 (%)", a.min_fit);
+    }
+    // Every log checked before any is fitted.
     let logs = a
         .logs
         .iter()
-        .map(|l| read_log(l))
-        .collect::<Result<Vec<_>, _>>()?;
+        .map(|l| load_log(l, a.force))
+        .collect::<Result<Vec<_>>>()?;
+    let out = OutFile::create(&a.out)?;
     let load_kg = a.load_kg.or(logs[0].weighed_kg);
     let stop = output::stop_flag()?;
     let id = match identify_logs(&logs, load_kg, a.seed, &stop) {
@@ -65,6 +71,13 @@ pub fn run(a: Args) -> Result<i32> {
         );
     }
     let plant = id.plant_config(&logs[0]);
+    // Even with --force: a plant file `single --plant` would refuse is not a result.
+    plant.validate().with_context(|| {
+        format!(
+            "the identified plant is outside what the simulator accepts: `{}` not written",
+            a.out.display()
+        )
+    })?;
     let names: Vec<String> = a.logs.iter().map(|l| l.display().to_string()).collect();
     let load = load_kg.map_or(String::new(), |m| format!(" --load-kg {m}"));
     let text = format!(
@@ -85,7 +98,7 @@ pub fn run(a: Args) -> Result<i32> {
         return Ok(0);
     }
     say!(
-        "identified from {:.0} s: valve {:.1} ms + {:.1} ms dead time ({}), load {:.3} kg ({}), held-out fit {:.2} % ({:.1} um RMS), residual {:.1} um RMS; wrote {}",
+        "identified from {:.0} s: valve {:.1} ms + {:.1} ms dead time ({}), load {:.3} kg ({}), held-out fit {:.2} % ({:.1} um RMS), residual {:.1} um RMS (sensor noise {:.1} um); wrote {}",
         id.log_s,
         id.valve_time_constant_s * 1e3,
         id.valve_dead_time_s * 1e3,
@@ -94,6 +107,7 @@ pub fn run(a: Args) -> Result<i32> {
         id.load_source,
         id.fit_percent,
         id.rms_error_m * 1e6,
+        id.residual_rms_m * 1e6,
         id.noise_rms_m * 1e6,
         a.out.display()
     );
@@ -110,8 +124,35 @@ pub fn run(a: Args) -> Result<i32> {
         id.condition_number,
         id.force_scale
     );
+    if let Some(r) = id.restart_s {
+        say!("  fitted restarting from the measured state every {r} s (open loop, the model's error dwarfed the noise); held out open loop");
+    }
     for (p, q, rho) in &id.inseparable {
         say!("  not separable: {p} and {q} (correlation {rho:.3})");
     }
     Ok(0)
+}
+
+/// A rig log for identification: refused if `rig replay` would refuse it (cut short,
+/// edited, periods missing) unless `force`; on a virtual rig, each command as the valve
+/// received it through the output converter (an ideal valve feels the converter's step,
+/// regression of issue 26).
+pub(crate) fn load_log(path: &std::path::Path, force: bool) -> Result<IdLog> {
+    let verified = match pma_rig::verify(path) {
+        Ok(v) => Some(v),
+        Err(_) if force => None,
+        Err(e) => {
+            return Err(anyhow::Error::new(e)
+                .context("identification reads only logs it can trust (--force reads it anyway)"))
+        }
+    };
+    let mut log = read_log(path)?;
+    if let Some(v) = verified {
+        if let Some(delivered) = pma_rig::delivered_valve_pa(&v.config)? {
+            for c in &mut log.command_pa {
+                *c = delivered(*c);
+            }
+        }
+    }
+    Ok(log)
 }

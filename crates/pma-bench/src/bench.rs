@@ -259,6 +259,14 @@ impl MuscleBench {
         }
     }
 
+    /// Puts the load at `position_m` moving at `velocity_m_s`, the valve and the clock
+    /// unchanged: a fit that restarts its simulation from the measured state at intervals
+    /// (multiple shooting) so that one divergence does not spoil the rest of a log.
+    pub fn set_motion(&mut self, position_m: f64, velocity_m_s: f64) {
+        self.x = position_m;
+        self.v = velocity_m_s;
+    }
+
     /// True contraction (m).
     pub fn position(&self) -> f64 {
         self.x

@@ -116,6 +116,9 @@ pub struct Valve {
     pending: Vec<(f64, f64)>,
     pending_head: usize,
     pending_len: usize,
+    /// The last step's length (s) and its lag factor `1 - exp(-h / tau)`: every substep
+    /// has the same length, and the exponential was 14 % of a single-muscle period.
+    lag_step: (f64, f64),
 }
 
 impl Valve {
@@ -134,6 +137,7 @@ impl Valve {
             pending: vec![(0.0, p); capacity],
             pending_head: 0,
             pending_len: 0,
+            lag_step: (f64::NAN, 0.0),
         })
     }
 
@@ -182,7 +186,7 @@ impl Valve {
         self.release_due_commands();
         let target = self.target_pa;
         let mut next = if self.params.time_constant_s > 0.0 {
-            let a = 1.0 - (-h_s / self.params.time_constant_s).exp();
+            let a = self.lag_factor(h_s);
             self.pressure_pa + a * (target - self.pressure_pa)
         } else {
             target
@@ -192,6 +196,15 @@ impl Valve {
             next = self.pressure_pa + (next - self.pressure_pa).clamp(-max_step, max_step);
         }
         self.set_pressure(next);
+    }
+
+    /// `1 - exp(-h / tau)`, recomputed only when the step's length changes (the same
+    /// value bit for bit).
+    fn lag_factor(&mut self, h_s: f64) -> f64 {
+        if h_s.to_bits() != self.lag_step.0.to_bits() {
+            self.lag_step = (h_s, 1.0 - (-h_s / self.params.time_constant_s).exp());
+        }
+        self.lag_step.1
     }
 
     fn set_pressure(&mut self, p: f64) {

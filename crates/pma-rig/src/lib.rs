@@ -24,6 +24,6 @@ pub use error::RigError;
 /// The safety supervisor (pma-control's, shared with the leg).
 pub use pma_control::supervisor;
 pub use pma_control::supervisor::{Alarm, Fault, Supervised, Watchdog};
-pub use replay::{replay, ReplayReport};
+pub use replay::{replay, verify, ReplayReport, VerifiedLog};
 pub use run::{Rig, RigReport, RunOptions};
-pub use virtual_daq::{InjectedFault, Injection, VirtualDaq};
+pub use virtual_daq::{delivered_valve_pa, InjectedFault, Injection, VirtualDaq};

@@ -527,6 +527,47 @@ impl<'a> Recorder<Supervised<LogPlayer<'a>>, MuscleStep> for Compare<'a> {
     }
 }
 
+/// What [`verify`] found in a log that can be trusted.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VerifiedLog {
+    /// The rig's configuration, from the header (checked as `rig run` checks it).
+    pub config: RigConfig,
+    /// Control period rows between the activation and the vent.
+    pub periods: usize,
+    /// The fault the run ended with (`interrupted` for a signal), if any.
+    pub fault: Option<String>,
+}
+
+/// Checks a log as replay does before trusting it, without replaying the controller: its
+/// header (this version's, with a configuration `rig run` would accept), its digest (not
+/// truncated, not edited), and rows that run from the activation through contiguous
+/// periods to the vent row. For readers of a log's data (identification).
+pub fn verify(path: &Path) -> Result<VerifiedLog, RigError> {
+    let text = std::fs::read_to_string(path).map_err(|e| RigError::Io {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    })?;
+    let header = parse_header(path, &header_lines(&text))?;
+    let (body, digest_rows) = check_digest(path, &text)?;
+    let rows = parse_rows(path, body, digest_rows)?;
+    exact(
+        path,
+        &rows.activation,
+        "period",
+        rows.activation.period,
+        0.0,
+    )?;
+    for (k, row) in rows.periods.iter().enumerate() {
+        exact(path, row, "period", row.period, (k + 1) as f64)?;
+    }
+    check_vent(path, &rows)?;
+    Ok(VerifiedLog {
+        config: header.config,
+        periods: rows.periods.len(),
+        fault: rows.fault,
+    })
+}
+
 /// Replays `path`.
 pub fn replay(path: &Path) -> Result<ReplayReport, RigError> {
     let text = std::fs::read_to_string(path).map_err(|e| RigError::Io {

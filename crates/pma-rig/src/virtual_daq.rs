@@ -327,6 +327,31 @@ pub struct VirtualDaq {
 }
 
 /// The simulated board's range at `channel` (V); a configured range must agree with it.
+/// The pressure the virtual rig's valve receives for a logged command (Pa): the command
+/// through the calibration to volts, through the output converter's code and back. A rig
+/// log records the command before the converter; an ideal valve feels the difference
+/// (a 15 Pa step of a 16-bit 0-10 V output turns the damping mode of eq. (1), which an
+/// identification must then see). `None`: not a virtual rig, or a continuous converter.
+pub fn delivered_valve_pa(config: &RigConfig) -> Result<Option<impl Fn(f64) -> f64>, RigError> {
+    let Some(v) = config.virtual_rig.as_ref().filter(|v| v.converter_bits > 0) else {
+        return Ok(None);
+    };
+    let range = board_range(
+        &BoardLayout::pci6052e(),
+        &config.signals.valve,
+        true,
+        v.output_range_v,
+    )?;
+    let converter = Converter::new(range, v.converter_bits);
+    let calibration = config.calibration;
+    Ok(Some(move |command_pa: f64| {
+        let volts = calibration.valve_v(command_pa);
+        converter
+            .output(volts)
+            .map_or(command_pa, |v| calibration.valve_pa(v))
+    }))
+}
+
 fn board_range(
     board: &BoardLayout,
     channel: &AnalogChannel,

@@ -31,6 +31,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 /// A rig log reduced to what identification needs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct IdLog {
+    /// Where it came from (the file's path), for the messages.
+    pub source: String,
     /// Control period (s).
     pub period_s: f64,
     /// The command the valve got over period `k` (Pa), after the supervisor.
@@ -52,6 +54,13 @@ pub struct IdLog {
 
 /// Shortest log identification accepts (s).
 pub const MIN_LOG_S: f64 = 10.0;
+
+/// Longest time identification accepts, over every log together (s): ten minutes of
+/// excitation take about 2.5 min and 0.1 GB to fit here; `rig excite` runs 60-90 s.
+pub const MAX_LOG_S: f64 = 600.0;
+
+/// A rig's control periods (s), as `rig run` accepts them.
+const PERIOD_RANGE_S: (f64, f64) = (1e-4, 1e-2);
 
 fn log_error(path: &Path, message: impl Into<String>) -> StudyError {
     StudyError::Parse {
@@ -88,14 +97,45 @@ pub fn read_log(path: &Path) -> Result<IdLog, StudyError> {
                 (current == section).then_some(())?;
                 l.strip_prefix(key)?.strip_prefix(" = ")
             })
-            .and_then(|v| v.trim().parse::<f64>().ok())
+            .map(|v| v.trim().to_owned())
     };
-    let period_s = header_value("", "period_s")
+    // A header value, checked against its range: a log's header can be edited, and a
+    // nonsense period or limit would fit a nonsense plant.
+    let checked = |section: &str, key: &str, (low, high): (f64, f64), range: &str| {
+        let name = if section.is_empty() {
+            key.to_owned()
+        } else {
+            format!("[{section}] {key}")
+        };
+        let Some(text) = header_value(section, key) else {
+            return Ok(None);
+        };
+        match text.parse::<f64>() {
+            Ok(v) if v.is_finite() && (low..=high).contains(&v) => Ok(Some(v)),
+            _ => Err(log_error(
+                path,
+                format!("the header's `{name} = {text}` must be {range}"),
+            )),
+        }
+    };
+    let period_s = checked("", "period_s", PERIOD_RANGE_S, "0.1..=10 ms, as a rig's")?
         .ok_or_else(|| log_error(path, "the header has no period_s"))?;
-    let pressure_max_pa = header_value("limits", "pressure_max_pa")
-        .ok_or_else(|| log_error(path, "the header has no [limits] pressure_max_pa"))?;
-    let weighed_kg = header_value("load", "mass_kg");
-    let added_mass_kg = header_value("load", "added_mass_kg").unwrap_or(0.0);
+    let pressure_max_pa = checked(
+        "limits",
+        "pressure_max_pa",
+        (1e3, pma_model::MAX_VALVE_PRESSURE_PA),
+        "0.01..=10 bar (a proportional valve's range)",
+    )?
+    .ok_or_else(|| log_error(path, "the header has no [limits] pressure_max_pa"))?;
+    let loads = (0.05, pma_model::MAX_LOAD_KG);
+    let weighed_kg = checked("load", "mass_kg", loads, "0.05..=600 kg")?;
+    let added_mass_kg = checked(
+        "load",
+        "added_mass_kg",
+        (0.0, pma_model::MAX_LOAD_KG),
+        "0..=600 kg",
+    )?
+    .unwrap_or(0.0);
     let mut lines = text.lines().filter(|l| !l.starts_with('#'));
     let columns: Vec<&str> = lines
         .next()
@@ -148,6 +188,7 @@ pub fn read_log(path: &Path) -> Result<IdLog, StudyError> {
         p.remove(0);
     }
     let log = IdLog {
+        source: path.display().to_string(),
         period_s,
         command_pa,
         position_m,
@@ -297,6 +338,27 @@ fn valve(q: &Params, pressure_max_pa: f64) -> ValveParams {
 /// The positions plant `q` gives for the log's commands, open loop from the vented rest
 /// (`None` if the parameters are not a valid plant or the simulation leaves the finite).
 fn simulate(q: &Params, log: &IdLog) -> Option<Vec<f64>> {
+    simulate_from(q, log, None)
+}
+
+/// The measured state at every `window` samples: the position and its velocity, both
+/// lightly smoothed (2 x 11 samples), where a windowed simulation restarts.
+fn window_starts(log: &IdLog, window: usize) -> Vec<(usize, f64, f64)> {
+    let x = smooth(&log.position_m, 5);
+    let v = derivative(&x, log.period_s);
+    (window..log.position_m.len())
+        .step_by(window)
+        .map(|k| (k, x[k - 1], v[k - 1]))
+        .collect()
+}
+
+/// [`simulate`], restarted from the measured state at each of `starts` (sample, position,
+/// velocity): the valve runs on, the load's motion is put back (multiple shooting).
+fn simulate_from(
+    q: &Params,
+    log: &IdLog,
+    starts: Option<&[(usize, f64, f64)]>,
+) -> Option<Vec<f64>> {
     if q.iter().any(|v| !v.is_finite() || *v < 0.0)
         || q[..MUSCLE].iter().any(|v| *v <= 0.0)
         || q[LOAD] <= 0.0
@@ -306,7 +368,11 @@ fn simulate(q: &Params, log: &IdLog) -> Option<Vec<f64>> {
     let cfg = plant(q, q[LOAD] + log.added_mass_kg, log.pressure_max_pa, 0.0);
     let mut bench = MuscleBench::vented(&cfg).ok()?.with_substeps(SUBSTEPS);
     let mut out = Vec::with_capacity(log.command_pa.len());
-    for &c in &log.command_pa {
+    let mut next = starts.unwrap_or_default().iter().peekable();
+    for (k, &c) in log.command_pa.iter().enumerate() {
+        if let Some((_, x, v)) = next.next_if(|s| s.0 == k) {
+            bench.set_motion(*x, *v);
+        }
         bench.apply(c, log.period_s);
         let x = bench.position();
         if !x.is_finite() {
@@ -339,6 +405,9 @@ struct Problem<'a> {
     logs: &'a [IdLog],
     simulations: std::cell::Cell<usize>,
     stop: &'a AtomicBool,
+    /// Per log, where the fit's simulation restarts from the measured state (empty: open
+    /// loop throughout).
+    starts: Vec<Vec<(usize, f64, f64)>>,
 }
 
 impl Problem<'_> {
@@ -348,9 +417,9 @@ impl Problem<'_> {
             return None;
         }
         let mut out = Vec::new();
-        for log in self.logs {
+        for (i, log) in self.logs.iter().enumerate() {
             self.simulations.set(self.simulations.get() + 1);
-            let sim = simulate(q, log)?;
+            let sim = simulate_from(q, log, self.starts.get(i).map(Vec::as_slice))?;
             out.extend(part.range(sim.len()).map(|k| sim[k] - log.position_m[k]));
         }
         Some(out)
@@ -431,6 +500,11 @@ fn levenberg_marquardt(
             let mut trial = *q;
             for (c, &i) in free.iter().enumerate() {
                 trial[i] += delta[c];
+                // The lag's parts stop at their bound, zero, instead of the step being
+                // refused: an ideal valve lies on it (regression, issue 26).
+                if i == TAU || i == THETA {
+                    trial[i] = trial[i].max(0.0);
+                }
             }
             if let Some(rt) = problem.residuals(&trial, Part::Fit) {
                 let ct = rms(&rt);
@@ -504,8 +578,13 @@ pub struct Identified {
     pub valve_source: &'static str,
     /// RMS of the valve fit's pressure residuals (Pa), with the pressure channel.
     pub valve_rms_error_pa: Option<f64>,
-    /// RMS of the fit's residuals (m): sensor noise plus what the model misses.
+    /// The sensor's noise (m): the RMS of the residuals' white part (what is left of them
+    /// after a zero-phase smoothing over 49 ms, corrected for the part of white noise the
+    /// smoothing keeps), at most the residuals' RMS. What the model misses is slow; the
+    /// plant file's sensor noise is this.
     pub noise_rms_m: f64,
+    /// RMS of the fit's residuals (m): sensor noise plus what the model misses.
+    pub residual_rms_m: f64,
     /// Held-out fit, 100 (1 - |y - y_sim| / |y - mean y|) (%).
     pub fit_percent: f64,
     /// Held-out RMS error (m).
@@ -522,6 +601,10 @@ pub struct Identified {
     pub force_scale: String,
     /// Simulations run by the fit (the held-out validation not counted).
     pub simulations: usize,
+    /// The fit's simulations restarted from the measured state every so many seconds
+    /// (multiple shooting; `None`: open loop over the whole log). Chosen only where the
+    /// open-loop fit's error dwarfed the noise and the restarted one validated better.
+    pub restart_s: Option<f64>,
 }
 
 impl Identified {
@@ -571,10 +654,16 @@ pub fn identify(log: &IdLog, load_kg: f64, seed: u64) -> Result<Identified, Stud
     )
 }
 
-fn id_error(message: impl Into<String>) -> StudyError {
+/// An error of the identification of `logs`, naming them.
+fn id_error(logs: &[IdLog], message: impl Into<String>) -> StudyError {
+    let names: Vec<&str> = logs.iter().map(|l| l.source.as_str()).collect();
     StudyError::Parse {
         what: "identification of",
-        file: "the log".into(),
+        file: if names.is_empty() {
+            "no log".into()
+        } else {
+            names.join("` and `")
+        },
         message: message.into(),
     }
 }
@@ -591,7 +680,7 @@ pub fn identify_logs(
     stop: &AtomicBool,
 ) -> Result<Identified, StudyError> {
     let Some(first) = logs.first() else {
-        return Err(id_error("no log"));
+        return Err(id_error(logs, "no log"));
     };
     if let Some(m) = load_kg {
         pma_model::error::within(
@@ -605,17 +694,71 @@ pub fn identify_logs(
         let added: Vec<f64> = logs.iter().map(|l| l.added_mass_kg).collect();
         if logs.len() < 2 || added.iter().all(|m| (m - added[0]).abs() < 1e-9) {
             return Err(id_error(
+                logs,
                 "the load is not known: give it weighed (--load-kg, or [load] mass_kg in the rig configuration), or a second excitation with a known mass added (rig excite --added-mass-kg M)",
             ));
         }
     }
     if logs.iter().any(|l| l.period_s != first.period_s) {
-        return Err(id_error("the logs have different periods"));
+        return Err(id_error(logs, "the logs have different periods"));
     }
+    let total_s: f64 = logs.iter().map(IdLog::duration_s).sum();
+    if total_s > MAX_LOG_S {
+        return Err(id_error(
+            logs,
+            format!(
+                "{total_s:.0} s of log: identification takes at most {MAX_LOG_S:.0} s (its cost grows with the samples; `rig excite --duration 90` is enough)"
+            ),
+        ));
+    }
+    // Open loop over the whole log first; where the model's error dwarfs the noise (an
+    // ideal valve turns the damping mode on a 15 Pa step, and one such turn sends the
+    // simulation off for the rest of the log: regression, issue 26), again restarting
+    // from the measured state every RESTART_S, and the better held-out fit is kept (the
+    // held-out quarter is simulated open loop either way).
+    let open = fit_logs(logs, load_kg, seed, stop, None)?;
+    if open.residual_rms_m <= MODEL_ERROR_RATIO * open.noise_rms_m {
+        return Ok(open);
+    }
+    let window = (RESTART_S / first.period_s).round() as usize;
+    match fit_logs(logs, load_kg, seed, stop, Some(window)) {
+        Ok(mut restarted) if restarted.fit_percent > open.fit_percent => {
+            restarted.simulations += open.simulations;
+            Ok(restarted)
+        }
+        Err(StudyError::Interrupted) => Err(StudyError::Interrupted),
+        _ => Ok(open),
+    }
+}
+
+/// How far the fit's residual may exceed the sensor's noise before a fit restarted from
+/// the measured state is tried too.
+const MODEL_ERROR_RATIO: f64 = 5.0;
+
+/// Interval between the restarts of that fit (s): 0.25-1 s fit an ideal valve's plant
+/// within 6 %, 0.1 s is too short (the restarts' velocity errors dominate).
+const RESTART_S: f64 = 0.5;
+
+/// The fit of [`identify_logs`], its simulations restarted from the measured state every
+/// `window` samples (`None`: open loop throughout).
+fn fit_logs(
+    logs: &[IdLog],
+    load_kg: Option<f64>,
+    seed: u64,
+    stop: &AtomicBool,
+    window: Option<usize>,
+) -> Result<Identified, StudyError> {
+    let first = &logs[0];
+    let shots = |logs: &[IdLog]| -> Vec<Vec<(usize, f64, f64)>> {
+        logs.iter()
+            .map(|l| window.map_or_else(Vec::new, |w| window_starts(l, w)))
+            .collect()
+    };
     let problem = Problem {
         logs,
         simulations: std::cell::Cell::new(0),
         stop,
+        starts: shots(logs),
     };
     let mut q: Params = [1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0];
     // Without a weighed load, the fit starts from a guess and the added mass moves it.
@@ -647,15 +790,19 @@ pub fn identify_logs(
     let anchored: Vec<usize> = muscle_valve.iter().copied().filter(|i| *i != 1).collect();
     let taus: Vec<f64> = match valve_fit {
         Some((tau, ..)) => vec![tau],
-        None => vec![5e-3, 12e-3, 25e-3, 40e-3],
+        // No lag at all among them: a start inside the range never reached an ideal valve
+        // on its bound (regression, issue 26).
+        None => vec![0.0, 5e-3, 12e-3, 25e-3, 40e-3],
     };
     // Without a weighed load the starts run on the first log alone: it fixes the plant up
     // to one common factor on the forces and the load (eq. (1) is homogeneous in them), and
     // the added mass then picks the factor (below).
+    let start_logs = if load_kg.is_some() { logs } else { &logs[..1] };
     let starts = Problem {
-        logs: if load_kg.is_some() { logs } else { &logs[..1] },
+        logs: start_logs,
         simulations: std::cell::Cell::new(0),
         stop,
+        starts: shots(start_logs),
     };
     let start_at = |load: f64| {
         let mut best = f64::INFINITY;
@@ -719,7 +866,7 @@ pub fn identify_logs(
     }
     cost = cost.min(c);
     let jac =
-        jac.ok_or_else(|| id_error("the model could not be simulated at the start values"))?;
+        jac.ok_or_else(|| id_error(logs, "the model could not be simulated at the start values"))?;
     let r_fit = problem.residuals(&q, Part::Fit).unwrap_or_default();
     // (4) Intervals: moving-block bootstrap of the residuals through the linearised fit.
     let (condition_number, correlations, spread) =
@@ -734,6 +881,10 @@ pub fn identify_logs(
         }
     }
     // (5) Held out.
+    let noise_rms_m = white_rms(&r_fit).min(cost);
+    if load_kg.is_none() {
+        added_mass_seen(logs, q[LOAD], noise_rms_m)?;
+    }
     let (fit_percent, rms_error_m) = problem.held_out(&q);
     let parameters = PARAMETERS
         .iter()
@@ -781,7 +932,8 @@ pub fn identify_logs(
             "position"
         },
         valve_rms_error_pa: valve_rms,
-        noise_rms_m: cost,
+        noise_rms_m,
+        residual_rms_m: cost,
         fit_percent,
         rms_error_m,
         condition_number,
@@ -793,6 +945,7 @@ pub fn identify_logs(
             "the load fitted with the muscle: the known added mass makes eq. (1) inhomogeneous in the forces, which fixes their common scale through gravity".into()
         },
         simulations: problem.simulations.get(),
+        restart_s: window.map(|w| w as f64 * first.period_s),
     })
 }
 
@@ -892,6 +1045,71 @@ fn golden_section(f: impl Fn(f64) -> f64, mut a: f64, mut b: f64, iterations: us
     (u, f(u))
 }
 
+/// Two commands closer than this are the same (Pa): a 12-bit 0-10 V output's step is 24 Pa
+/// at the virtual rig's 1 bar/V.
+const SAME_COMMAND_PA: f64 = 100.0;
+
+/// Smallest added mass, as a share of the load, that can fix it: below it the added
+/// mass's effect drowns in the model's error and the fit ends on any load.
+pub const MIN_ADDED_MASS_SHARE: f64 = 0.05;
+
+/// Refuses an added-mass identification the data cannot support: logs that ran the same
+/// commands with positions no further apart than the sensor's noise (the mass was not on
+/// the muscle, or the same log twice), or an identified load the added mass is under
+/// [`MIN_ADDED_MASS_SHARE`] of (regression, issue 26: the same data twice, 1 kg "added",
+/// gave 106.8 kg at a 99.26 % fit).
+fn added_mass_seen(logs: &[IdLog], load_kg: f64, noise_rms_m: f64) -> Result<(), StudyError> {
+    for (i, a) in logs.iter().enumerate() {
+        for b in &logs[i + 1..] {
+            // The same commands, to a converter's step (one log may have been read through
+            // the output converter, the other not).
+            let same_commands = a.command_pa.len() == b.command_pa.len()
+                && a.command_pa
+                    .iter()
+                    .zip(&b.command_pa)
+                    .all(|(x, y)| (x - y).abs() <= SAME_COMMAND_PA);
+            if a.added_mass_kg == b.added_mass_kg || !same_commands {
+                continue;
+            }
+            let apart = rms(&a
+                .position_m
+                .iter()
+                .zip(&b.position_m)
+                .map(|(x, y)| x - y)
+                .collect::<Vec<_>>());
+            if apart <= 3.0 * noise_rms_m.max(1e-7) {
+                return Err(id_error(
+                    logs,
+                    format!(
+                        "the added mass is not in the data: `{}` ({} kg added) and `{}` ({} kg) ran the same commands and their positions differ by {:.1} um RMS, within three times the sensor's noise ({:.1} um); was the mass on the muscle?",
+                        a.source,
+                        a.added_mass_kg,
+                        b.source,
+                        b.added_mass_kg,
+                        apart * 1e6,
+                        noise_rms_m * 1e6
+                    ),
+                ));
+            }
+        }
+    }
+    let (lo, hi) = logs.iter().fold((f64::MAX, f64::MIN), |(lo, hi), l| {
+        (lo.min(l.added_mass_kg), hi.max(l.added_mass_kg))
+    });
+    let added = hi - lo;
+    if added < MIN_ADDED_MASS_SHARE * (load_kg + lo) {
+        return Err(id_error(
+            logs,
+            format!(
+                "the fit puts the load at {load_kg:.2} kg, of which the {added} kg added is {:.1} % only (at least {:.0} % is needed for the data to fix the load): the added mass has no visible effect; add 30-50 % of the load, or weigh it (--load-kg)",
+                100.0 * added / (load_kg + lo),
+                100.0 * MIN_ADDED_MASS_SHARE
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// The loads a fit without a weighed one starts from (kg).
 const START_LOADS_KG: [f64; 3] = [0.75, 2.0, 5.5];
 
@@ -959,6 +1177,25 @@ fn smooth(x: &[f64], half: usize) -> Vec<f64> {
             .collect()
     };
     pass(&pass(x))
+}
+
+/// Half-width of the smoothing [`white_rms`] takes off (samples).
+const WHITE_HALF: usize = 12;
+
+/// RMS of the white part of `r`: `r` less its smoothing ([`smooth`]), divided by the
+/// share of a white signal's RMS that survives that (the filter's weights from its
+/// impulse response: `1 - 2 w0 + sum w^2` of the variance).
+fn white_rms(r: &[f64]) -> f64 {
+    if r.len() < 8 * WHITE_HALF {
+        return rms(r);
+    }
+    let s = smooth(r, WHITE_HALF);
+    let high: Vec<f64> = r.iter().zip(&s).map(|(a, b)| a - b).collect();
+    let mut impulse = vec![0.0; 4 * WHITE_HALF + 1];
+    impulse[2 * WHITE_HALF] = 1.0;
+    let w = smooth(&impulse, WHITE_HALF);
+    let kept = 1.0 - 2.0 * w[2 * WHITE_HALF] + w.iter().map(|v| v * v).sum::<f64>();
+    rms(&high) / kept.sqrt()
 }
 
 /// Central differences.
@@ -1148,6 +1385,7 @@ mod tests {
         let truth: Params = [0.9, 1.0, 1.2, 1.0, 1.2, 1.0, 1.2, 1.0, 0.015, 0.0, 2.5];
         let command_pa = excite_like(20.0);
         let mut log = IdLog {
+            source: "a simulated log".into(),
             period_s: 1e-3,
             command_pa,
             position_m: Vec::new(),
@@ -1186,6 +1424,7 @@ mod tests {
             .collect();
         let log_with = |added_mass_kg: f64| {
             let mut log = IdLog {
+                source: format!("a simulated log, {added_mass_kg} kg added"),
                 period_s: 1e-3,
                 command_pa: command_pa.clone(),
                 position_m: Vec::new(),

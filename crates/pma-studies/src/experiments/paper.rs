@@ -12,6 +12,9 @@ pub enum Varied {
     Controller,
     /// One setting of a single controller (proxy mass, amplitude, load).
     Setting,
+    /// A model against a measurement (identification): each series' `reference_m` is the
+    /// measured position, its `position_m` the model's.
+    Model,
 }
 
 /// A plot of `paper`: its runs and what a reader needs to read them.

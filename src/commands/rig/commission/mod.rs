@@ -9,12 +9,13 @@
 mod report;
 
 use super::supervised::{check_rig_wall_time, warn_if_not_vented, with_added_mass};
+use crate::commands::identify::load_log;
 use crate::commands::tune::{check_robust, check_tuning_wall_time, evaluations};
 use crate::output::{self, OutFile};
 use anyhow::{bail, Context, Result};
 use pma_control::{ControllerConfig, ControllerKind};
 use pma_rig::{RigConfig, RunOptions};
-use pma_studies::identify::{identify_logs, read_log, IdLog, Identified, MIN_LOG_S};
+use pma_studies::identify::{identify_logs, IdLog, Identified, MIN_LOG_S};
 use pma_studies::tune::{
     robust_plants, tune_robust, Aggregate, FireflyOptions, Objective, RigScenario,
 };
@@ -480,7 +481,7 @@ fn excite(a: &Args, plan: &Plan, stop: &AtomicBool, out: &mut OutDir) -> Result<
     };
     let what = "the excitation".to_owned();
     complete(rig_run(&plan.cfg, &plan.dir, &options, stop, 2, what)?)?;
-    let mut logs = vec![read_log(&out.path.join("excite.csv"))?];
+    let mut logs = vec![load_log(&out.path.join("excite.csv"), false)?];
     if let Load::Added(m, cfg_added) = &plan.load {
         confirm(
             &format!("the excitation with {m} kg more on the load (hang it now)"),
@@ -495,7 +496,7 @@ fn excite(a: &Args, plan: &Plan, stop: &AtomicBool, out: &mut OutDir) -> Result<
         };
         let what = "the excitation with the added mass".to_owned();
         complete(rig_run(cfg_added, &plan.dir, &o, stop, 2, what)?)?;
-        logs.push(read_log(&out.path.join("excite-added-mass.csv"))?);
+        logs.push(load_log(&out.path.join("excite-added-mass.csv"), false)?);
     }
     Ok(logs)
 }

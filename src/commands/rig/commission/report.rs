@@ -284,12 +284,13 @@ impl Report {
 fn identification_md(id: &Identified) -> String {
     let mut md = format!(
         "![identification](identification.png)\n\n\
-         Valve {:.2} ms + {:.2} ms dead time; held-out fit {:.2} % ({:.1} um RMS); residual {:.1} um RMS; \
+         Valve {:.2} ms + {:.2} ms dead time; held-out fit {:.2} % ({:.1} um RMS); residual {:.1} um RMS, of which sensor noise {:.1} um; \
          condition number {:.0}. {}\n\n| parameter | estimate | 95 % interval | Table I / nominal |\n|---|---|---|---|\n",
         id.valve_time_constant_s * 1e3,
         id.valve_dead_time_s * 1e3,
         id.fit_percent,
         id.rms_error_m * 1e6,
+        id.residual_rms_m * 1e6,
         id.noise_rms_m * 1e6,
         id.condition_number,
         id.force_scale,
@@ -366,13 +367,14 @@ fn draw_plots(
     let held_out_s = log.duration_s() * 0.75;
     let identification = Plot {
         name: "identification",
-        title: "Identification: the excitation measured (grey) and the identified model".into(),
+        title: "Identification: the excitation's measured position (grey) and the identified model"
+            .into(),
         setting: format!(
             "open loop from rest; fitted to {held_out_s:.0} s, held out after (fit {:.2} %)",
             id.fit_percent
         ),
         legend_title: "model".into(),
-        varied: Varied::Setting,
+        varied: Varied::Model,
         events: vec![(held_out_s, "held out".into())],
         series: vec![Series {
             label: "identified".into(),
