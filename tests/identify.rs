@@ -589,3 +589,43 @@ fn regression_an_ideal_valve_on_the_default_rig_derailed_the_fit() {
         "RTE {identified} % on the identified plant, {truth} % on the true one"
     );
 }
+
+/// Regression (issue 26): `identify` on SIGINT says so, exits 130 and leaves neither its
+/// output nor a `.part` file.
+#[cfg(unix)]
+#[test]
+fn regression_identify_interrupted_says_so_and_leaves_no_part_file() {
+    let out_dir = dir().join("interrupted");
+    std::fs::create_dir_all(&out_dir).expect("dir");
+    let out = out_dir.join("plant.toml");
+    let child = Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args([
+            "identify",
+            &s(excite_log()),
+            "--load-kg",
+            "2.5",
+            "--out",
+            &s(&out),
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    // Identification takes seconds; the signal lands inside it.
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    // SAFETY: signalling our own child.
+    assert_eq!(
+        unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) },
+        0
+    );
+    let ended = child.wait_with_output().expect("wait");
+    let err = String::from_utf8_lossy(&ended.stderr);
+    assert_eq!(ended.status.code(), Some(130), "{err}");
+    assert!(err.contains("interrupted by the operator"), "{err}");
+    let left: Vec<_> = std::fs::read_dir(&out_dir)
+        .expect("read_dir")
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}

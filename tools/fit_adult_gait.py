@@ -7,8 +7,11 @@ figshare (doi 10.6084/m9.figshare.5722711), CC BY 4.0: 42 adults (24 young, 18 o
 instrumented treadmill at eight speeds; the slow conditions T01..T05 are used here. Their
 per-subject files (`WBDSxxwalkT0Yang.txt`, joint angles, and `WBDSxxwalkT0Yknt.txt`, joint
 moments and ground reaction forces, each 101 samples over the gait cycle from initial
-contact) are averaged over subjects by tools/fukuchi_means.py into the JSON this script
-reads; both sides are averaged per subject.
+contact) are averaged over subjects, both sides per subject, into the JSON this script
+reads. That averaging step and its JSON are not in the repository (they were made by a
+helper whose work was lost with its machine; only T01 made it into fukuchi2018.toml):
+redoing them from the figshare files is open work of issue 27, and until then T01 can be
+checked against the paper's figures only.
 
 Each condition gives:
 - `speed_m_s`: the subjects' mean treadmill speed;

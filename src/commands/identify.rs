@@ -50,9 +50,10 @@ pub fn run(a: Args) -> Result<i32> {
         .iter()
         .map(|l| load_log(l, a.force))
         .collect::<Result<Vec<_>>>()?;
+    // The operator's stop before the output exists: a signal never leaves its `.part`.
+    let stop = output::stop_flag()?;
     let out = OutFile::create(&a.out)?;
     let load_kg = a.load_kg.or(logs[0].weighed_kg);
-    let stop = output::stop_flag()?;
     let id = match identify_logs(&logs, load_kg, a.seed, &stop) {
         Err(pma_studies::StudyError::Interrupted) => {
             eprintln!(

@@ -1,0 +1,110 @@
+#!/usr/bin/env python3
+"""MuJoCo and the rapier leg side by side: the cost of one 1 ms control period of the
+in-air leg (crates/pma-leg/models/exo_leg.urdf, fixed pelvis, hip and knee), measured in
+one run of this script on this machine.
+
+- MuJoCo: the URDF through MuJoCo's compiler, a torque motor on each joint, gravity, the
+  URDF's joint limits; `mj_step` in MuJoCo's own C loop (`mj_step(m, d, nstep=N)`), Euler,
+  at 1 and 2 steps per period (rapier's in-air leg takes 2 substeps); the torques a
+  smooth function held over each timed block, as the muscles' torques are held over a
+  period. Median of REPEATS blocks of N periods.
+- rapier: `cargo bench --bench leg` (criterion, release) for `rapier_bare` (the same
+  leg, 2 substeps, torques set each period) and `closed_loop_x100` (rapier + 4 muscles +
+  4 APRC-NDO controllers + references, 100 periods per iteration); the point estimates of
+  their means from criterion's JSON.
+
+    python3 tools/mujoco/speed.py [--skip-bench]   # --skip-bench: read the last bench's JSON
+
+Prints one Markdown table (docs/benchmarks.md quotes it).
+"""
+import argparse
+import json
+import os
+import pathlib
+import statistics
+import subprocess
+import sys
+import time
+import xml.etree.ElementTree as ET
+
+import mujoco
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+URDF = ROOT / "crates/pma-leg/models/exo_leg.urdf"
+PERIOD_S = 1e-3
+N = 20_000
+REPEATS = 7
+BENCHES = ("rapier_bare", "closed_loop_x100")
+
+
+def model(substeps):
+    """The in-air leg in MuJoCo: a motor per joint, Euler at PERIOD_S / substeps."""
+    robot = ET.fromstring(URDF.read_text())
+    ext = ET.SubElement(robot, "mujoco")
+    ET.SubElement(ext, "compiler", discardvisual="true", fusestatic="false",
+                  balanceinertia="false")
+    spec = mujoco.MjSpec.from_string(ET.tostring(robot, encoding="unicode"))
+    spec.option.gravity = [0.0, 0.0, -9.81]
+    spec.option.timestep = PERIOD_S / substeps
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    for j in spec.joints:
+        j.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        act = spec.add_actuator(name=j.name, target=j.name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        act.gainprm[0] = 1.0  # a torque motor: ctrl in N m
+    return spec.compile()
+
+
+def mujoco_us_per_period(substeps):
+    """Median cost of one period (us): blocks of N periods, torques held per block."""
+    m = model(substeps)
+    d = mujoco.MjData(m)
+    times = []
+    for r in range(REPEATS):
+        a = np.sin(0.4 * r)
+        d.ctrl[:] = [20.0 * a, 5.0 * a][: m.nu]
+        t0 = time.perf_counter()
+        mujoco.mj_step(m, d, nstep=N * substeps)
+        times.append((time.perf_counter() - t0) / N * 1e6)
+        if not np.all(np.isfinite(d.qpos)):
+            sys.exit("MuJoCo's leg went non-finite")
+    return statistics.median(times), m.nv
+
+
+def rapier_us(skip_bench):
+    """The rapier leg's bare step and closed-loop period (us) from criterion's JSON."""
+    target = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
+    if not skip_bench:
+        subprocess.run(
+            ["cargo", "bench", "--bench", "leg", "--", "rapier_bare|closed_loop_x100$",
+             "--warm-up-time", "1", "--measurement-time", "5", "--noplot"],
+            cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    out = {}
+    for name in BENCHES:
+        path = target / "criterion/leg_period_1ms" / name / "new/estimates.json"
+        ns = json.loads(path.read_text())["mean"]["point_estimate"]
+        out[name] = ns / 1e3 / (100 if name.endswith("_x100") else 1)
+    return out
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--skip-bench", action="store_true",
+                   help="read the last `cargo bench --bench leg` results instead of running it")
+    args = p.parse_args()
+    rapier = rapier_us(args.skip_bench)
+    rows = []
+    for substeps in (1, 2):
+        us, nv = mujoco_us_per_period(substeps)
+        rows.append((f"MuJoCo {mujoco.__version__}, `mj_step` x{substeps} (Euler, {nv} dof)", us))
+    rows.append(("rapier, bare step (2 substeps)", rapier["rapier_bare"]))
+    rows.append(("rapier leg, closed loop (4 muscles, 4 APRC-NDO)", rapier["closed_loop_x100"]))
+    mujoco_2 = rows[1][1]
+    print("| 1 ms period of the in-air leg | us | real time | / MuJoCo x2 |")
+    print("|---|---|---|---|")
+    for name, us in rows:
+        print(f"| {name} | {us:.2f} | {1e3 / us:.0f}x | {us / mujoco_2:.2f} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,51 @@
+#!/usr/bin/env python3
+"""Whole-process speed of the runs issue 30 pins (docs/benchmarks.md): 60 s simulated,
+median of 5 runs each; wall time (perf_counter around the process) and CPU time (user +
+sys of the child, getrusage), and real time over each.
+
+    python3 tools/speed.py [PMA_EXO_BINARY]   # default target/release/pma-exo
+"""
+import os
+import pathlib
+import resource
+import statistics
+import subprocess
+import sys
+import time
+
+CASES = [
+    "single --duration 60",
+    "simulate gait_training --duration 60",
+    "simulate gait_treadmill_one_leg --duration 60",
+    "simulate gait_treadmill --duration 60",
+]
+RUNS = 5
+
+
+def timed(binary, args):
+    """Wall and CPU seconds of one run."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    subprocess.run([binary, *args], check=True, stdout=subprocess.DEVNULL)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu
+
+
+def main():
+    root = pathlib.Path(__file__).resolve().parents[1]
+    target = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", root / "target"))
+    binary = sys.argv[1] if len(sys.argv) > 1 else str(target / "release/pma-exo")
+    print("| run (60 s simulated, median of 5) | wall | real time | CPU | real time on CPU |")
+    print("|---|---|---|---|---|")
+    for case in CASES:
+        runs = [timed(binary, case.split()) for _ in range(RUNS)]
+        wall = statistics.median(r[0] for r in runs)
+        cpu = statistics.median(r[1] for r in runs)
+        print(f"| `pma-exo {case}` | {wall * 1e3:.1f} ms | {60 / wall:.0f}x | "
+              f"{cpu * 1e3:.1f} ms | {60 / max(cpu, 1e-4):.0f}x |")
+
+
+if __name__ == "__main__":
+    main()
