@@ -1,6 +1,8 @@
 //! What a careless or an adversarial user does (issue 15): outputs over inputs, outputs
 //! over earlier results, absurd values, resource exhaustion, and the messages they get.
 //! Each test is named after the defect it pins.
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -143,8 +145,8 @@ fn a_failed_or_interrupted_tune_leaves_the_previous_gain_file() {
     );
     #[cfg(unix)]
     {
-        let child = Command::new(env!("CARGO_BIN_EXE_pma-exo"))
-            .args([
+        let out = common::interrupted(
+            &[
                 "tune",
                 "--controller",
                 "pid",
@@ -154,17 +156,9 @@ fn a_failed_or_interrupted_tune_leaves_the_previous_gain_file() {
                 "200",
                 "--out",
                 &g,
-            ])
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .expect("spawn");
-        std::thread::sleep(std::time::Duration::from_millis(1500));
-        // SAFETY: signalling our own child.
-        assert_eq!(
-            unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) },
-            0
+            ],
+            std::time::Duration::from_millis(1500),
         );
-        let out = child.wait_with_output().expect("wait");
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(130), "{err}");
         assert!(err.contains("interrupted"), "{err}");

@@ -2,6 +2,8 @@
 //! (the `realistic` preset: Table I with f0 x 0.9, k0 and b0 x 1.2, 2.5 kg, a 20 ms valve,
 //! 3 um of sensor noise on 16-bit converters), and a log that cannot identify anything is
 //! a one-line error. The figures over five plants are in docs/commissioning.md.
+mod common;
+
 use pma_rig::config::EMBEDDED_VIRTUAL;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -598,27 +600,18 @@ fn regression_identify_interrupted_says_so_and_leaves_no_part_file() {
     let out_dir = dir().join("interrupted");
     std::fs::create_dir_all(&out_dir).expect("dir");
     let out = out_dir.join("plant.toml");
-    let child = Command::new(env!("CARGO_BIN_EXE_pma-exo"))
-        .args([
+    // Identification takes seconds; the signal lands inside it.
+    let ended = common::interrupted(
+        &[
             "identify",
             &s(excite_log()),
             "--load-kg",
             "2.5",
             "--out",
             &s(&out),
-        ])
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("spawn");
-    // Identification takes seconds; the signal lands inside it.
-    std::thread::sleep(std::time::Duration::from_millis(1500));
-    // SAFETY: signalling our own child.
-    assert_eq!(
-        unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) },
-        0
+        ],
+        std::time::Duration::from_millis(1500),
     );
-    let ended = child.wait_with_output().expect("wait");
     let err = String::from_utf8_lossy(&ended.stderr);
     assert_eq!(ended.status.code(), Some(130), "{err}");
     assert!(err.contains("interrupted by the operator"), "{err}");

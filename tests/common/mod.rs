@@ -4,6 +4,7 @@ use std::path::Path;
 /// Writes into `dir` a scenario whose every run leaves physical bounds at once (the
 /// embedded `gait_training` on a 1 g shank, which its muscles spin past 50 rad/s or beyond
 /// its limit within milliseconds) and returns its path.
+#[allow(dead_code)] // Not every test file that shares this module runs one.
 pub fn diverging_scenario(dir: &Path) -> String {
     let shank_mass = r#"<mass value="6.075"/>"#;
     let shank_inertia = r#"ixx="0.1376" ixy="0" ixz="0" iyy="0.1376" iyz="0" izz="0.0100""#;
@@ -26,4 +27,24 @@ pub fn diverging_scenario(dir: &Path) -> String {
     let path = dir.join("diverging.toml");
     std::fs::write(&path, format!("urdf = \"light_shank.urdf\"\n{training}")).expect("scenario");
     path.display().to_string()
+}
+
+/// Runs `pma-exo args`, sends it SIGINT `after` its start and returns what it printed and
+/// how it ended (a stage taking seconds is then under way).
+#[cfg(unix)]
+#[allow(dead_code)] // Not every test file that shares this module signals.
+pub fn interrupted(args: &[&str], after: std::time::Duration) -> std::process::Output {
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    std::thread::sleep(after);
+    // SAFETY: signalling our own child.
+    assert_eq!(
+        unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) },
+        0
+    );
+    child.wait_with_output().expect("wait")
 }

@@ -527,6 +527,18 @@ impl<'a> Recorder<Supervised<LogPlayer<'a>>, MuscleStep> for Compare<'a> {
     }
 }
 
+/// The log's header and rows, once its digest has been checked.
+fn read_checked(path: &Path) -> Result<(Header, Rows), RigError> {
+    let text = std::fs::read_to_string(path).map_err(|e| RigError::Io {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    })?;
+    let header = parse_header(path, &header_lines(&text))?;
+    let (body, digest_rows) = check_digest(path, &text)?;
+    let rows = parse_rows(path, body, digest_rows)?;
+    Ok((header, rows))
+}
+
 /// What [`verify`] found in a log that can be trusted.
 #[derive(Debug, Clone, PartialEq)]
 pub struct VerifiedLog {
@@ -543,13 +555,7 @@ pub struct VerifiedLog {
 /// truncated, not edited), and rows that run from the activation through contiguous
 /// periods to the vent row. For readers of a log's data (identification).
 pub fn verify(path: &Path) -> Result<VerifiedLog, RigError> {
-    let text = std::fs::read_to_string(path).map_err(|e| RigError::Io {
-        path: path.display().to_string(),
-        message: e.to_string(),
-    })?;
-    let header = parse_header(path, &header_lines(&text))?;
-    let (body, digest_rows) = check_digest(path, &text)?;
-    let rows = parse_rows(path, body, digest_rows)?;
+    let (header, rows) = read_checked(path)?;
     exact(
         path,
         &rows.activation,
@@ -570,13 +576,7 @@ pub fn verify(path: &Path) -> Result<VerifiedLog, RigError> {
 
 /// Replays `path`.
 pub fn replay(path: &Path) -> Result<ReplayReport, RigError> {
-    let text = std::fs::read_to_string(path).map_err(|e| RigError::Io {
-        path: path.display().to_string(),
-        message: e.to_string(),
-    })?;
-    let header = parse_header(path, &header_lines(&text))?;
-    let (body, digest_rows) = check_digest(path, &text)?;
-    let rows = parse_rows(path, body, digest_rows)?;
+    let (header, rows) = read_checked(path)?;
     let player = LogPlayer {
         path,
         header: &header,
