@@ -11,7 +11,9 @@ mod plot;
 mod provenance;
 mod studies;
 
-use commands::{compare_leg, identify, pendulum, rig, simulate, single, size, sweep, tune};
+use commands::{
+    compare_leg, fit_gait, identify, pendulum, rig, simulate, single, size, sweep, tune,
+};
 
 #[derive(Parser)]
 #[command(
@@ -49,6 +51,10 @@ enum Command {
     /// speeds over a stride (inverse dynamics with the belt's forces), every DMSP size,
     /// length and pulley that supplies them, a recommendation and its muscles.toml.
     Size(size::Args),
+    /// A treadmill scenario's hip reference made consistent with its belt: servo-driven
+    /// runs that change the hip where a stance foot runs ahead of or behind the belt, until
+    /// it moves with it; prints (or writes) the scenario's `[gait.hip_correction]`.
+    FitGait(fit_gait::Args),
     /// The Wartenberg pendulum test: thigh horizontal, knee released, muscles vented;
     /// R2, first swing, oscillations of the scenario's patient.
     Pendulum(pendulum::Args),
@@ -175,6 +181,7 @@ fn run(cli: Cli) -> Result<i32> {
         Command::TuneLeg(a) => tune::run_leg(a),
         Command::CompareLeg(a) => compare_leg::run(a),
         Command::Size(a) => size::run(a),
+        Command::FitGait(a) => fit_gait::run(a),
         Command::Sweep(a) => sweep::run(a),
         Command::Identify(a) => identify::run(a),
         Command::Rig { command } => rig::run(command),

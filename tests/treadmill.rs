@@ -205,11 +205,102 @@ fn bad_trainer_input_is_a_one_line_error_naming_the_field() {
             "the URDF has 1 leg(s)",
         ),
         ("legs = 2", "legs = 2\nwalking_aid = true", "walking_aid"),
+        (
+            "cos_deg = [0.92409,",
+            "cos_deg = [11.0,",
+            "gait.hip_correction",
+        ),
+        (
+            "cos_deg = [0.92409,",
+            "cos_deg = [nan,",
+            "gait.hip_correction",
+        ),
+        (
+            "sin_deg = [0.00000,",
+            "sin_deg = [0.5,",
+            "gait.hip_correction.sin_deg[0]",
+        ),
+        (
+            "sin_deg = [0.00000,",
+            "sin_deg = [0.0, 1.0]\nfoo = [0.0,",
+            "gait.hip_correction",
+        ),
     ];
     for (i, (from, to, needle)) in cases.iter().enumerate() {
         let path = scenario_with(&dir, &format!("bad{i}.toml"), &[(from, to)]);
         assert_refused(&path, needle);
     }
+}
+
+#[test]
+fn fit_gait_refuses_bad_arguments_before_any_run_in_one_line() {
+    for (args, needle) in [
+        (&["fit-gait", "--iterations", "0"][..], "--iterations"),
+        (&["fit-gait", "--gain", "1.5"][..], "--gain"),
+        (&["fit-gait", "--gain", "nan"][..], "--gain"),
+        (&["fit-gait", "--strides", "0"][..], "--strides"),
+        (&["fit-gait", "gait_training"][..], "treadmill"),
+        (&["fit-gait", "no_such_scenario"][..], "no_such_scenario"),
+    ] {
+        let out = pma_exo(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}: succeeded");
+        assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+        assert!(
+            err.contains(needle) && !err.contains("panicked"),
+            "{args:?}: {err}"
+        );
+    }
+}
+
+#[test]
+fn fit_gait_writes_the_lines_the_scenario_takes() {
+    // Its output pasted into a scenario is a scenario that loads, with that belt speed.
+    let dir = temp_dir("fit_gait");
+    let snippet = dir.join("fit.toml");
+    let out = pma_exo(&[
+        "fit-gait",
+        "gait_treadmill",
+        "--iterations",
+        "1",
+        "--strides",
+        "1",
+        "--out",
+        snippet.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&snippet).unwrap();
+    let correction =
+        &text[text.find("[gait.hip_correction]").unwrap()..text.find("\n\n# and in").unwrap()];
+    let speed = text
+        .lines()
+        .find(|l| l.starts_with("speed_m_per_s"))
+        .unwrap();
+    let base = std::fs::read_to_string(format!(
+        "{}/crates/pma-leg/models/scenarios/gait_treadmill.toml",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
+    let start = base.find("[gait.hip_correction]").unwrap();
+    let end = start + base[start..].find("\n\n").unwrap();
+    let edited = format!("{}{}{}", &base[..start], correction, &base[end..])
+        .replace("speed_m_per_s = 0.4976", speed);
+    let path = dir.join("fitted.toml");
+    std::fs::write(&path, edited).unwrap();
+    let v = json_of(&[
+        "simulate",
+        path.to_str().unwrap(),
+        "--duration",
+        "4",
+        "--json",
+    ]);
+    let belt = v["treadmill"]["belt_speed_m_s"].as_f64().unwrap();
+    let written: f64 = speed.split('=').nth(1).unwrap().trim().parse().unwrap();
+    assert!((belt - written).abs() < 1e-12, "{belt} vs {written}");
 }
 
 #[test]

@@ -4,6 +4,7 @@ use pma_control::{ChirpReference, ControllerConfig, ControllerKind, Reference, S
 use std::path::{Path, PathBuf};
 
 pub mod compare_leg;
+pub mod fit_gait;
 pub mod identify;
 pub mod pendulum;
 pub mod rig;

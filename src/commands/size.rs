@@ -26,10 +26,39 @@ pub struct Args {
     /// default path, so that no file is replaced unasked).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Least share of its rating a recommended muscle keeps free at the stride's peak
+    /// force, 0-0.9: the room a controller's own activity takes above the servo-driven
+    /// stride (docs/treadmill.md measures what that is). Pressure and speed keep 10 %.
+    #[arg(long, default_value_t = pma_leg::sizing::FORCE_MARGIN_MIN, allow_negative_numbers = true)]
+    force_margin: f64,
+    /// Write the servo-driven strides period by period (each leg's angles, servo torques,
+    /// ground reaction, ankle, pelvis, slip and contact speed) to a CSV file.
+    #[arg(long)]
+    csv: Option<PathBuf>,
     /// Print the sizing as JSON instead of a summary.
     #[arg(long)]
     json: bool,
 }
+
+/// The CSV's columns, one row per leg and period.
+const CSV_COLUMNS: [&str; 16] = [
+    "t_s",
+    "leg",
+    "phase",
+    "hip_deg",
+    "knee_deg",
+    "hip_velocity_deg_s",
+    "knee_velocity_deg_s",
+    "hip_torque_nm",
+    "knee_torque_nm",
+    "grf_vertical_n",
+    "grf_fore_aft_n",
+    "ankle_deg",
+    "pelvis_x_m",
+    "pelvis_z_m",
+    "slip_m_s",
+    "contact_speed_m_s",
+];
 
 /// Runs `size`.
 pub fn run(a: Args) -> Result<i32> {
@@ -39,21 +68,29 @@ pub fn run(a: Args) -> Result<i32> {
             a.max_length_m
         );
     }
+    if !(a.force_margin.is_finite() && (0.0..=0.9).contains(&a.force_margin)) {
+        bail!("--force-margin must be 0..=0.9 (got {})", a.force_margin);
+    }
     if !(1..=50).contains(&a.strides) {
         bail!("--strides must be 1..=50 (got {})", a.strides);
     }
     let loaded = Scenario::load(&a.scenario)?;
-    if let Some(out) = &a.out {
-        output::refuse_input_as_output(
-            &super::scenario_inputs(&a.scenario, &loaded, None),
-            &[("--out", out)],
-        )?;
-    }
+    let outputs: Vec<(&str, &std::path::Path)> = [("--out", &a.out), ("--csv", &a.csv)]
+        .into_iter()
+        .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
+        .collect();
+    output::refuse_input_as_output(
+        &super::scenario_inputs(&a.scenario, &loaded, None),
+        &outputs,
+    )?;
     let out_file = a.out.as_deref().map(OutFile::create).transpose()?;
     let sc = &loaded.scenario;
     let demand = stride_demand(&loaded, a.strides)?;
+    if let Some(path) = &a.csv {
+        write_csv(path, &demand)?;
+    }
     let p_max = sc.plant.valve.pressure_max_pa;
-    let sizing = size_joints(&demand, p_max, a.max_length_m);
+    let sizing = size_joints(&demand, p_max, a.max_length_m, a.force_margin);
     let norms = norm_comparison(&loaded, &demand)?;
     let provenance = Provenance {
         scenario: Some(crate::provenance::named(&a.scenario, &sc.name)),
@@ -65,8 +102,9 @@ pub fn run(a: Args) -> Result<i32> {
     let written = match (&geometry, out_file) {
         (Some(muscles), Some(out_file)) => {
             let header = format!(
-                "Muscle geometry recommended by `{}` (docs/treadmill.md).\nEach joint: the smallest Festo size that supplies the stride's torques within\nits rating, a 25 % contraction, the valve's range and its useful speed, then the\nlargest margin. Set the scenario's control.cocontraction_pa to {}.\n{}",
+                "Muscle geometry recommended by `{}` (docs/treadmill.md).\nEach joint: the smallest Festo size that supplies the stride's torques with\n{:.0} % of its rating free, within a 25 % contraction and with 10 % of the valve's\nrange and of its useful speed to spare, then the most compact. Set the scenario's\ncontrol.cocontraction_pa to {}.\n{}",
                 provenance.command,
+                100.0 * a.force_margin,
                 sizing
                     .cocontraction_pa
                     .map_or_else(|| "(none common)".to_owned(), |p| format!("{p:.4e}")),
@@ -112,6 +150,35 @@ pub fn run(a: Args) -> Result<i32> {
             Ok(1)
         }
     }
+}
+
+/// The servo-driven strides, a row per leg and period (angles in degrees).
+fn write_csv(path: &std::path::Path, demand: &pma_leg::demand::Demand) -> Result<()> {
+    let header: Vec<String> = CSV_COLUMNS.iter().map(|c| (*c).to_owned()).collect();
+    let mut csv = output::CsvOut::create(path, &header, None)?;
+    for s in &demand.samples {
+        csv.row(&[
+            s.t_s,
+            s.leg as f64,
+            s.phase,
+            s.angle_rad[0].to_degrees(),
+            s.angle_rad[1].to_degrees(),
+            s.velocity_rad_s[0].to_degrees(),
+            s.velocity_rad_s[1].to_degrees(),
+            s.torque_nm[0],
+            s.torque_nm[1],
+            s.grf_n[0],
+            s.grf_n[1],
+            s.ankle_rad.to_degrees(),
+            s.pelvis_m[0],
+            s.pelvis_m[1],
+            s.slip_m_s,
+            s.contact_speed_m_s,
+        ]);
+    }
+    csv.finish()?;
+    output::wrote(path);
+    Ok(())
 }
 
 /// The demand beside the adult normative moments, for a scenario on the adult reference.

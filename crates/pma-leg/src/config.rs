@@ -1,6 +1,6 @@
 //! Scenario and muscle-geometry files (TOML, `deny_unknown_fields`, units in the names).
 use crate::error::{invalid, LegError};
-use crate::gait::{GaitData, GaitReference, GaitSpeed};
+use crate::gait::{FourierSeries, GaitData, GaitReference, GaitSpeed};
 use crate::ground::TreadmillSettings;
 use crate::patient::PatientSettings;
 use pma_control::AprcGains;
@@ -231,7 +231,16 @@ pub struct GaitSettings {
     pub stride_period_s: f64,
     /// Smooth start from standing (s).
     pub ramp_s: f64,
+    /// Added to the hip's curve (deg over the cycle, a Fourier series like the data's):
+    /// the stance made consistent with a trainer's belt, as `pma-exo fit-gait` finds it
+    /// for this scenario's legs, feet and belt (absent: the data's hip as measured).
+    #[serde(default)]
+    pub hip_correction: Option<FourierSeries>,
 }
+
+/// Largest coefficient of a hip correction (deg): a correction moves the stance by a few
+/// degrees; anything larger is another gait, not the data's.
+pub const HIP_CORRECTION_MAX_DEG: f64 = 10.0;
 
 impl GaitSettings {
     /// The reference's name as outputs show it (`slow`, `adult 0.50 m/s`).
@@ -271,6 +280,30 @@ impl GaitSettings {
                 GaitReference::adult(v, self.stride_period_s, self.ramp_s)
             }
         }
+        .and_then(|g| self.corrected(g))
+    }
+
+    /// `g` with the hip correction added, once it is checked.
+    fn corrected(&self, g: GaitReference) -> Result<GaitReference, LegError> {
+        let Some(c) = &self.hip_correction else {
+            return Ok(g);
+        };
+        let largest = c.largest_coefficient_deg();
+        if !largest.is_finite() || largest > HIP_CORRECTION_MAX_DEG {
+            return Err(invalid(
+                "gait.hip_correction",
+                largest,
+                "coefficients must be finite and at most 10 deg (a correction of the stance, as `pma-exo fit-gait` gives)",
+            ));
+        }
+        if c.sin_deg[0] != 0.0 {
+            return Err(invalid(
+                "gait.hip_correction.sin_deg[0]",
+                c.sin_deg[0],
+                "must be 0 (the constant term is cos_deg[0])",
+            ));
+        }
+        Ok(g.with_hip_correction(c))
     }
 }
 

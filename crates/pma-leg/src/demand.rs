@@ -48,6 +48,10 @@ pub struct DemandSample {
     pub pelvis_m: [f64; 2],
     /// The foot's slip on the belt (m/s; NaN in the air).
     pub slip_m_s: f64,
+    /// Fore-aft speed of the foot where it touches the belt, relative to the hip (m/s,
+    /// forward positive; NaN out of contact): a stance foot that moves with the belt has
+    /// minus the belt's speed here at every instant (see [`crate::fit_gait()`]).
+    pub contact_speed_m_s: f64,
 }
 
 /// The joints' demand over whole strides.
@@ -179,6 +183,7 @@ pub fn stride_demand(loaded: &LoadedScenario, strides: usize) -> Result<Demand, 
                     ankle_rad,
                     pelvis_m: exo.pelvis_position_m().unwrap_or([f64::NAN; 2]),
                     slip_m_s: foot.map_or(f64::NAN, |f| f.slip_m_s),
+                    contact_speed_m_s: contact_speed(&exo, foot.as_ref()),
                 });
                 for j in 0..2 {
                     max_error[j] = max_error[j].max(error_deg[j].abs());
@@ -202,6 +207,17 @@ pub fn stride_demand(loaded: &LoadedScenario, strides: usize) -> Result<Demand, 
         raw_torque_range_nm,
         treadmill: ground.report(feet.iter().map(FootMetrics::report).collect()),
     })
+}
+
+/// Fore-aft speed of `foot`'s contact relative to the hip (m/s): its slip against the belt,
+/// less the belt's speed and the pelvis's. NaN without a loaded contact.
+fn contact_speed(exo: &Exoskeleton, foot: Option<&crate::ground::FootReaction>) -> f64 {
+    match (foot, exo.ground(), exo.pelvis_velocity_m_s()) {
+        (Some(f), Some(g), Some(pelvis)) if f.vertical_n > crate::stance::CONTACT_THRESHOLD_N => {
+            f.fore_aft_slip_m_s - g.belt_speed_now_m_s() - pelvis[0]
+        }
+        _ => f64::NAN,
+    }
 }
 
 /// Each leg's torques replaced by their centred moving average over `2 half + 1` periods

@@ -613,11 +613,14 @@ impl Exoskeleton {
             let t = rb.translation();
             [f64::from(t.x), f64::from(t.y), f64::from(t.z)]
         });
-        let fore_aft_at_m = raw
+        let slide = raw
             .joints
             .iter()
-            .any(|j| j.name == "pelvis_x" && j.joint_type == urdf_rs::JointType::Prismatic)
-            .then_some(pelvis_at[0]);
+            .find(|j| j.name == "pelvis_x" && j.joint_type == urdf_rs::JointType::Prismatic);
+        let fore_aft_at_m = slide.map(|_| pelvis_at[0]);
+        // The slide's joint coordinate is 0 where the model is built.
+        let fore_aft_stops_m =
+            slide.map(|j| [pelvis_at[0] + j.limit.lower, pelvis_at[0] + j.limit.upper]);
         exo.ankle = Some(treadmill.ankle);
         for leg in 0..exo.legs.len() {
             if exo.legs[leg].ankle.is_some() {
@@ -633,6 +636,7 @@ impl Exoskeleton {
             carried_kg: carried,
             standing_z_m: pelvis_at[2],
             fore_aft_at_m,
+            fore_aft_stops_m,
         }));
         Ok(exo)
     }
@@ -1122,6 +1126,13 @@ impl Exoskeleton {
         let rb = self.world.bodies.get(g.pelvis())?;
         let t = rb.translation();
         Some([f64::from(t.x), f64::from(t.z)])
+    }
+
+    /// Velocity of the pelvis frame `[fore-aft, up]` (m/s), on a treadmill.
+    pub fn pelvis_velocity_m_s(&self) -> Option<[f64; 2]> {
+        let g = self.ground.as_ref()?;
+        let v = self.world.bodies.get(g.pelvis())?.linvel();
+        Some([f64::from(v.x), f64::from(v.z)])
     }
 
     /// Height of the pelvis frame above the belt (m), on a treadmill.

@@ -216,6 +216,53 @@ pub struct FourierSeries {
 }
 
 impl FourierSeries {
+    /// The series of `samples_deg`, taken at phases `k / n` (k = 0..n) over one cycle:
+    /// the discrete projection onto the harmonics, which on a uniform grid is the least
+    /// squares fit (the harmonics are orthogonal there). `None` for fewer than
+    /// `2 HARMONICS + 1` samples.
+    pub fn project(samples_deg: &[f64]) -> Option<Self> {
+        let n = samples_deg.len();
+        if n < 2 * HARMONICS + 1 {
+            return None;
+        }
+        let mut cos_deg = [0.0; HARMONICS + 1];
+        let mut sin_deg = [0.0; HARMONICS + 1];
+        for (k, y) in samples_deg.iter().enumerate() {
+            cos_deg[0] += y;
+            for (i, (s, c)) in Self::harmonics(k as f64 / n as f64).iter().enumerate() {
+                cos_deg[i + 1] += y * c;
+                sin_deg[i + 1] += y * s;
+            }
+        }
+        cos_deg[0] /= n as f64;
+        for i in 1..=HARMONICS {
+            cos_deg[i] *= 2.0 / n as f64;
+            sin_deg[i] *= 2.0 / n as f64;
+        }
+        Some(Self { cos_deg, sin_deg })
+    }
+
+    /// The angle at `phase` (deg).
+    pub fn value_deg(&self, phase: f64) -> f64 {
+        self.eval(&Self::harmonics(phase)).0
+    }
+
+    /// The sum of two series (their angles add at every phase).
+    pub fn plus(&self, other: &Self) -> Self {
+        Self {
+            cos_deg: std::array::from_fn(|i| self.cos_deg[i] + other.cos_deg[i]),
+            sin_deg: std::array::from_fn(|i| self.sin_deg[i] + other.sin_deg[i]),
+        }
+    }
+
+    /// Largest |coefficient| (deg).
+    pub fn largest_coefficient_deg(&self) -> f64 {
+        self.cos_deg
+            .iter()
+            .chain(&self.sin_deg)
+            .fold(0.0f64, |m, c| m.max(c.abs()))
+    }
+
     /// `sin` and `cos` of each harmonic's angle at `phase`, shared by the joints.
     fn harmonics(phase: f64) -> [(f64, f64); HARMONICS] {
         std::array::from_fn(|i| (TAU * (i + 1) as f64 * phase).sin_cos())
@@ -367,6 +414,20 @@ impl GaitReference {
         })
     }
 
+    /// The same reference with `correction` (deg over the cycle) added to the hip: the
+    /// belt-consistent stance that [`crate::fit_gait()`] finds for a trainer.
+    pub fn with_hip_correction(&self, correction: &FourierSeries) -> Self {
+        Self {
+            hip: self.hip.plus(correction),
+            ..*self
+        }
+    }
+
+    /// The hip's series (deg over the cycle, before the time scaling and the ramp).
+    pub fn hip_series(&self) -> &FourierSeries {
+        &self.hip
+    }
+
     /// The adult data's walking speed for this reference (m/s; `None` for children's).
     pub fn data_speed_m_s(&self) -> Option<f64> {
         self.data_speed_m_s
@@ -471,6 +532,37 @@ mod tests {
 
     fn deg(r: f64) -> f64 {
         r.to_degrees()
+    }
+
+    #[test]
+    fn a_series_sampled_over_a_cycle_projects_back_onto_itself() {
+        let hip = *GaitReference::adult(0.5, 1.7, 0.0).unwrap().hip_series();
+        let samples: Vec<f64> = (0..200).map(|k| hip.value_deg(k as f64 / 200.0)).collect();
+        let back = FourierSeries::project(&samples).unwrap();
+        for (a, b) in hip.cos_deg.iter().zip(&back.cos_deg) {
+            assert!((a - b).abs() < 1e-12, "{hip:?} vs {back:?}");
+        }
+        for (a, b) in hip.sin_deg.iter().zip(&back.sin_deg) {
+            assert!((a - b).abs() < 1e-12, "{hip:?} vs {back:?}");
+        }
+        assert!(FourierSeries::project(&samples[..2 * HARMONICS]).is_none());
+    }
+
+    #[test]
+    fn a_hip_correction_adds_to_the_hip_alone() {
+        let g = GaitReference::adult(0.5, 1.7, 0.0).unwrap();
+        let mut c = FourierSeries::project(&[0.0; 64]).unwrap();
+        c.cos_deg[0] = 1.5;
+        c.sin_deg[2] = -0.5;
+        let corrected = g.with_hip_correction(&c);
+        for t in [0.1, 0.4, 0.93, 1.3] {
+            let (a, b) = (g.sample(t), corrected.sample(t));
+            let phase = t / 1.7;
+            let added = 1.5 - 0.5 * (2.0 * TAU * phase).sin();
+            assert!((deg(b.hip.angle_rad - a.hip.angle_rad) - added).abs() < 1e-9);
+            assert_eq!(a.knee, b.knee);
+            assert_eq!(a.ankle, b.ankle);
+        }
     }
 
     #[test]

@@ -419,6 +419,10 @@ pub struct FootReaction {
     pub penetration_m: f64,
     /// Largest slip speed of a loaded sphere against the belt (m/s).
     pub slip_m_s: f64,
+    /// The foot's fore-aft speed against the belt where it touches (m/s, forward
+    /// positive): its loaded spheres' material contact points, weighted by their normal
+    /// forces over the period; 0 out of contact.
+    pub fore_aft_slip_m_s: f64,
     /// Spheres in contact at the end of the period.
     pub contacts: usize,
 }
@@ -687,6 +691,9 @@ pub(crate) struct GroundSetup {
     /// Whether the pelvis slides fore-aft (`pelvis_x`), held by the harness's spring at
     /// its place when built (m, world X).
     pub fore_aft_at_m: Option<f64>,
+    /// Where the pelvis frame is when its fore-aft slide is at its lower and upper limit
+    /// (m, world X; `None` without a slide).
+    pub fore_aft_stops_m: Option<[f64; 2]>,
 }
 
 /// One foot's contacts, summed over a period's substeps.
@@ -696,6 +703,8 @@ struct FootState {
     sum: [f64; 2],
     deepest_m: f64,
     fastest_slip_m_s: f64,
+    /// Sum of fore-aft slip times normal force, and of the normal forces, over the period.
+    weighted_slip: [f64; 2],
     contacts: usize,
     /// This substep's contacts, sphere by sphere (sized once).
     current: Vec<Option<SphereContact>>,
@@ -710,6 +719,7 @@ impl FootState {
             sum: [0.0; 2],
             deepest_m: 0.0,
             fastest_slip_m_s: 0.0,
+            weighted_slip: [0.0; 2],
             contacts: 0,
             current: vec![None; spheres],
             stick_m: vec![[0.0; 2]; spheres],
@@ -755,6 +765,8 @@ impl FootState {
             self.deepest_m = self.deepest_m.max(contact.depth_m);
             if f[2] > 0.0 {
                 self.fastest_slip_m_s = self.fastest_slip_m_s.max(contact.slip_m_s);
+                self.weighted_slip[0] += (f64::from(v.x) + belt_m_s) * f[2];
+                self.weighted_slip[1] += f[2];
             }
             self.contacts += 1;
         }
@@ -767,11 +779,17 @@ impl FootState {
             fore_aft_n: self.sum[1] / n,
             penetration_m: self.deepest_m,
             slip_m_s: self.fastest_slip_m_s,
+            fore_aft_slip_m_s: if self.weighted_slip[1] > 0.0 {
+                self.weighted_slip[0] / self.weighted_slip[1]
+            } else {
+                0.0
+            },
             contacts: self.contacts,
         };
         self.sum = [0.0; 2];
         self.deepest_m = 0.0;
         self.fastest_slip_m_s = 0.0;
+        self.weighted_slip = [0.0; 2];
     }
 
     /// Fore-aft centre of pressure of the last substep's contacts (m, world X; NaN
@@ -884,6 +902,12 @@ impl Ground {
     /// mass on the pelvis (kg).
     pub fn total_mass_kg(&self) -> f64 {
         self.setup.total_mass_kg
+    }
+
+    /// Where the pelvis frame is at its fore-aft slide's limits (m, world X; `None`
+    /// without a slide).
+    pub fn fore_aft_stops_m(&self) -> Option<[f64; 2]> {
+        self.setup.fore_aft_stops_m
     }
 
     /// The patient's mass put on the pelvis (kg).

@@ -158,6 +158,10 @@ pub struct TreadmillReport {
     pub pelvis_excursion_m: f64,
     /// The pelvis's fore-aft excursion after the first stride (m).
     pub pelvis_fore_aft_excursion_m: f64,
+    /// Share of the time the pelvis rests against a stop of its fore-aft slide (0-1): the
+    /// stop, not the harness, then holds the trainer against the belt, with a force no
+    /// output measures.
+    pub pelvis_at_fore_aft_stop: f64,
     /// The harness's mean and largest fore-aft force on the pelvis after the first stride
     /// (N, forward positive): what the legs push the body with.
     pub harness_fore_aft_n: Spread,
@@ -534,9 +538,14 @@ pub struct TrainerGroundMetrics {
     other_impulse_n_s: f64,
     pelvis_z_m: [f64; 2],
     pelvis_x_m: [f64; 2],
+    /// The pelvis's fore-aft stops (m, world X) and the time spent against one (s).
+    stops: (Option<[f64; 2]>, f64),
     harness: (f64, f64, f64),
     active: bool,
 }
+
+/// How close to a fore-aft stop the pelvis counts as held by it (m).
+const AT_STOP_M: f64 = 1e-3;
 
 impl TrainerGroundMetrics {
     /// For `exo`'s treadmill (nothing off one), strides of `stride_s`.
@@ -567,6 +576,7 @@ impl TrainerGroundMetrics {
             other_impulse_n_s: 0.0,
             pelvis_z_m: [f64::INFINITY, f64::NEG_INFINITY],
             pelvis_x_m: [f64::INFINITY, f64::NEG_INFINITY],
+            stops: (exo.ground().and_then(|g| g.fore_aft_stops_m()), 0.0),
             harness: (0.0, f64::INFINITY, f64::NEG_INFINITY),
             active,
         }
@@ -597,6 +607,10 @@ impl TrainerGroundMetrics {
             mean_other_leg_bw: per(self.other_impulse_n_s) / bw,
             pelvis_excursion_m: range(self.pelvis_z_m),
             pelvis_fore_aft_excursion_m: range(self.pelvis_x_m),
+            pelvis_at_fore_aft_stop: match self.stops.0 {
+                Some(_) => per(self.stops.1),
+                None => 0.0,
+            },
             harness_fore_aft_n: Spread {
                 mean: per(self.harness.0),
                 min: self.harness.1,
@@ -629,6 +643,11 @@ impl TrainerGroundMetrics {
         self.time_s += dt;
         self.belt_impulse_n_s += g.belt_load_n() * dt;
         self.other_impulse_n_s += g.contralateral_n * dt;
+        if let Some([lo, hi]) = self.stops.0 {
+            if pelvis[0] <= lo + AT_STOP_M || pelvis[0] >= hi - AT_STOP_M {
+                self.stops.1 += dt;
+            }
+        }
         self.pelvis_x_m = [
             self.pelvis_x_m[0].min(pelvis[0]),
             self.pelvis_x_m[1].max(pelvis[0]),

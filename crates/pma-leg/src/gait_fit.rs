@@ -1,0 +1,387 @@
+//! A gait reference made consistent with a trainer's belt.
+//!
+//! The adults' hip and knee angles were measured against their own pelvis, which rocked,
+//! rotated and pitched; replayed rigidly on a trainer whose pelvis does none of that, they
+//! move a stance foot back relative to the hip at 0.18-0.70 m/s over a stance at 0.50 m/s
+//! (the shipped legs, feet and orthoses; docs/treadmill.md). A foot stuck on the belt
+//! cannot follow: the pelvis is thrown back and forth, two stance feet squeeze each other
+//! through friction, and the servos that replay the reference pay for it (3.8 N m/kg at
+//! the hip).
+//!
+//! [`fit_gait`] finds the hip curve, within the data's harmonics, along which each stance
+//! foot moves back at one constant speed relative to the hip, the belt's: an iterative
+//! learning loop on the servo-driven trainer itself (its contacts, passive ankles and
+//! harness), which measures where the stance contact runs ahead or behind and changes the
+//! hip's rate there by that speed over the lever `dx/d(hip)`, then runs the belt at the
+//! stance's mean speed. The knee keeps the data's curve; the swing phase is unchanged but
+//! for what the harmonics spread into it.
+use crate::config::LoadedScenario;
+use crate::demand::{stride_demand, Demand};
+use crate::error::{invalid, LegError};
+use crate::exoskeleton::Mount;
+use crate::gait::{FourierSeries, GaitReference};
+use crate::sim::build_exo;
+
+/// How a fit runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GaitFitSettings {
+    /// Servo-driven runs (each the start-up ramp, one stride and `strides` measured).
+    pub iterations: usize,
+    /// Share of each measured speed error corrected per iteration (0-1].
+    pub gain: f64,
+    /// Strides measured per run.
+    pub strides: usize,
+}
+
+impl Default for GaitFitSettings {
+    fn default() -> Self {
+        Self {
+            iterations: 15,
+            gain: 0.8,
+            strides: 3,
+        }
+    }
+}
+
+impl GaitFitSettings {
+    /// Range checks, naming the field.
+    pub fn validate(&self) -> Result<(), LegError> {
+        if !(1..=100).contains(&self.iterations) {
+            return Err(invalid(
+                "iterations",
+                self.iterations as f64,
+                "must be 1..=100",
+            ));
+        }
+        if !(self.gain > 0.0 && self.gain <= 1.0) {
+            return Err(invalid("gain", self.gain, "must be in (0, 1]"));
+        }
+        if !(1..=50).contains(&self.strides) {
+            return Err(invalid("strides", self.strides as f64, "must be 1..=50"));
+        }
+        Ok(())
+    }
+}
+
+/// One servo-driven run of a fit.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct GaitFitStep {
+    /// 0 for the data's hip as measured.
+    pub iteration: usize,
+    /// The belt's speed in this run (m/s).
+    pub belt_speed_m_s: f64,
+    /// RMS over the stance of the contact's speed relative to the hip plus the belt's
+    /// (m/s): zero when every stance foot moves with the belt.
+    pub contact_speed_error_rms_m_s: f64,
+    /// Largest |joint torque| of the servos per kilogram of body mass, hip and knee
+    /// (N m/kg; the 10 ms averaged demand `size` takes).
+    pub peak_demand_nm_kg: [f64; 2],
+    /// The feet's slip per stride, the mean over strides of the worst foot (m).
+    pub slip_per_stride_m: f64,
+    /// Largest vertical loading peak of a foot over the belt's mean load.
+    pub grf_peak_over_belt_load: f64,
+}
+
+/// A fitted hip correction and the belt speed it walks at.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GaitFit {
+    /// Added to the data's hip (deg over the cycle): `[gait.hip_correction]`.
+    pub hip_correction: FourierSeries,
+    /// The belt's speed with it (m/s): `[treadmill] speed_m_per_s`.
+    pub belt_speed_m_s: f64,
+    /// Every run, the data's first.
+    pub steps: Vec<GaitFitStep>,
+    /// Which run is the result: the least contact speed error.
+    pub best: usize,
+}
+
+/// Phase bins over a cycle in which the contact's speed is averaged.
+const BINS: usize = 200;
+/// Step of the hip angle for the lever `dx/d(hip)` (rad).
+const LEVER_STEP_RAD: f64 = 1e-6;
+
+/// The hip correction that makes `loaded`'s treadmill stance move with its belt, from the
+/// data's hip as measured (a correction the scenario already has is ignored; the belt runs
+/// at the reference's speed in the first run). `should_stop` is polled between runs: a
+/// stop returns the best so far.
+pub fn fit_gait(
+    loaded: &LoadedScenario,
+    settings: &GaitFitSettings,
+    should_stop: impl Fn() -> bool,
+) -> Result<GaitFit, LegError> {
+    settings.validate()?;
+    let Some(treadmill) = &loaded.scenario.treadmill else {
+        return Err(LegError::Parse {
+            file: loaded.scenario.name.clone(),
+            message: "fitting a gait to a belt needs a treadmill scenario ([treadmill])".into(),
+        });
+    };
+    let body_mass_kg = treadmill.body_mass_kg;
+    let mut run = loaded.clone();
+    run.scenario.gait.hip_correction = None;
+    let data = run.scenario.gait.reference()?;
+    let lever = HipLever::new(&run)?;
+    let mut correction = FourierSeries::project(&[0.0; BINS]).ok_or_else(too_few_bins)?;
+    let mut steps = Vec::with_capacity(settings.iterations + 1);
+    let mut best: Option<(usize, FourierSeries, f64)> = None;
+    for iteration in 0..=settings.iterations {
+        let demand = stride_demand(&run, settings.strides)?;
+        let speeds = StanceSpeeds::of(&demand, data.toe_off_phase());
+        let belt = demand
+            .treadmill
+            .as_ref()
+            .map_or(f64::NAN, |t| t.belt_speed_m_s);
+        let step = step_figures(iteration, &demand, &speeds, belt, body_mass_kg);
+        if best
+            .as_ref()
+            .is_none_or(|(b, _, _)| step.contact_speed_error_rms_m_s < steps_error(&steps, *b))
+        {
+            best = Some((iteration, correction, belt));
+        }
+        steps.push(step);
+        if iteration == settings.iterations || should_stop() {
+            break;
+        }
+        let reference = data.with_hip_correction(&correction);
+        let change = speeds.hip_change_deg(&reference, &lever, settings.gain)?;
+        correction = correction.plus(&change);
+        run.scenario.gait.hip_correction = Some(correction);
+        if let Some(t) = &mut run.scenario.treadmill {
+            t.speed_m_per_s = Some(-speeds.mean_stance_m_s);
+        }
+    }
+    let (best, hip_correction, belt_speed_m_s) = best.ok_or_else(too_few_bins)?;
+    Ok(GaitFit {
+        hip_correction,
+        belt_speed_m_s,
+        steps,
+        best,
+    })
+}
+
+fn steps_error(steps: &[GaitFitStep], i: usize) -> f64 {
+    steps
+        .get(i)
+        .map_or(f64::INFINITY, |s| s.contact_speed_error_rms_m_s)
+}
+
+fn too_few_bins() -> LegError {
+    invalid("bins", BINS as f64, "too few for the harmonics")
+}
+
+/// A run's figures.
+fn step_figures(
+    iteration: usize,
+    demand: &Demand,
+    speeds: &StanceSpeeds,
+    belt_speed_m_s: f64,
+    body_mass_kg: f64,
+) -> GaitFitStep {
+    let peak = |j: usize| {
+        let [lo, hi] = demand.torque_range_nm(j);
+        lo.abs().max(hi.abs()) / body_mass_kg
+    };
+    let (slip, grf) = demand.treadmill.as_ref().map_or((f64::NAN, f64::NAN), |t| {
+        let slip = t
+            .feet
+            .values()
+            .map(|f| f.slip_per_stride_m.mean)
+            .fold(0.0, f64::max);
+        let grf = t
+            .feet
+            .values()
+            .map(|f| f.peak_grf_bw.max)
+            .fold(0.0, f64::max)
+            / t.expected_belt_load_bw;
+        (slip, grf)
+    });
+    GaitFitStep {
+        iteration,
+        belt_speed_m_s,
+        contact_speed_error_rms_m_s: speeds.error_rms(belt_speed_m_s),
+        peak_demand_nm_kg: [peak(0), peak(1)],
+        slip_per_stride_m: slip,
+        grf_peak_over_belt_load: grf,
+    }
+}
+
+/// The stance contact's speed relative to the hip over the cycle, averaged over strides
+/// and legs in phase bins.
+struct StanceSpeeds {
+    /// Mean speed per bin (m/s; NaN where no stance foot was measured).
+    per_bin_m_s: Vec<f64>,
+    /// Whether a bin lies in the reference's stance and was measured.
+    stance: Vec<bool>,
+    /// Their mean over the stance bins (m/s, negative: backwards).
+    mean_stance_m_s: f64,
+}
+
+impl StanceSpeeds {
+    fn of(demand: &Demand, toe_off: f64) -> Self {
+        let mut sum = vec![0.0; BINS];
+        let mut count = vec![0usize; BINS];
+        for s in demand
+            .samples
+            .iter()
+            .filter(|s| s.contact_speed_m_s.is_finite())
+        {
+            let bin = ((s.phase * BINS as f64) as usize).min(BINS - 1);
+            sum[bin] += s.contact_speed_m_s;
+            count[bin] += 1;
+        }
+        let per_bin_m_s: Vec<f64> = sum
+            .iter()
+            .zip(&count)
+            .map(|(s, &c)| if c > 0 { s / c as f64 } else { f64::NAN })
+            .collect();
+        let stance: Vec<bool> = per_bin_m_s
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v.is_finite() && (k as f64 + 0.5) / (BINS as f64) < toe_off)
+            .collect();
+        let (total, n) = per_bin_m_s
+            .iter()
+            .zip(&stance)
+            .filter(|(_, &st)| st)
+            .fold((0.0, 0usize), |(t, n), (v, _)| (t + v, n + 1));
+        Self {
+            per_bin_m_s,
+            stance,
+            mean_stance_m_s: if n > 0 { total / n as f64 } else { f64::NAN },
+        }
+    }
+
+    /// RMS of the contact's speed plus the belt's over the stance (m/s).
+    fn error_rms(&self, belt_speed_m_s: f64) -> f64 {
+        let (sq, n) = self
+            .per_bin_m_s
+            .iter()
+            .zip(&self.stance)
+            .filter(|(_, &st)| st)
+            .fold((0.0, 0usize), |(sq, n), (v, _)| {
+                (sq + (v + belt_speed_m_s).powi(2), n + 1)
+            });
+        if n > 0 {
+            (sq / n as f64).sqrt()
+        } else {
+            f64::NAN
+        }
+    }
+
+    /// The change of the hip (deg over the cycle, as a series) that takes out `gain` of
+    /// each stance bin's deviation from the stance's mean speed: the hip's rate changed by
+    /// the deviation over the lever, integrated over the stance, the drift it leaves at
+    /// toe-off taken out linearly so that the swing keeps its curve.
+    fn hip_change_deg(
+        &self,
+        reference: &GaitReference,
+        lever: &HipLever,
+        gain: f64,
+    ) -> Result<FourierSeries, LegError> {
+        let period = reference.stride_period_s();
+        let dt = period / BINS as f64;
+        let mut change = vec![0.0; BINS];
+        let mut angle = 0.0;
+        let mut last_stance = 0;
+        let bins = self.stance.iter().zip(&self.per_bin_m_s).zip(change.iter_mut());
+        for (k, ((&stance, speed), c)) in bins.enumerate() {
+            if !stance {
+                continue;
+            }
+            let phase = (k as f64 + 0.5) / BINS as f64;
+            let dx_dhip = lever.at(reference, phase);
+            angle -= gain * (speed - self.mean_stance_m_s) / dx_dhip * dt;
+            *c = angle;
+            last_stance = k;
+        }
+        let drift = change[last_stance];
+        for (k, c) in change.iter_mut().enumerate().take(last_stance + 1) {
+            *c = (*c - drift * k as f64 / last_stance.max(1) as f64).to_degrees();
+        }
+        for c in change.iter_mut().skip(last_stance + 1) {
+            *c = 0.0;
+        }
+        FourierSeries::project(&change).ok_or_else(too_few_bins)
+    }
+}
+
+/// How far a stance foot moves fore-aft per radian of hip flexion (m/rad), from the
+/// trainer's sagittal chain.
+struct HipLever {
+    chain: crate::ground::SagittalChain,
+}
+
+impl HipLever {
+    fn new(loaded: &LoadedScenario) -> Result<Self, LegError> {
+        let exo = build_exo(loaded, Mount::default())?;
+        let chain = exo
+            .ground()
+            .map(|g| g.chain().clone())
+            .ok_or_else(|| LegError::Parse {
+                file: loaded.scenario.name.clone(),
+                message: "fitting a gait to a belt needs a treadmill scenario ([treadmill])".into(),
+            })?;
+        if chain.spheres.is_empty() {
+            return Err(LegError::Parse {
+                file: loaded.urdf_source.clone(),
+                message: "the foot has no contact spheres".into(),
+            });
+        }
+        Ok(Self { chain })
+    }
+
+    /// `dx/d(hip)` of the foot's first sphere at `phase` of `reference` (m/rad; the
+    /// spheres of a rigid foot move alike).
+    fn at(&self, reference: &GaitReference, phase: f64) -> f64 {
+        let period = reference.stride_period_s();
+        let t = ((reference.ramp_s() / period).ceil() + 1.0 + phase) * period;
+        let q = reference.sample(t).angles_rad();
+        let x = |dh: f64| self.chain.sphere_centre(0, [q[0] + dh, q[1], q[2]])[0];
+        (x(LEVER_STEP_RAD) - x(-LEVER_STEP_RAD)) / (2.0 * LEVER_STEP_RAD)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_settings_name_their_field() {
+        let bad = [
+            (
+                GaitFitSettings {
+                    iterations: 0,
+                    ..Default::default()
+                },
+                "iterations",
+            ),
+            (
+                GaitFitSettings {
+                    gain: f64::NAN,
+                    ..Default::default()
+                },
+                "gain",
+            ),
+            (
+                GaitFitSettings {
+                    strides: 0,
+                    ..Default::default()
+                },
+                "strides",
+            ),
+        ];
+        for (s, field) in bad {
+            let e = s.validate().expect_err("refused").to_string();
+            assert!(e.contains(field), "{e}");
+        }
+    }
+
+    #[test]
+    fn an_in_air_scenario_cannot_be_fitted_to_a_belt() {
+        let loaded = crate::Scenario::load("gait_training").expect("embedded");
+        let e = fit_gait(&loaded, &GaitFitSettings::default(), || false)
+            .expect_err("no treadmill")
+            .to_string();
+        assert!(e.contains("treadmill"), "{e}");
+    }
+}
