@@ -5,6 +5,9 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use std::sync::atomic::{AtomicBool, Ordering};
 
+/// Rows reserved before a run: 100 s of the bench or the leg at 1 kHz.
+const RESERVED_ROWS_MAX: u64 = 100_000;
+
 /// A run's channels, column by column: `t_s`, then a sample schema's columns (the CLI's
 /// CSV columns, in its order).
 pub struct Columns<F> {
@@ -16,11 +19,12 @@ pub struct Columns<F> {
 
 impl<F> Columns<F> {
     /// Columns named by `schema`, `sample` making each period's sample; room for
-    /// `periods` rows.
+    /// `periods` rows (at most [`RESERVED_ROWS_MAX`] reserved ahead: a run that is
+    /// interrupted early does not hold the memory of the whole run).
     pub fn new(schema: &pma_loop::Schema, sample: F, periods: u64) -> Self {
         let mut names = vec!["t_s".to_owned()];
         names.extend(schema.columns());
-        let n = usize::try_from(periods).unwrap_or(0);
+        let n = usize::try_from(periods.min(RESERVED_ROWS_MAX)).unwrap_or(0);
         Self {
             columns: names.iter().map(|_| Vec::with_capacity(n)).collect(),
             row: vec![0.0; names.len()],
@@ -79,11 +83,12 @@ impl<'a, 'py> SignalCheck<'a, 'py> {
         }
     }
 
-    /// The handler's exception if one was raised, else `ok`.
+    /// The handler's exception if one was raised during the run or is pending now (a
+    /// signal after the last look), else `ok`.
     pub fn or<T>(self, ok: T) -> PyResult<T> {
         match self.raised {
             Some(e) => Err(e),
-            None => Ok(ok),
+            None => self.py.check_signals().map(|()| ok),
         }
     }
 }

@@ -18,6 +18,9 @@ pub use errors::{PmaError, SupervisorError};
 #[pymodule]
 fn pma_exo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
+    // NumPy's C API is looked up now, at import: looked up at a run's end, a pending
+    // Ctrl-C would interrupt its import.
+    numpy::PyArray1::<f64>::zeros(py, [0], false);
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("PmaError", py.get_type::<PmaError>())?;
     m.add("SupervisorError", py.get_type::<SupervisorError>())?;
