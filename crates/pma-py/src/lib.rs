@@ -10,6 +10,7 @@ use pyo3::prelude::*;
 mod bench;
 mod convert;
 mod errors;
+mod leg;
 mod runs;
 
 pub use errors::{PmaError, SupervisorError};
@@ -28,6 +29,7 @@ fn pma_exo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(runs::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(runs::pendulum, m)?)?;
     m.add_class::<bench::Bench>()?;
+    m.add_class::<leg::Leg>()?;
     m.add(
         "CONTROLLERS",
         pma_control::ControllerKind::ALL

@@ -10,6 +10,7 @@ __all__ = [
     "simulate",
     "pendulum",
     "Bench",
+    "Leg",
     "PmaError",
     "SupervisorError",
     "CONTROLLERS",

@@ -107,3 +107,52 @@ class Bench:
     @property
     def limits(self) -> Dict[str, float]:
         """The supervisor's limits (``pressure_max_pa``, ``position_min_m``, ...)."""
+
+class Leg:
+    """The exoskeleton leg of a scenario (or the treadmill trainer), stepped from Python.
+
+    Each period: ``q = leg.read()`` (rad, shape ``(legs, 2)``: hip, knee),
+    ``leg.write(p)`` (Pa, shape ``(legs, 4)`` in the order of ``leg.muscles``; ``(4,)``
+    for one leg), ``leg.step()``. The supervisor of ``pma-exo simulate`` rate-limits the
+    commands; an encoder past its joint's window vents and raises ``SupervisorError``.
+    """
+
+    def __init__(self, scenario: _Path = "gait_training") -> None:
+        """The leg of ``scenario`` (an embedded name or a .toml file), at rest."""
+    def reset(self) -> npt.NDArray[np.float64]:
+        """Back at rest, the clock at 0, a fault cleared; the first reading."""
+    def read(self) -> npt.NDArray[np.float64]:
+        """The encoders' last reading (rad), shape ``(legs, 2)``."""
+    def write(self, pressures: Union[npt.NDArray[np.float64], List[float]]) -> npt.NDArray[np.float64]:
+        """Pressure commands (Pa gauge) for the next period; returns them as applied.
+
+        Raises ``TypeError`` for a non-float64 array, ``PmaError`` for a wrong shape or a
+        NaN, infinite or out-of-range pressure.
+        """
+    def step(self) -> npt.NDArray[np.float64]:
+        """One period passes with the commands held; returns the new reading."""
+    def reference(self, t: Optional[float] = None) -> npt.NDArray[np.float64]:
+        """The gait reference (rad) at ``t`` (default: now), shape ``(legs, 2)``."""
+    def state(self) -> Dict[str, npt.NDArray[np.float64]]:
+        """The true state: ``angle_rad``, ``velocity_rad_s``, ``pressure_pa``, ``force_n``."""
+    @property
+    def time(self) -> float:
+        """Time of the last reading (s)."""
+    @property
+    def period(self) -> float:
+        """The control period (s)."""
+    @property
+    def legs(self) -> int:
+        """Number of legs (1, or 2 on a two-legged trainer)."""
+    @property
+    def muscles(self) -> List[str]:
+        """A leg's muscles, in the order of ``write``'s columns."""
+    @property
+    def command(self) -> npt.NDArray[np.float64]:
+        """The last commands as applied (Pa), shape ``(legs, 4)``."""
+    @property
+    def limits(self) -> Dict[str, Any]:
+        """``pressure_max_pa``, ``pressure_rate_max_pa_per_s``, ``windows`` (rad)."""
+    @property
+    def scenario(self) -> str:
+        """The scenario's name."""
