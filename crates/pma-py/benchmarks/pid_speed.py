@@ -1,7 +1,8 @@
 """How fast a controller written in Python drives the Rust plant: periods per second of a
 PID in Python on `Bench` and a PD in Python on `Leg`, against the same runs with the
-controller in Rust, and the bare cost of one period from Python (write + step with a held
-command). Not a test: figures for docs/python.md.
+controller in Rust, and the cost of one period from Python: the Rust run's own commands
+replayed through `write` + `step`, the same physics as the Rust loop's. Not a test:
+figures for docs/python.md.
 
     python crates/pma-py/benchmarks/pid_speed.py [--repeat 5]
 """
@@ -14,7 +15,8 @@ import numpy as np
 
 import pma_exo
 
-W = 2 * math.pi * 0.25  # the paper's sine: 0..30 mm at 0.25 Hz
+W = 2 * math.pi * 0.25  # the paper's sine: 15 + 15 sin(W t) mm
+X0 = 0.015  # where the paper's sine starts, as `single` puts the load
 
 
 class Pid:
@@ -35,26 +37,29 @@ class Pid:
 
 
 def python_pid_on_bench(periods):
-    bench = pma_exo.Bench("ideal")
+    bench = pma_exo.Bench("ideal", position=X0)
     x = bench.reset()
     pid, p_max, dt = Pid(bench.command, x, bench.period), bench.limits["pressure_max_pa"], bench.period
     start = time.perf_counter()
     for k in range(1, periods + 1):
         t = k * dt
-        u = pid(0.015 - 0.015 * math.cos(W * t), 0.015 * W * math.sin(W * t), x)
+        u = pid(X0 + 0.015 * math.sin(W * t), 0.015 * W * math.cos(W * t), x)
         bench.write(min(max(u, 0.0), p_max))
         x = bench.step()
     return periods / (time.perf_counter() - start)
 
 
-def bare_bench(periods):
-    bench = pma_exo.Bench("ideal")
-    u = bench.command
+def replay_on_bench(duration):
+    """`single`'s PID commands through write + step (which reproduces its positions
+    exactly: tests/test_bench.py)."""
+    commands = pma_exo.single(plant="ideal", controller="pid", duration=duration)["pressure_cmd_pa"].tolist()
+    bench = pma_exo.Bench("ideal", position=X0)
     start = time.perf_counter()
-    for _ in range(periods):
+    bench.step()
+    for u in commands[:-1]:
         bench.write(u)
         bench.step()
-    return periods / (time.perf_counter() - start)
+    return len(commands) / (time.perf_counter() - start)
 
 
 def rust_single(duration):
@@ -81,14 +86,17 @@ def python_pd_on_leg(periods, kp=1e7, kd=1e5):
     return periods / (time.perf_counter() - start)
 
 
-def bare_leg(periods):
+def replay_on_leg(duration):
+    """`simulate`'s PID commands through write + step."""
+    run = pma_exo.simulate("gait_training", controller="pid", duration=duration)
     leg = pma_exo.Leg("gait_training")
-    u = leg.command
+    commands = np.stack([run[f"{m}_pressure_cmd_pa"] for m in leg.muscles], axis=1)
     start = time.perf_counter()
-    for _ in range(periods):
+    leg.step()
+    for u in commands[:-1]:
         leg.write(u)
         leg.step()
-    return periods / (time.perf_counter() - start)
+    return len(commands) / (time.perf_counter() - start)
 
 
 def rust_simulate(duration):
@@ -112,20 +120,20 @@ def main():
     a = parser.parse_args()
     rows = []
     py_bench = best(lambda: python_pid_on_bench(20_000), a.repeat)
-    bare_b = best(lambda: bare_bench(20_000), a.repeat)
+    bare_b = best(lambda: replay_on_bench(20.0), a.repeat)
     rust_b, rust_b_loop = best(lambda: rust_single(20.0), a.repeat)
     rows += [
         ("bench: PID in Python on Bench (20 s of the sine)", py_bench),
-        ("bench: write + step from Python, held command", bare_b),
+        ("bench: write + step from Python (the Rust PID's commands replayed)", bare_b),
         ("bench: PID in Rust, pma_exo.single (call, arrays included)", rust_b),
         ("bench: PID in Rust, the loop alone (real_time_factor)", rust_b_loop),
     ]
     py_leg = best(lambda: python_pd_on_leg(4_000), a.repeat)
-    bare_l = best(lambda: bare_leg(4_000), a.repeat)
+    bare_l = best(lambda: replay_on_leg(4.0), a.repeat)
     rust_l, rust_l_loop = best(lambda: rust_simulate(4.0), a.repeat)
     rows += [
         ("leg: PD in Python on Leg (4 s of gait_training)", py_leg),
-        ("leg: write + step from Python, held command", bare_l),
+        ("leg: write + step from Python (the Rust PID's commands replayed)", bare_l),
         ("leg: PID in Rust, pma_exo.simulate (call, arrays included)", rust_l),
         ("leg: PID in Rust, the loop alone (real_time_factor)", rust_l_loop),
     ]

@@ -41,6 +41,20 @@ def test_a_python_pid_tracks_the_paper_sine():
     assert max(errors[4000:]) < 1e-3
 
 
+@pytest.mark.parametrize("controller", ["aprc-ndo", "pid"])
+def test_replaying_single_s_commands_reproduces_its_run(controller):
+    """Bench is single's bench: the commands of a `single` run, written period by period,
+    give its positions bit for bit (the paper's sine starts at 15 mm)."""
+    run = pma_exo.single(plant="ideal", controller=controller, duration=5.0)
+    bench = pma_exo.Bench("ideal", position=0.015)
+    positions = [bench.step()]
+    for command in run["pressure_cmd_pa"][:-1]:
+        assert bench.write(command) == command
+        positions.append(bench.step())
+    np.testing.assert_array_equal(positions, run["position_m"])
+    np.testing.assert_array_equal(positions, run["measured_m"])
+
+
 def test_commands_are_checked_and_rate_limited():
     bench = pma_exo.Bench()
     limits = bench.limits
