@@ -439,6 +439,7 @@ pub mod viz {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use pma_control::ControllerKind;
 
     /// Regression: `simulate`'s Rerun metadata printed the gains in Rust's debug form
     /// (`AprcNdo(AprcGains { .. })`); it is now the gain file's TOML.
