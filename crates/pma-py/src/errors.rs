@@ -41,3 +41,12 @@ pub fn to_py(e: anyhow::Error) -> PyErr {
 pub fn py_err<E: Into<anyhow::Error>>(e: E) -> PyErr {
     to_py(e.into())
 }
+
+/// A leg run's error: `SupervisorError` when the supervisor stopped it, else `PmaError`;
+/// the CLI's line either way.
+pub fn leg_err(e: pma_leg::LegError) -> PyErr {
+    match e {
+        pma_leg::LegError::Supervisor(message) => SupervisorError::new_err(message),
+        other => py_err(other),
+    }
+}

@@ -1,7 +1,7 @@
 //! The CLI's runs from Python: `single`, `simulate`, `pendulum`, each assembled by
 //! `pma_exo::setup` exactly as the CLI assembles it.
 use crate::convert::{json_to_py, Columns, SignalCheck};
-use crate::errors::{py_err, to_py};
+use crate::errors::{leg_err, py_err, to_py};
 use pma_bench::{run_single_until, Sample};
 use pma_control::ControllerKind;
 use pma_exo::setup::{
@@ -137,7 +137,7 @@ pub fn simulate<'py>(
     let report = sim.run_with(&settings, &mut recorders);
     let (columns, signals) = recorders;
     signals.or(())?;
-    let report = report.map_err(py_err)?;
+    let report = report.map_err(leg_err)?;
     if !report.finite {
         return Err(crate::PmaError::new_err(format!(
             "the simulation (scenario {}) went non-finite",
@@ -190,7 +190,7 @@ pub fn pendulum<'py>(
     let report = pma_studies::pendulum::run(sim, run.setup, &settings, &mut recorders);
     let (columns, signals) = recorders;
     signals.or(())?;
-    let report = report.map_err(py_err)?;
+    let report = report.map_err(leg_err)?;
     if !report.finite {
         return Err(crate::PmaError::new_err(format!(
             "the pendulum test (scenario {}) went non-finite",
