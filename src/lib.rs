@@ -1,6 +1,8 @@
 //! Library part of the `pma-exo` package: the glue between the simulations and the Rerun
-//! layer, and the gait-cycle binning of `simulate --plot`, shared by the binary and the
-//! integration tests.
+//! layer, the gait-cycle binning of `simulate --plot`, and the assembly of the `single`,
+//! `simulate` and `pendulum` runs, shared by the binary, the integration tests and the
+//! Python bindings (`crates/pma-py`).
+pub mod setup;
 pub mod strides;
 #[cfg(feature = "rerun")]
 pub mod viz;

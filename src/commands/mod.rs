@@ -1,7 +1,10 @@
 //! One module per command; what they share is here.
 use anyhow::{bail, Context, Result};
-use pma_control::{ChirpReference, ControllerConfig, ControllerKind, Reference, SineReference};
+use pma_control::ControllerConfig;
 use std::path::{Path, PathBuf};
+
+// The run assembly `single`, `simulate` and `pendulum` share with the Python bindings.
+pub use pma_exo::setup::{check_duration, kind_of_gains, load_gains, RefName};
 
 pub mod compare_leg;
 pub mod fit_gait;
@@ -13,25 +16,6 @@ pub mod single;
 pub mod size;
 pub mod sweep;
 pub mod tune;
-
-/// The reference trajectories of the bench.
-#[derive(Clone, Copy, clap::ValueEnum)]
-pub enum RefName {
-    /// A = 15 mm, f = 0.25 Hz, B = 15 mm.
-    Sine,
-    /// 0.1 -> 0.5 Hz linearly in 20 s, A = B = 15 mm.
-    Chirp,
-}
-
-impl RefName {
-    /// Name and trajectory.
-    pub fn build(self) -> (&'static str, Box<dyn Reference>) {
-        match self {
-            RefName::Sine => ("sine", Box::new(SineReference::paper())),
-            RefName::Chirp => ("chirp", Box::new(ChirpReference::paper())),
-        }
-    }
-}
 
 /// Where a control loop's run goes besides its summary: the time series to CSV, the
 /// figures as JSON, the state to Rerun (`simulate`, `pendulum`, `single`).
@@ -125,49 +109,6 @@ impl RerunArgs {
         }
         Ok(on)
     }
-}
-
-/// The gains of `kind`: its defaults, or a gain file (an APRC-NDO file may drive APRC, the
-/// ablation, and the other way round).
-/// The controller of a gain file, or `default` without one: for `--gains` given without
-/// `--controller`, the file says which controller it is.
-pub fn kind_of_gains(path: Option<&Path>, default: ControllerKind) -> Result<ControllerKind> {
-    let Some(path) = path else {
-        return Ok(default);
-    };
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read gain file `{}`", path.display()))?;
-    Ok(ControllerConfig::from_toml_str(&text)
-        .with_context(|| format!("gain file `{}`", path.display()))?
-        .kind())
-}
-
-pub fn load_gains(kind: ControllerKind, path: Option<&Path>) -> Result<ControllerConfig> {
-    let Some(path) = path else {
-        return Ok(kind.default_config());
-    };
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read gain file `{}`", path.display()))?;
-    let cfg = ControllerConfig::from_toml_str(&text)
-        .with_context(|| format!("gain file `{}`", path.display()))?;
-    let compatible = cfg.kind() == kind
-        || matches!(
-            (cfg.kind(), kind),
-            (ControllerKind::AprcNdo, ControllerKind::Aprc)
-                | (ControllerKind::Aprc, ControllerKind::AprcNdo)
-        );
-    if !compatible {
-        return Err(pma_control::ConfigError::WrongController {
-            requested: kind,
-            found: cfg.kind(),
-        })
-        .with_context(|| format!("gain file `{}`", path.display()));
-    }
-    Ok(match (cfg, kind) {
-        (ControllerConfig::AprcNdo(g), ControllerKind::Aprc) => ControllerConfig::Aprc(g),
-        (ControllerConfig::Aprc(g), ControllerKind::AprcNdo) => ControllerConfig::AprcNdo(g),
-        (c, _) => c,
-    })
 }
 
 /// A Rerun recording's description of the gains: the gain file's TOML, as `--gains` reads
@@ -264,14 +205,6 @@ pub fn with_threads<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Sen
             .context("cannot start the worker threads")?
             .install(f)),
     }
-}
-
-/// Rejects a duration that is not a finite number of seconds > 0.
-pub fn check_duration(duration: f64) -> Result<()> {
-    if !(duration.is_finite() && duration > 0.0) {
-        bail!("--duration must be a finite number of seconds > 0 (got {duration})");
-    }
-    Ok(())
 }
 
 /// Asks `question` on the terminal; `Ok(true)` only for the answer `yes`.
@@ -507,6 +440,7 @@ pub mod viz {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use pma_control::ControllerKind;
 
     /// Regression: `simulate`'s Rerun metadata printed the gains in Rust's debug form
     /// (`AprcNdo(AprcGains { .. })`); it is now the gain file's TOML.

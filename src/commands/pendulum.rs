@@ -4,44 +4,10 @@ use crate::output;
 use crate::provenance::{Provenance, Seeds};
 use crate::say;
 use anyhow::Result;
-use pma_leg::patient::{SpasticityPreset, SpasticitySettings};
-use pma_leg::Scenario;
-use pma_loop::{LoopSettings, Period};
-use pma_studies::pendulum::{self, PendulumReport, PendulumSample, PendulumSetup};
+use pma_exo::setup::{PendulumArgs, PendulumRun, Spasticity};
+use pma_loop::Period;
+use pma_studies::pendulum::{self, PendulumReport, PendulumSample};
 use std::path::PathBuf;
-
-/// A spasticity preset on the command line.
-#[derive(Clone, Copy, clap::ValueEnum)]
-pub enum Spasticity {
-    /// No stretch reflex.
-    None,
-    /// Extensor reflex gain 1.5 N m s/rad above 2.6 rad/s (flexor half), 60 ms delay.
-    Mild,
-    /// Gain 3.5 N m s/rad above 1.2 rad/s.
-    Moderate,
-    /// Gain 7.0 N m s/rad above 0.5 rad/s.
-    Severe,
-}
-
-impl Spasticity {
-    fn name(self) -> &'static str {
-        match self {
-            Spasticity::None => "none",
-            Spasticity::Mild => "mild",
-            Spasticity::Moderate => "moderate",
-            Spasticity::Severe => "severe",
-        }
-    }
-
-    fn preset(self) -> SpasticityPreset {
-        match self {
-            Spasticity::None => SpasticityPreset::None,
-            Spasticity::Mild => SpasticityPreset::Mild,
-            Spasticity::Moderate => SpasticityPreset::Moderate,
-            Spasticity::Severe => SpasticityPreset::Severe,
-        }
-    }
-}
 
 /// `pendulum`'s arguments.
 #[derive(clap::Args)]
@@ -71,48 +37,32 @@ pub struct Args {
 
 /// Runs `pendulum`.
 pub fn run(a: Args) -> Result<i32> {
-    super::check_duration(a.duration)?;
-    for (flag, deg) in [("--knee-deg", a.knee_deg), ("--hip-deg", a.hip_deg)] {
-        if !deg.is_finite() {
-            anyhow::bail!("{flag} must be a finite angle in degrees (got {deg})");
-        }
-    }
-    let mut loaded = Scenario::load(&a.scenario)?;
-    if let Some(s) = a.spasticity {
-        let preset = SpasticitySettings {
-            preset: Some(s.preset()),
-            ..SpasticitySettings::default()
-        };
-        loaded.scenario.patient.hip.spasticity = Some(preset);
-        loaded.scenario.patient.knee.spasticity = Some(preset);
-    }
-    let setup = PendulumSetup {
-        hip_rad: a.hip_deg.to_radians(),
-        knee_rad: a.knee_deg.to_radians(),
-    };
+    let run = PendulumRun::load(&PendulumArgs {
+        scenario: &a.scenario,
+        knee_deg: a.knee_deg,
+        hip_deg: a.hip_deg,
+        duration_s: a.duration,
+        spasticity: a.spasticity,
+    })?;
+    let (loaded, setup) = (&run.loaded, run.setup);
     let plot_file = a.plot.as_ref().map(|dir| dir.join("pendulum.png"));
     let mut outputs = a.output.files();
     if let Some(png) = &plot_file {
         outputs.push(("--plot", png));
     }
-    output::refuse_input_as_output(
-        &super::scenario_inputs(&a.scenario, &loaded, None),
-        &outputs,
-    )?;
+    output::refuse_input_as_output(&super::scenario_inputs(&a.scenario, loaded, None), &outputs)?;
     let provenance = Provenance {
         scenario: Some(crate::provenance::named(&a.scenario, &loaded.scenario.name)),
         controller: Some("none (muscles vented and unhooked)".into()),
         patient: Some(match a.spasticity {
             Some(s) => format!("spasticity {} at hip and knee", s.name()),
-            None => super::simulate::patient_name(&loaded),
+            None => super::simulate::patient_name(loaded),
         }),
         seeds: Seeds::of_scenario(&loaded.scenario),
         ..Provenance::of_this_run()
     };
-    let sim = pendulum::seated(&loaded, setup)?;
-    let settings = LoopSettings::new(a.duration)?;
-    settings.periods(loaded.scenario.period_s)?;
-    let damping = loaded.scenario.joints.knee.damping_nm_s_per_rad;
+    let (sim, settings) = run.seated()?;
+    let damping = run.knee_damping_nm_s_per_rad();
     let csv = a
         .output
         .csv

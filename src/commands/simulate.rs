@@ -4,9 +4,11 @@ use crate::output::{self, INTERRUPTED};
 use crate::provenance::{Provenance, Seeds};
 use crate::say;
 use anyhow::Result;
-use pma_control::{ControllerConfig, ControllerKind};
+use pma_control::ControllerKind;
+pub use pma_exo::setup::patient_name;
+use pma_exo::setup::{gain_source, LegArgs, LegRun};
 use pma_exo::strides::GaitCycles;
-use pma_leg::{LegReport, LegSim, Scenario, TrainerSample};
+use pma_leg::{LegReport, Scenario, TrainerSample};
 use std::path::PathBuf;
 
 /// Estimated wall time of one leg period (release build, with margin).
@@ -59,12 +61,20 @@ impl Default for Args {
 
 /// Runs `simulate`.
 pub fn run(a: Args) -> Result<i32> {
-    let loaded = Scenario::load(&a.scenario)?;
+    let LegRun {
+        loaded,
+        duration_s: _,
+        config,
+        mut sim,
+        settings,
+        periods,
+    } = LegRun::assemble(&LegArgs {
+        scenario: &a.scenario,
+        controller: a.controller,
+        gains: a.gains.as_deref(),
+        duration_s: a.duration,
+    })?;
     let sc = &loaded.scenario;
-    let duration = a.duration.unwrap_or(sc.duration_s);
-    super::check_duration(duration)?;
-    sc.check_run_duration(duration)?;
-    let config = leg_config(a.controller, a.gains.as_deref(), &loaded)?;
     let provenance = Provenance {
         scenario: Some(crate::provenance::named(&a.scenario, &sc.name)),
         controller: Some(config.kind().as_str().to_owned()),
@@ -73,9 +83,6 @@ pub fn run(a: Args) -> Result<i32> {
         seeds: Seeds::of_scenario(sc),
         ..Provenance::of_this_run()
     };
-    let mut sim = LegSim::with_controller(&loaded, &config)?;
-    let settings = sim.settings(duration)?;
-    let periods = settings.periods(sc.period_s)?;
     output::check_wall_time("this simulation", periods as f64, LEG_PERIOD_S, a.yes)?;
     let names: Vec<String> = sim
         .plant()
@@ -291,65 +298,6 @@ impl pma_loop::Recorder<pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutp
             g.pelvis_m.push(p.truth.pelvis_m.map_or(f64::NAN, |p| p[1]));
         }
     }
-}
-
-/// Where `leg_config`'s gains come from.
-pub fn gain_source(kind: Option<ControllerKind>, gains: Option<&std::path::Path>) -> String {
-    match (kind, gains) {
-        (None, _) => "scenario (APRC-NDO)".into(),
-        (Some(_), Some(path)) => path.display().to_string(),
-        (Some(ControllerKind::Aprc), None) => "scenario (APRC-NDO's, observer off)".into(),
-        (Some(_), None) => "shipped leg gains".into(),
-    }
-}
-
-/// The patient of a scenario, as a name: `passive`, or its parts.
-pub fn patient_name(loaded: &pma_leg::LoadedScenario) -> String {
-    let p = &loaded.scenario.patient;
-    let joint = |j: &pma_leg::patient::JointPatientSettings| {
-        let mut parts = Vec::new();
-        if let Some(s) = &j.spasticity {
-            parts.push(match s.preset {
-                Some(preset) => format!("spasticity {preset:?}").to_lowercase(),
-                None => "spasticity".into(),
-            });
-        }
-        if j.spasms.is_some() {
-            parts.push("spasms".into());
-        }
-        if j.effort.is_some() {
-            parts.push("effort".into());
-        }
-        if let Some(s) = &j.stiffness {
-            parts.push(match s.preset {
-                Some(preset) => format!("stiffness {preset:?}").to_lowercase(),
-                None => "stiffness".into(),
-            });
-        }
-        if parts.is_empty() {
-            "passive".into()
-        } else {
-            parts.join(" + ")
-        }
-    };
-    format!("hip {}, knee {}", joint(&p.hip), joint(&p.knee))
-}
-
-/// The controller of every muscle: a gain file, or the scenario's gains for the controller
-/// (its own APRC-NDO gains for APRC-NDO, the default, and APRC; its gain set's for the
-/// others: `pma_leg::gains::scenario_gains`). One name, one gain set.
-pub fn leg_config(
-    kind: Option<ControllerKind>,
-    gains: Option<&std::path::Path>,
-    loaded: &pma_leg::LoadedScenario,
-) -> Result<ControllerConfig> {
-    Ok(match (kind, gains) {
-        (k, Some(path)) => {
-            let k = super::kind_of_gains(Some(path), k.unwrap_or(ControllerKind::AprcNdo))?;
-            super::load_gains(k, Some(path))?
-        }
-        (k, None) => pma_leg::gains::scenario_gains(loaded, k.unwrap_or(ControllerKind::AprcNdo))?,
-    })
 }
 
 fn print_summary(r: &LegReport) -> Result<()> {

@@ -1,11 +1,12 @@
 //! `pma-exo single`: one controller on the single-muscle bench.
-use super::{check_duration, load_gains, viz, RefName, RunOutput, SampleCsv};
+use super::{viz, RefName, RunOutput, SampleCsv};
 use crate::output::{self, INTERRUPTED};
 use crate::provenance::{Provenance, Seeds};
 use crate::say;
-use anyhow::{bail, Result};
-use pma_bench::{run_single_until, PlantConfig, RunSpec, Sample};
+use anyhow::Result;
+use pma_bench::{run_single_until, Sample};
 use pma_control::ControllerKind;
+use pma_exo::setup::{SingleArgs, SingleRun};
 use std::path::PathBuf;
 
 /// Estimated wall time of one bench period (release build, with margin).
@@ -38,14 +39,14 @@ pub struct Args {
 
 /// Runs `single`.
 pub fn run(a: Args) -> Result<i32> {
-    check_duration(a.duration)?;
-    let plant = PlantConfig::load(&a.plant)?;
-    let kind = match a.controller {
-        Some(k) => k,
-        None => super::kind_of_gains(a.gains.as_deref(), ControllerKind::AprcNdo)?,
-    };
-    let config = load_gains(kind, a.gains.as_deref())?;
-    let (ref_name, reference) = a.reference.build();
+    let r = SingleRun::assemble(&SingleArgs {
+        plant: &a.plant,
+        controller: a.controller,
+        gains: a.gains.as_deref(),
+        reference: a.reference,
+        duration_s: a.duration,
+    })?;
+    let (plant, kind, spec) = (&r.plant, r.kind, &r.spec);
     let provenance = Provenance {
         plant: Some(crate::provenance::named(&a.plant, &plant.name)),
         controller: Some(kind.as_str().to_owned()),
@@ -61,11 +62,6 @@ pub fn run(a: Args) -> Result<i32> {
         },
         ..Provenance::of_this_run()
     };
-    let spec = RunSpec {
-        duration_s: a.duration,
-        ..RunSpec::default()
-    };
-    spec.validate()?;
     output::check_wall_time("this run", spec.periods()? as f64, BENCH_PERIOD_S, a.yes)?;
     let mut inputs = Vec::new();
     if let Some(p) = output::input_file(&a.plant) {
@@ -82,20 +78,21 @@ pub fn run(a: Args) -> Result<i32> {
         .map(|p| SampleCsv::create(p, &Sample::schema(), Sample::of, &provenance))
         .transpose()?;
     let meta = format!(
-        "# single muscle\n\n{}\n\ncontroller `{}`, reference `{ref_name}`, plant `{}`\n\n{}",
+        "# single muscle\n\n{}\n\ncontroller `{}`, reference `{}`, plant `{}`\n\n{}",
         provenance.line(),
         kind,
+        r.ref_name,
         plant.name,
-        super::gains_block(&config)
+        super::gains_block(&r.config)
     );
     let viz = viz::bench(&a.output.rerun, "pma-exo single", spec.period_s, &meta)?;
     let stop = output::stop_flag()?;
     let mut recorders = (csv, viz);
     let res = run_single_until(
-        &config,
-        &plant,
-        reference.as_ref(),
-        &spec,
+        &r.config,
+        plant,
+        r.reference.as_ref(),
+        spec,
         &stop,
         &mut recorders,
     )?;
@@ -105,41 +102,17 @@ pub fn run(a: Args) -> Result<i32> {
     }
     // The results are printed even if the viewer failed; its error comes after them.
     let viz_result = viz::finish(viz);
-    if !res.finite {
-        bail!(
-            "the run went non-finite (controller {}, plant {})",
-            kind,
-            plant.name
-        );
-    }
+    r.check_finite(&res)?;
     let s = res.stats;
-    let ran_s = if res.interrupted {
-        res.periods as f64 * spec.period_s
-    } else {
-        a.duration
-    };
+    let ran_s = r.ran_s(&res);
     if a.output.json {
-        let v = serde_json::json!({
-            "controller": kind.as_str(),
-            "reference": ref_name,
-            "plant": plant.name,
-            "duration_s": ran_s,
-            "mae_m": s.mae_m,
-            "iae_m": s.iae_m,
-            "rte_percent": s.rte_percent,
-            "rms_m": s.rms_m,
-            "x_a_m": res.x_a_m,
-            "command_variation_bar_per_s": res.command_variation_pa_per_s / 1e5,
-            "samples": s.samples,
-            "real_time_factor": res.real_time_factor,
-            "interrupted": res.interrupted,
-        });
-        say!("{}", provenance.attach(&v)?);
+        say!("{}", provenance.attach(&r.metrics(&res))?);
     } else {
         say!(
-            "{} on {} ({ref_name}, {} s): MAE {:.3e} m, IAE {:.3e} m, RTE {:.3} %, RMS {:.3e} m, {:.0}x real time",
+            "{} on {} ({}, {} s): MAE {:.3e} m, IAE {:.3e} m, RTE {:.3} %, RMS {:.3e} m, {:.0}x real time",
             kind,
             plant.name,
+            r.ref_name,
             ran_s,
             s.mae_m,
             s.iae_m,

@@ -1,0 +1,202 @@
+//! The CLI's runs from Python: `single`, `simulate`, `pendulum`, each assembled by
+//! `pma_exo::setup` exactly as the CLI assembles it.
+use crate::convert::{json_to_py, Columns, SignalCheck};
+use crate::errors::{leg_err, py_err, to_py};
+use pma_bench::{run_single_until, Sample};
+use pma_control::ControllerKind;
+use pma_exo::setup::{
+    LegArgs, LegRun, PendulumArgs, PendulumRun, RefName, SingleArgs, SingleRun, Spasticity,
+};
+use pma_leg::TrainerSample;
+use pma_loop::Period;
+use pma_studies::pendulum::PendulumSample;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+
+/// A controller's name (`aprc-ndo`, `aprc`, `psmc`, `ndo-smc`, `sta`, `pid`).
+fn controller_kind(name: Option<&str>) -> PyResult<Option<ControllerKind>> {
+    name.map(|n| n.parse::<ControllerKind>().map_err(py_err))
+        .transpose()
+}
+
+/// A value of a choice, by its name as on the command line.
+fn choice<T: clap::ValueEnum>(what: &str, name: &str) -> PyResult<T> {
+    T::from_str(name, false).map_err(|_| {
+        let names: Vec<String> = T::value_variants()
+            .iter()
+            .filter_map(|v| v.to_possible_value())
+            .map(|v| v.get_name().to_owned())
+            .collect();
+        crate::PmaError::new_err(format!(
+            "unknown {what} `{name}` (expected one of: {})",
+            names.join(", ")
+        ))
+    })
+}
+
+/// The result dict: the series' columns, then `metrics`.
+fn result<'py, F>(
+    py: Python<'py>,
+    columns: Columns<F>,
+    metrics: &serde_json::Value,
+) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    columns.into_dict(&dict)?;
+    dict.set_item("metrics", json_to_py(py, metrics)?)?;
+    Ok(dict)
+}
+
+/// One muscle on the paper's bench under one controller: `pma-exo single`.
+///
+/// Returns a dict of 1-D float64 arrays, one per period, named as the CLI's CSV columns
+/// (`t_s`, `reference_m`, `position_m`, `pressure_cmd_pa`, `pressure_pa`, `proxy_m`,
+/// `s_p`, `s_q`, `gain_hat`, `disturbance_hat`, `measured_m`, `force_n`,
+/// `velocity_estimate_m_s`), and `metrics`: the dict `single --json` prints (without
+/// its provenance).
+#[pyfunction]
+#[pyo3(signature = (plant = "ideal", controller = None, gains = None, reference = "sine", duration = 20.0))]
+pub fn single<'py>(
+    py: Python<'py>,
+    plant: &str,
+    controller: Option<&str>,
+    gains: Option<PathBuf>,
+    reference: &str,
+    duration: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let r = SingleRun::assemble(&SingleArgs {
+        plant,
+        controller: controller_kind(controller)?,
+        gains: gains.as_deref(),
+        reference: choice::<RefName>("reference", reference)?,
+        duration_s: duration,
+    })
+    .map_err(to_py)?;
+    let periods = r.spec.periods().map_err(py_err)?;
+    let stop = AtomicBool::new(false);
+    let mut recorders = (
+        Columns::new(&Sample::schema(), Sample::of, periods),
+        SignalCheck::new(py, &stop),
+    );
+    let res = run_single_until(
+        &r.config,
+        &r.plant,
+        r.reference.as_ref(),
+        &r.spec,
+        &stop,
+        &mut recorders,
+    )
+    .map_err(py_err)?;
+    let (columns, signals) = recorders;
+    signals.or(())?;
+    r.check_finite(&res).map_err(to_py)?;
+    result(py, columns, &r.metrics(&res))
+}
+
+/// Gait training on the exoskeleton leg: `pma-exo simulate`.
+///
+/// Returns a dict of 1-D float64 arrays named as the CLI's CSV columns (`t_s`, the
+/// joints' angles and references, each muscle's pressure, command and force, the
+/// patient's torques; on a treadmill the feet and the pelvis) and `metrics`: the dict
+/// `simulate --json` prints (without its provenance).
+#[pyfunction]
+#[pyo3(signature = (scenario = "gait_training", controller = None, gains = None, duration = None))]
+pub fn simulate<'py>(
+    py: Python<'py>,
+    scenario: &str,
+    controller: Option<&str>,
+    gains: Option<PathBuf>,
+    duration: Option<f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let LegRun {
+        mut sim,
+        settings,
+        periods,
+        ..
+    } = LegRun::assemble(&LegArgs {
+        scenario,
+        controller: controller_kind(controller)?,
+        gains: gains.as_deref(),
+        duration_s: duration,
+    })
+    .map_err(to_py)?;
+    let names: Vec<String> = sim
+        .plant()
+        .leg_muscles(0)
+        .iter()
+        .map(|m| m.geometry.name.clone())
+        .collect();
+    let schema = TrainerSample::schema(&names, sim.leg_count(), sim.exo().ground().is_some());
+    let stop = AtomicBool::new(false);
+    let settings = settings.with_stop_flag(&stop);
+    let mut recorders = (
+        Columns::new(&schema, TrainerSample::of, periods),
+        SignalCheck::new(py, &stop),
+    );
+    let report = sim.run_with(&settings, &mut recorders);
+    let (columns, signals) = recorders;
+    signals.or(())?;
+    let report = report.map_err(leg_err)?;
+    if !report.finite {
+        return Err(crate::PmaError::new_err(format!(
+            "the simulation (scenario {}) went non-finite",
+            report.scenario
+        )));
+    }
+    let metrics = serde_json::to_value(&report).map_err(py_err)?;
+    result(py, columns, &metrics)
+}
+
+/// The Wartenberg pendulum test of a scenario's patient: `pma-exo pendulum`.
+///
+/// The thigh horizontal, the hip held at `hip_deg`, the knee released from `knee_deg`
+/// with the muscles vented. Returns the CLI's CSV columns as arrays and `metrics`: the
+/// dict `pendulum --json` prints (R2, first swing, oscillations; without provenance).
+#[pyfunction]
+#[pyo3(signature = (scenario = "gait_training", knee_deg = 0.0, hip_deg = 0.0, duration = 10.0, spasticity = None))]
+pub fn pendulum<'py>(
+    py: Python<'py>,
+    scenario: &str,
+    knee_deg: f64,
+    hip_deg: f64,
+    duration: f64,
+    spasticity: Option<&str>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let spasticity = spasticity
+        .map(|s| choice::<Spasticity>("spasticity", s))
+        .transpose()?;
+    let run = PendulumRun::load(&PendulumArgs {
+        scenario,
+        knee_deg,
+        hip_deg,
+        duration_s: duration,
+        spasticity,
+    })
+    .map_err(to_py)?;
+    let (sim, settings) = run.seated().map_err(to_py)?;
+    let damping = run.knee_damping_nm_s_per_rad();
+    let periods = (duration / run.loaded.scenario.period_s) as u64;
+    let stop = AtomicBool::new(false);
+    let settings = settings.with_stop_flag(&stop);
+    let mut recorders = (
+        Columns::new(
+            &PendulumSample::schema(),
+            move |p: &Period<'_, _, _>| PendulumSample::of(p, damping),
+            periods,
+        ),
+        SignalCheck::new(py, &stop),
+    );
+    let report = pma_studies::pendulum::run(sim, run.setup, &settings, &mut recorders);
+    let (columns, signals) = recorders;
+    signals.or(())?;
+    let report = report.map_err(leg_err)?;
+    if !report.finite {
+        return Err(crate::PmaError::new_err(format!(
+            "the pendulum test (scenario {}) went non-finite",
+            report.scenario
+        )));
+    }
+    let metrics = serde_json::to_value(&report).map_err(py_err)?;
+    result(py, columns, &metrics)
+}

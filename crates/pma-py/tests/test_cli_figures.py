@@ -1,0 +1,115 @@
+"""The bindings give the CLI's figures: series and metrics to 1e-12 on three cases each
+of single, simulate and pendulum (the CLI run with --json and --csv)."""
+import math
+
+import numpy as np
+import pytest
+
+import pma_exo
+
+TOLERANCE = 1e-12
+# Wall-clock figures differ between any two runs.
+WALL_CLOCK = {"real_time_factor"}
+
+
+def assert_same_report(ours, theirs, path="metrics"):
+    """Every key, string and number of the CLI's report, numbers to TOLERANCE."""
+    if isinstance(theirs, dict):
+        assert isinstance(ours, dict), path
+        assert set(ours) == set(theirs), f"{path}: {set(ours) ^ set(theirs)}"
+        for key in theirs:
+            if key not in WALL_CLOCK:
+                assert_same_report(ours[key], theirs[key], f"{path}.{key}")
+    elif isinstance(theirs, list):
+        assert isinstance(ours, list) and len(ours) == len(theirs), path
+        for i, (a, b) in enumerate(zip(ours, theirs)):
+            assert_same_report(a, b, f"{path}[{i}]")
+    elif isinstance(theirs, float) or isinstance(ours, float):
+        assert ours is not None, path
+        assert math.isclose(ours, theirs, rel_tol=TOLERANCE, abs_tol=TOLERANCE), (path, ours, theirs)
+    else:
+        assert ours == theirs, (path, ours, theirs)
+
+
+def assert_same_series(run, series):
+    """The CLI's CSV columns, every one, to TOLERANCE."""
+    columns = [k for k in run if k != "metrics"]
+    assert columns == list(series), "the columns and their order are the CSV's"
+    for name, theirs in series.items():
+        ours = run[name]
+        assert ours.dtype == np.float64 and ours.shape == theirs.shape, name
+        diff = np.abs(ours - theirs)
+        both_nan = np.isnan(ours) & np.isnan(theirs)
+        assert np.all(both_nan | (diff <= TOLERANCE * np.maximum(1.0, np.abs(theirs)))), (
+            name,
+            float(np.nanmax(diff)),
+        )
+
+
+SINGLE = [
+    dict(plant="ideal", controller="aprc-ndo", reference="sine", duration=4.0),
+    dict(plant="realistic", controller="psmc", reference="chirp", duration=3.0),
+    dict(plant="mismatch", gains="models/gains/muscle/pid.toml", duration=2.0),
+]
+
+
+def single_args(case):
+    args = ["single", "--plant", case["plant"], "--duration", str(case["duration"])]
+    for key in ("controller", "gains", "reference"):
+        if key in case:
+            args += [f"--{key}", case[key]]
+    return args
+
+
+@pytest.mark.parametrize("case", SINGLE, ids=lambda c: c["plant"])
+def test_single_gives_the_cli_figures(case, cli_run, repo, monkeypatch):
+    monkeypatch.chdir(repo)
+    report, series = cli_run(single_args(case))
+    run = pma_exo.single(**case)
+    assert_same_series(run, series)
+    assert_same_report(run["metrics"], report)
+
+
+SIMULATE = [
+    dict(scenario="gait_training", duration=3.2),
+    dict(scenario="gait_spasms", controller="pid", duration=4.0),
+    dict(scenario="gait_treadmill", controller="aprc-ndo", duration=3.6),
+]
+
+
+def simulate_args(case):
+    args = ["simulate", case["scenario"], "--duration", str(case["duration"])]
+    if "controller" in case:
+        args += ["--controller", case["controller"]]
+    return args
+
+
+@pytest.mark.parametrize("case", SIMULATE, ids=lambda c: c["scenario"])
+def test_simulate_gives_the_cli_figures(case, cli_run):
+    report, series = cli_run(simulate_args(case))
+    run = pma_exo.simulate(**case)
+    assert_same_series(run, series)
+    assert_same_report(run["metrics"], report)
+
+
+PENDULUM = [
+    dict(scenario="gait_training", duration=10.0),
+    dict(scenario="gait_spastic", knee_deg=20.0, duration=6.0),
+    dict(scenario="gait_training", spasticity="severe", hip_deg=10.0, duration=8.0),
+]
+
+
+def pendulum_args(case):
+    args = ["pendulum", case["scenario"], "--duration", str(case["duration"])]
+    for key, flag in (("knee_deg", "--knee-deg"), ("hip_deg", "--hip-deg"), ("spasticity", "--spasticity")):
+        if key in case:
+            args += [flag, str(case[key])]
+    return args
+
+
+@pytest.mark.parametrize("case", PENDULUM, ids=lambda c: f"{c['scenario']}-{c.get('spasticity', '')}")
+def test_pendulum_gives_the_cli_figures(case, cli_run):
+    report, series = cli_run(pendulum_args(case))
+    run = pma_exo.pendulum(**case)
+    assert_same_series(run, series)
+    assert_same_report(run["metrics"], report)

@@ -1,0 +1,28 @@
+"""Ctrl-C stops a long run: the run checks Python's signals and raises KeyboardInterrupt.
+
+The SIGINT comes from another process, as a terminal's or a notebook kernel manager's
+does: a run holds the GIL, so a Python thread could not send it before the run ends.
+"""
+import os
+import subprocess
+import time
+
+import pytest
+
+import pma_exo
+
+
+@pytest.mark.parametrize(
+    "run",
+    [lambda: pma_exo.single(duration=36000.0), lambda: pma_exo.simulate(duration=3600.0)],
+    ids=["single", "simulate"],
+)
+def test_sigint_raises_keyboard_interrupt(run):
+    killer = subprocess.Popen(["sh", "-c", f"sleep 0.5; kill -INT {os.getpid()}"])
+    start = time.monotonic()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run()
+    finally:
+        killer.wait()
+    assert time.monotonic() - start < 5.0

@@ -1,0 +1,398 @@
+//! The runs of `single`, `simulate` and `pendulum` assembled from their arguments, shared by
+//! the command line and the Python bindings (`crates/pma-py`): both check the same
+//! arguments in the same order, load the same files and build the same simulation, so a
+//! run from Python gives the CLI's figures and the CLI's one-line errors.
+use anyhow::{bail, Context, Result};
+use pma_bench::{PlantConfig, RunResult, RunSpec};
+use pma_control::{ChirpReference, ControllerConfig, ControllerKind, Reference, SineReference};
+use pma_leg::patient::{SpasticityPreset, SpasticitySettings};
+use pma_leg::{LegSim, LoadedScenario, Scenario};
+use pma_loop::LoopSettings;
+use pma_studies::pendulum::PendulumSetup;
+use std::path::Path;
+
+/// The reference trajectories of the bench.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum RefName {
+    /// A = 15 mm, f = 0.25 Hz, B = 15 mm.
+    Sine,
+    /// 0.1 -> 0.5 Hz linearly in 20 s, A = B = 15 mm.
+    Chirp,
+}
+
+impl RefName {
+    /// Name and trajectory.
+    pub fn build(self) -> (&'static str, Box<dyn Reference>) {
+        match self {
+            RefName::Sine => ("sine", Box::new(SineReference::paper())),
+            RefName::Chirp => ("chirp", Box::new(ChirpReference::paper())),
+        }
+    }
+}
+
+/// Rejects a duration that is not a finite number of seconds > 0.
+pub fn check_duration(duration: f64) -> Result<()> {
+    if !(duration.is_finite() && duration > 0.0) {
+        bail!("--duration must be a finite number of seconds > 0 (got {duration})");
+    }
+    Ok(())
+}
+
+/// The controller of a gain file, or `default` without one: for `--gains` given without
+/// `--controller`, the file says which controller it is.
+pub fn kind_of_gains(path: Option<&Path>, default: ControllerKind) -> Result<ControllerKind> {
+    let Some(path) = path else {
+        return Ok(default);
+    };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read gain file `{}`", path.display()))?;
+    Ok(ControllerConfig::from_toml_str(&text)
+        .with_context(|| format!("gain file `{}`", path.display()))?
+        .kind())
+}
+
+/// The gains of `kind`: its defaults, or a gain file (an APRC-NDO file may drive APRC, the
+/// ablation, and the other way round).
+pub fn load_gains(kind: ControllerKind, path: Option<&Path>) -> Result<ControllerConfig> {
+    let Some(path) = path else {
+        return Ok(kind.default_config());
+    };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read gain file `{}`", path.display()))?;
+    let cfg = ControllerConfig::from_toml_str(&text)
+        .with_context(|| format!("gain file `{}`", path.display()))?;
+    let compatible = cfg.kind() == kind
+        || matches!(
+            (cfg.kind(), kind),
+            (ControllerKind::AprcNdo, ControllerKind::Aprc)
+                | (ControllerKind::Aprc, ControllerKind::AprcNdo)
+        );
+    if !compatible {
+        return Err(pma_control::ConfigError::WrongController {
+            requested: kind,
+            found: cfg.kind(),
+        })
+        .with_context(|| format!("gain file `{}`", path.display()));
+    }
+    Ok(match (cfg, kind) {
+        (ControllerConfig::AprcNdo(g), ControllerKind::Aprc) => ControllerConfig::Aprc(g),
+        (ControllerConfig::Aprc(g), ControllerKind::AprcNdo) => ControllerConfig::AprcNdo(g),
+        (c, _) => c,
+    })
+}
+
+/// What `single` is asked to run.
+#[derive(Clone, Copy)]
+pub struct SingleArgs<'a> {
+    /// Plant preset or plant file.
+    pub plant: &'a str,
+    /// Controller (`None`: the gain file's, else APRC-NDO).
+    pub controller: Option<ControllerKind>,
+    /// Gain file.
+    pub gains: Option<&'a Path>,
+    /// Reference trajectory.
+    pub reference: RefName,
+    /// Simulated seconds.
+    pub duration_s: f64,
+}
+
+/// A `single` run, assembled and checked: plant, controller, reference and run length.
+pub struct SingleRun {
+    /// The plant.
+    pub plant: PlantConfig,
+    /// The controller.
+    pub kind: ControllerKind,
+    /// Its gains.
+    pub config: ControllerConfig,
+    /// The reference's name (`sine`, `chirp`).
+    pub ref_name: &'static str,
+    /// The reference.
+    pub reference: Box<dyn Reference>,
+    /// Duration and period, validated.
+    pub spec: RunSpec,
+}
+
+impl SingleRun {
+    /// Checks the arguments and loads the plant and gains, in the CLI's order.
+    pub fn assemble(a: &SingleArgs<'_>) -> Result<Self> {
+        check_duration(a.duration_s)?;
+        let plant = PlantConfig::load(a.plant)?;
+        let kind = match a.controller {
+            Some(k) => k,
+            None => kind_of_gains(a.gains, ControllerKind::AprcNdo)?,
+        };
+        let config = load_gains(kind, a.gains)?;
+        let (ref_name, reference) = a.reference.build();
+        let spec = RunSpec {
+            duration_s: a.duration_s,
+            ..RunSpec::default()
+        };
+        spec.validate()?;
+        Ok(Self {
+            plant,
+            kind,
+            config,
+            ref_name,
+            reference,
+            spec,
+        })
+    }
+
+    /// A finished run's result: an error if it went non-finite.
+    pub fn check_finite(&self, res: &RunResult) -> Result<()> {
+        if !res.finite {
+            bail!(
+                "the run went non-finite (controller {}, plant {})",
+                self.kind,
+                self.plant.name
+            );
+        }
+        Ok(())
+    }
+
+    /// How long the run covered (s): the duration asked for, or the periods run before an
+    /// interruption.
+    pub fn ran_s(&self, res: &RunResult) -> f64 {
+        if res.interrupted {
+            res.periods as f64 * self.spec.period_s
+        } else {
+            self.spec.duration_s
+        }
+    }
+
+    /// The figures of a run, as `single --json` prints them (before the provenance).
+    pub fn metrics(&self, res: &RunResult) -> serde_json::Value {
+        let s = res.stats;
+        serde_json::json!({
+            "controller": self.kind.as_str(),
+            "reference": self.ref_name,
+            "plant": self.plant.name,
+            "duration_s": self.ran_s(res),
+            "mae_m": s.mae_m,
+            "iae_m": s.iae_m,
+            "rte_percent": s.rte_percent,
+            "rms_m": s.rms_m,
+            "x_a_m": res.x_a_m,
+            "command_variation_bar_per_s": res.command_variation_pa_per_s / 1e5,
+            "samples": s.samples,
+            "real_time_factor": res.real_time_factor,
+            "interrupted": res.interrupted,
+        })
+    }
+}
+
+/// What `simulate` is asked to run.
+#[derive(Clone, Copy)]
+pub struct LegArgs<'a> {
+    /// Embedded scenario name or scenario file.
+    pub scenario: &'a str,
+    /// Controller on every muscle (`None`: APRC-NDO with the scenario's gains).
+    pub controller: Option<ControllerKind>,
+    /// Gain file.
+    pub gains: Option<&'a Path>,
+    /// Simulated seconds (`None`: the scenario's).
+    pub duration_s: Option<f64>,
+}
+
+/// A `simulate` run, assembled and checked: the scenario, the controllers, the simulation
+/// built and the loop's length.
+pub struct LegRun {
+    /// The scenario and the files it came from.
+    pub loaded: LoadedScenario,
+    /// Simulated seconds.
+    pub duration_s: f64,
+    /// The controller of every muscle.
+    pub config: ControllerConfig,
+    /// The simulation, at rest.
+    pub sim: LegSim,
+    /// The loop's settings (no stop flag yet).
+    pub settings: LoopSettings<'static>,
+    /// Control periods of the run.
+    pub periods: u64,
+}
+
+impl LegRun {
+    /// Checks the arguments, loads the scenario and gains and builds the simulation, in
+    /// the CLI's order.
+    pub fn assemble(a: &LegArgs<'_>) -> Result<Self> {
+        let loaded = Scenario::load(a.scenario)?;
+        let sc = &loaded.scenario;
+        let duration_s = a.duration_s.unwrap_or(sc.duration_s);
+        check_duration(duration_s)?;
+        sc.check_run_duration(duration_s)?;
+        let config = leg_config(a.controller, a.gains, &loaded)?;
+        let sim = LegSim::with_controller(&loaded, &config)?;
+        let settings = sim.settings(duration_s)?;
+        let periods = settings.periods(sc.period_s)?;
+        Ok(Self {
+            loaded,
+            duration_s,
+            config,
+            sim,
+            settings,
+            periods,
+        })
+    }
+}
+
+/// Where `leg_config`'s gains come from.
+pub fn gain_source(kind: Option<ControllerKind>, gains: Option<&Path>) -> String {
+    match (kind, gains) {
+        (None, _) => "scenario (APRC-NDO)".into(),
+        (Some(_), Some(path)) => path.display().to_string(),
+        (Some(ControllerKind::Aprc), None) => "scenario (APRC-NDO's, observer off)".into(),
+        (Some(_), None) => "shipped leg gains".into(),
+    }
+}
+
+/// The patient of a scenario, as a name: `passive`, or its parts.
+pub fn patient_name(loaded: &LoadedScenario) -> String {
+    let p = &loaded.scenario.patient;
+    let joint = |j: &pma_leg::patient::JointPatientSettings| {
+        let mut parts = Vec::new();
+        if let Some(s) = &j.spasticity {
+            parts.push(match s.preset {
+                Some(preset) => format!("spasticity {preset:?}").to_lowercase(),
+                None => "spasticity".into(),
+            });
+        }
+        if j.spasms.is_some() {
+            parts.push("spasms".into());
+        }
+        if j.effort.is_some() {
+            parts.push("effort".into());
+        }
+        if let Some(s) = &j.stiffness {
+            parts.push(match s.preset {
+                Some(preset) => format!("stiffness {preset:?}").to_lowercase(),
+                None => "stiffness".into(),
+            });
+        }
+        if parts.is_empty() {
+            "passive".into()
+        } else {
+            parts.join(" + ")
+        }
+    };
+    format!("hip {}, knee {}", joint(&p.hip), joint(&p.knee))
+}
+
+/// The controller of every muscle: a gain file, or the scenario's gains for the controller
+/// (its own APRC-NDO gains for APRC-NDO, the default, and APRC; its gain set's for the
+/// others: `pma_leg::gains::scenario_gains`). One name, one gain set.
+pub fn leg_config(
+    kind: Option<ControllerKind>,
+    gains: Option<&Path>,
+    loaded: &LoadedScenario,
+) -> Result<ControllerConfig> {
+    Ok(match (kind, gains) {
+        (k, Some(path)) => {
+            let k = kind_of_gains(Some(path), k.unwrap_or(ControllerKind::AprcNdo))?;
+            load_gains(k, Some(path))?
+        }
+        (k, None) => pma_leg::gains::scenario_gains(loaded, k.unwrap_or(ControllerKind::AprcNdo))?,
+    })
+}
+
+/// A spasticity preset on the command line.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum Spasticity {
+    /// No stretch reflex.
+    None,
+    /// Extensor reflex gain 1.5 N m s/rad above 2.6 rad/s (flexor half), 60 ms delay.
+    Mild,
+    /// Gain 3.5 N m s/rad above 1.2 rad/s.
+    Moderate,
+    /// Gain 7.0 N m s/rad above 0.5 rad/s.
+    Severe,
+}
+
+impl Spasticity {
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Spasticity::None => "none",
+            Spasticity::Mild => "mild",
+            Spasticity::Moderate => "moderate",
+            Spasticity::Severe => "severe",
+        }
+    }
+
+    fn preset(self) -> SpasticityPreset {
+        match self {
+            Spasticity::None => SpasticityPreset::None,
+            Spasticity::Mild => SpasticityPreset::Mild,
+            Spasticity::Moderate => SpasticityPreset::Moderate,
+            Spasticity::Severe => SpasticityPreset::Severe,
+        }
+    }
+}
+
+/// What `pendulum` is asked to run.
+#[derive(Clone, Copy)]
+pub struct PendulumArgs<'a> {
+    /// Embedded scenario name or scenario file.
+    pub scenario: &'a str,
+    /// Knee flexion at release (deg).
+    pub knee_deg: f64,
+    /// Hip flexion, held (deg).
+    pub hip_deg: f64,
+    /// Simulated seconds.
+    pub duration_s: f64,
+    /// A spasticity preset at hip and knee instead of the scenario's.
+    pub spasticity: Option<Spasticity>,
+}
+
+/// A pendulum test's scenario and setup, checked (before the leg is seated: the CLI
+/// checks its outputs in between).
+pub struct PendulumRun {
+    /// The scenario, with the spasticity asked for.
+    pub loaded: LoadedScenario,
+    /// Hip and knee at release.
+    pub setup: PendulumSetup,
+    /// Simulated seconds.
+    pub duration_s: f64,
+}
+
+impl PendulumRun {
+    /// Checks the arguments and loads the scenario, in the CLI's order.
+    pub fn load(a: &PendulumArgs<'_>) -> Result<Self> {
+        check_duration(a.duration_s)?;
+        for (flag, deg) in [("--knee-deg", a.knee_deg), ("--hip-deg", a.hip_deg)] {
+            if !deg.is_finite() {
+                bail!("{flag} must be a finite angle in degrees (got {deg})");
+            }
+        }
+        let mut loaded = Scenario::load(a.scenario)?;
+        if let Some(s) = a.spasticity {
+            let preset = SpasticitySettings {
+                preset: Some(s.preset()),
+                ..SpasticitySettings::default()
+            };
+            loaded.scenario.patient.hip.spasticity = Some(preset);
+            loaded.scenario.patient.knee.spasticity = Some(preset);
+        }
+        let setup = PendulumSetup {
+            hip_rad: a.hip_deg.to_radians(),
+            knee_rad: a.knee_deg.to_radians(),
+        };
+        Ok(Self {
+            loaded,
+            setup,
+            duration_s: a.duration_s,
+        })
+    }
+
+    /// The leg seated for the test and the loop's settings.
+    pub fn seated(&self) -> Result<(LegSim, LoopSettings<'static>)> {
+        let sim = pma_studies::pendulum::seated(&self.loaded, self.setup)?;
+        let settings = LoopSettings::new(self.duration_s)?;
+        settings.periods(self.loaded.scenario.period_s)?;
+        Ok((sim, settings))
+    }
+
+    /// The knee's damping (N m s/rad), which the samples' torques need.
+    pub fn knee_damping_nm_s_per_rad(&self) -> f64 {
+        self.loaded.scenario.joints.knee.damping_nm_s_per_rad
+    }
+}
