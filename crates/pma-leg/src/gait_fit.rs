@@ -283,7 +283,11 @@ impl StanceSpeeds {
         let mut change = vec![0.0; BINS];
         let mut angle = 0.0;
         let mut last_stance = 0;
-        let bins = self.stance.iter().zip(&self.per_bin_m_s).zip(change.iter_mut());
+        let bins = self
+            .stance
+            .iter()
+            .zip(&self.per_bin_m_s)
+            .zip(change.iter_mut());
         for (k, ((&stance, speed), c)) in bins.enumerate() {
             if !stance {
                 continue;
