@@ -84,10 +84,12 @@ fn simulate_two_legs_reports_each_foot_the_pelvis_and_both_legs_safety() {
         assert!((stance - reference).abs() < 0.05, "{side}: {stance}");
         let peak = f["peak_grf_bw"]["mean"].as_f64().unwrap();
         assert!((0.5..2.0).contains(&peak), "{side}: {peak}");
-        // The passive ankle stays within its orthosis's stops (+-15 deg, 0.1 deg of
-        // contact give).
+        // The passive ankle stays within its orthosis's stops (+-15 deg) but for the stop's
+        // give: rapier's limit is a stiff constraint, not a wall; on the fitted gait the
+        // stance ankle reaches its dorsiflexion stop in terminal stance and presses 0.13
+        // deg into it (0.1 before the fit).
         let [lo, hi] = [0, 1].map(|i| f["ankle_range_deg"][i].as_f64().unwrap());
-        assert!(lo > -15.1 && hi < 15.1, "{side}: {lo}..{hi}");
+        assert!(lo > -15.2 && hi < 15.2, "{side}: {lo}..{hi}");
         for j in ["hip", "knee"] {
             assert!(
                 f["tracking"][j]["stance_rms_deg"].as_f64().unwrap() < 2.0,
@@ -170,8 +172,8 @@ fn bad_trainer_input_is_a_one_line_error_naming_the_field() {
             "treadmill.body_mass_kg",
         ),
         (
-            "body_mass_kg = 75.0",
-            "body_mass_kg = 75.0\nspeed_m_per_s = 12.0",
+            "speed_m_per_s = 0.4976",
+            "speed_m_per_s = 12.0",
             "treadmill.speed_m_per_s",
         ),
         (

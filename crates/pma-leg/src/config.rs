@@ -289,10 +289,11 @@ impl GaitSettings {
             return Ok(g);
         };
         let largest = c.largest_coefficient_deg();
-        if !largest.is_finite() || largest > HIP_CORRECTION_MAX_DEG {
+        let finite = c.cos_deg.iter().chain(&c.sin_deg).all(|v| v.is_finite());
+        if !finite || largest > HIP_CORRECTION_MAX_DEG {
             return Err(invalid(
                 "gait.hip_correction",
-                largest,
+                if finite { largest } else { f64::NAN },
                 "coefficients must be finite and at most 10 deg (a correction of the stance, as `pma-exo fit-gait` gives)",
             ));
         }

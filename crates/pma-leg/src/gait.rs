@@ -255,12 +255,18 @@ impl FourierSeries {
         }
     }
 
-    /// Largest |coefficient| (deg).
+    /// Largest |coefficient| (deg; NaN if any is NaN).
     pub fn largest_coefficient_deg(&self) -> f64 {
         self.cos_deg
             .iter()
             .chain(&self.sin_deg)
-            .fold(0.0f64, |m, c| m.max(c.abs()))
+            .fold(0.0f64, |m, c| {
+                if m.is_nan() || c.is_nan() {
+                    f64::NAN
+                } else {
+                    m.max(c.abs())
+                }
+            })
     }
 
     /// `sin` and `cos` of each harmonic's angle at `phase`, shared by the joints.
