@@ -396,3 +396,93 @@ impl PendulumRun {
         self.loaded.scenario.joints.knee.damping_nm_s_per_rad
     }
 }
+
+/// `size`'s arguments.
+pub struct SizeArgs<'a> {
+    /// An embedded scenario or a scenario file.
+    pub scenario: &'a str,
+    /// Strides measured.
+    pub strides: usize,
+    /// Longest muscle considered (m).
+    pub max_length_m: f64,
+    /// Share of its rating a recommended muscle keeps free.
+    pub force_margin: f64,
+}
+
+impl SizeArgs<'_> {
+    /// Checks every argument but the scenario, before anything runs.
+    pub fn check(&self) -> Result<()> {
+        if !(self.max_length_m.is_finite() && (0.1..=2.0).contains(&self.max_length_m)) {
+            bail!(
+                "--max-length-m must be 0.1..=2 m (the lengths searched; got {})",
+                self.max_length_m
+            );
+        }
+        if !(self.force_margin.is_finite() && (0.0..=0.9).contains(&self.force_margin)) {
+            bail!("--force-margin must be 0..=0.9 (got {})", self.force_margin);
+        }
+        if !(1..=50).contains(&self.strides) {
+            bail!("--strides must be 1..=50 (got {})", self.strides);
+        }
+        Ok(())
+    }
+}
+
+/// What `size` computes: the servo-driven strides, the sizing and, on the adults' data,
+/// the demand beside their moments.
+pub struct SizeRun {
+    /// The strides' demand.
+    pub demand: pma_leg::demand::Demand,
+    /// Every joint's designs and the recommendation.
+    pub sizing: pma_leg::sizing::Sizing,
+    /// The demand against the adults' moments (empty off the adults' data).
+    pub norms: Vec<pma_leg::demand::NormComparison>,
+}
+
+impl SizeRun {
+    /// Drives `loaded`'s legs along its gait and sizes their muscles as `args` say.
+    pub fn of(loaded: &LoadedScenario, args: &SizeArgs) -> Result<Self> {
+        let demand = pma_leg::demand::stride_demand(loaded, args.strides)?;
+        let p_max = loaded.scenario.plant.valve.pressure_max_pa;
+        let sizing =
+            pma_leg::sizing::size_joints(&demand, p_max, args.max_length_m, args.force_margin);
+        let norms = norm_comparison(loaded, &demand)?;
+        Ok(Self {
+            demand,
+            sizing,
+            norms,
+        })
+    }
+
+    /// The figures `size --json` prints, without its provenance and the file written.
+    pub fn figures(&self) -> serde_json::Map<String, serde_json::Value> {
+        let json = serde_json::json!({
+            "servo_max_error_deg": self.demand.max_error_deg,
+            "servo_raw_torque_range_nm": self.demand.raw_torque_range_nm,
+            "against_norms": self.norms,
+            "treadmill": self.demand.treadmill,
+            "sizing": self.sizing,
+        });
+        match json {
+            serde_json::Value::Object(map) => map,
+            _ => serde_json::Map::new(),
+        }
+    }
+}
+
+/// The demand beside the adult normative moments, for a scenario on the adult reference.
+fn norm_comparison(
+    loaded: &LoadedScenario,
+    demand: &pma_leg::demand::Demand,
+) -> Result<Vec<pma_leg::demand::NormComparison>> {
+    let g = &loaded.scenario.gait;
+    let (pma_leg::gait::GaitData::Fukuchi2018, Some(speed)) = (g.data, g.speed_m_per_s) else {
+        return Ok(Vec::new());
+    };
+    let norms = pma_leg::gait::AdultNorms::at(speed)?;
+    let (mass, bws) = loaded
+        .scenario
+        .treadmill
+        .map_or((75.0, 0.0), |t| (t.body_mass_kg, t.bws_fraction));
+    Ok(pma_leg::demand::against_norms(demand, &norms, mass, bws))
+}

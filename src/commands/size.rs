@@ -2,9 +2,9 @@
 use crate::output::{self, OutFile};
 use crate::provenance::{Provenance, Seeds};
 use crate::say;
-use anyhow::{bail, Result};
-use pma_leg::demand::stride_demand;
-use pma_leg::sizing::{muscle_geometry, muscles_toml, size_joints, JointSizing, Sizing};
+use anyhow::Result;
+use pma_exo::setup::{SizeArgs, SizeRun};
+use pma_leg::sizing::{muscle_geometry, muscles_toml, JointSizing, Sizing};
 use pma_leg::Scenario;
 use std::path::PathBuf;
 
@@ -62,18 +62,13 @@ const CSV_COLUMNS: [&str; 16] = [
 
 /// Runs `size`.
 pub fn run(a: Args) -> Result<i32> {
-    if !(a.max_length_m.is_finite() && (0.1..=2.0).contains(&a.max_length_m)) {
-        bail!(
-            "--max-length-m must be 0.1..=2 m (the lengths searched; got {})",
-            a.max_length_m
-        );
-    }
-    if !(a.force_margin.is_finite() && (0.0..=0.9).contains(&a.force_margin)) {
-        bail!("--force-margin must be 0..=0.9 (got {})", a.force_margin);
-    }
-    if !(1..=50).contains(&a.strides) {
-        bail!("--strides must be 1..=50 (got {})", a.strides);
-    }
+    let args = SizeArgs {
+        scenario: &a.scenario,
+        strides: a.strides,
+        max_length_m: a.max_length_m,
+        force_margin: a.force_margin,
+    };
+    args.check()?;
     let loaded = Scenario::load(&a.scenario)?;
     let outputs: Vec<(&str, &std::path::Path)> = [("--out", &a.out), ("--csv", &a.csv)]
         .into_iter()
@@ -85,20 +80,18 @@ pub fn run(a: Args) -> Result<i32> {
     )?;
     let out_file = a.out.as_deref().map(OutFile::create).transpose()?;
     let sc = &loaded.scenario;
-    let demand = stride_demand(&loaded, a.strides)?;
+    let run = SizeRun::of(&loaded, &args)?;
     if let Some(path) = &a.csv {
-        write_csv(path, &demand)?;
+        write_csv(path, &run.demand)?;
     }
-    let p_max = sc.plant.valve.pressure_max_pa;
-    let sizing = size_joints(&demand, p_max, a.max_length_m, a.force_margin);
-    let norms = norm_comparison(&loaded, &demand)?;
+    let (demand, sizing, norms) = (&run.demand, &run.sizing, &run.norms);
     let provenance = Provenance {
         scenario: Some(crate::provenance::named(&a.scenario, &sc.name)),
         patient: Some(super::simulate::patient_name(&loaded)),
         seeds: Seeds::of_scenario(sc),
         ..Provenance::of_this_run()
     };
-    let geometry = muscle_geometry(&sizing);
+    let geometry = muscle_geometry(sizing);
     let written = match (&geometry, out_file) {
         (Some(muscles), Some(out_file)) => {
             let header = format!(
@@ -116,19 +109,16 @@ pub fn run(a: Args) -> Result<i32> {
         _ => None,
     };
     if a.json {
-        let json = serde_json::json!({
-            "provenance": provenance,
-            "servo_max_error_deg": demand.max_error_deg,
-            "servo_raw_torque_range_nm": demand.raw_torque_range_nm,
-            "against_norms": norms,
-            "treadmill": demand.treadmill,
-            "sizing": sizing,
-            "muscle_geometry": written.map(|p| p.display().to_string()),
-        });
+        let mut json = run.figures();
+        json.insert("provenance".into(), serde_json::to_value(&provenance)?);
+        json.insert(
+            "muscle_geometry".into(),
+            serde_json::to_value(written.map(|p| p.display().to_string()))?,
+        );
         say!("{}", serde_json::to_string(&json)?);
     } else {
-        print_summary(&sizing, &demand, &sc.name)?;
-        print_norms(&norms)?;
+        print_summary(sizing, demand, &sc.name)?;
+        print_norms(norms)?;
         say!("{}", provenance.line());
     }
     match (geometry, written) {
@@ -179,23 +169,6 @@ fn write_csv(path: &std::path::Path, demand: &pma_leg::demand::Demand) -> Result
     csv.finish()?;
     output::wrote(path);
     Ok(())
-}
-
-/// The demand beside the adult normative moments, for a scenario on the adult reference.
-fn norm_comparison(
-    loaded: &pma_leg::LoadedScenario,
-    demand: &pma_leg::demand::Demand,
-) -> Result<Vec<pma_leg::demand::NormComparison>> {
-    let g = &loaded.scenario.gait;
-    let (pma_leg::gait::GaitData::Fukuchi2018, Some(speed)) = (g.data, g.speed_m_per_s) else {
-        return Ok(Vec::new());
-    };
-    let norms = pma_leg::gait::AdultNorms::at(speed)?;
-    let (mass, bws) = loaded
-        .scenario
-        .treadmill
-        .map_or((75.0, 0.0), |t| (t.body_mass_kg, t.bws_fraction));
-    Ok(pma_leg::demand::against_norms(demand, &norms, mass, bws))
 }
 
 fn print_norms(norms: &[pma_leg::demand::NormComparison]) -> Result<()> {

@@ -28,6 +28,7 @@ fn pma_exo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(runs::single, m)?)?;
     m.add_function(wrap_pyfunction!(runs::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(runs::pendulum, m)?)?;
+    m.add_function(wrap_pyfunction!(runs::size, m)?)?;
     m.add_class::<bench::Bench>()?;
     m.add_class::<leg::Leg>()?;
     m.add(

@@ -5,7 +5,8 @@ use crate::errors::{leg_err, py_err, to_py};
 use pma_bench::{run_single_until, Sample};
 use pma_control::ControllerKind;
 use pma_exo::setup::{
-    LegArgs, LegRun, PendulumArgs, PendulumRun, RefName, SingleArgs, SingleRun, Spasticity,
+    LegArgs, LegRun, PendulumArgs, PendulumRun, RefName, SingleArgs, SingleRun, SizeArgs, SizeRun,
+    Spasticity,
 };
 use pma_leg::TrainerSample;
 use pma_loop::Period;
@@ -199,4 +200,31 @@ pub fn pendulum<'py>(
     }
     let metrics = serde_json::to_value(&report).map_err(py_err)?;
     result(py, columns, &metrics)
+}
+
+/// The Festo muscles and pulleys a scenario's gait needs: `pma-exo size --json`.
+///
+/// Drives the scenario's legs along its gait with stiff joint servos for `strides`
+/// strides and sizes a DMSP pair per joint that keeps `force_margin` of its rating free.
+/// Returns the dict `size --json` prints (without its provenance): `sizing`,
+/// `against_norms`, `treadmill`, `servo_max_error_deg`, `servo_raw_torque_range_nm`.
+#[pyfunction]
+#[pyo3(signature = (scenario = "gait_treadmill", strides = 3, max_length_m = 2.0, force_margin = 0.4))]
+pub fn size<'py>(
+    py: Python<'py>,
+    scenario: &str,
+    strides: usize,
+    max_length_m: f64,
+    force_margin: f64,
+) -> PyResult<Bound<'py, PyAny>> {
+    let args = SizeArgs {
+        scenario,
+        strides,
+        max_length_m,
+        force_margin,
+    };
+    args.check().map_err(to_py)?;
+    let loaded = pma_leg::Scenario::load(scenario).map_err(py_err)?;
+    let run = SizeRun::of(&loaded, &args).map_err(to_py)?;
+    json_to_py(py, &serde_json::Value::Object(run.figures()))
 }

@@ -1,5 +1,6 @@
 """The bindings give the CLI's figures: series and metrics to 1e-12 on three cases each
 of single, simulate and pendulum (the CLI run with --json and --csv)."""
+import json
 import math
 
 import numpy as np
@@ -113,3 +114,36 @@ def test_pendulum_gives_the_cli_figures(case, cli_run):
     run = pma_exo.pendulum(**case)
     assert_same_series(run, series)
     assert_same_report(run["metrics"], report)
+
+
+SIZE = [
+    dict(scenario="gait_treadmill", strides=1),
+    dict(scenario="gait_training", strides=2, force_margin=0.1),
+    dict(scenario="gait_treadmill_one_leg", strides=1, max_length_m=1.0),
+]
+
+
+def size_args(case):
+    args = ["size", case["scenario"], "--strides", str(case["strides"]), "--json"]
+    for key, flag in (("force_margin", "--force-margin"), ("max_length_m", "--max-length-m")):
+        if key in case:
+            args += [flag, str(case[key])]
+    return args
+
+
+@pytest.mark.parametrize("case", SIZE, ids=lambda c: c["scenario"])
+def test_size_gives_the_cli_figures(case, cli):
+    code, stdout, stderr = cli(size_args(case))
+    assert code == 0, stderr
+    report = json.loads(stdout)
+    report.pop("provenance")
+    assert report.pop("muscle_geometry") is None
+    assert_same_report(pma_exo.size(**case), report, "size")
+
+
+def test_size_refuses_a_bad_margin_with_the_cli_line(cli):
+    code, _, stderr = cli(["size", "--force-margin", "2"])
+    assert code != 0
+    with pytest.raises(pma_exo.PmaError) as e:
+        pma_exo.size(force_margin=2.0)
+    assert str(e.value) == stderr.strip().removeprefix("error: ")

@@ -9,6 +9,7 @@ __all__ = [
     "single",
     "simulate",
     "pendulum",
+    "size",
     "Bench",
     "Leg",
     "PmaError",

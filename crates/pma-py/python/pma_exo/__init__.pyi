@@ -69,6 +69,20 @@ def pendulum(
     instead of the scenario's. Metrics: ``r2``, ``first_peak_deg``, ``oscillations``, ...
     """
 
+def size(
+    scenario: _Path = "gait_treadmill",
+    strides: int = 3,
+    max_length_m: float = 2.0,
+    force_margin: float = 0.4,
+) -> Dict[str, Any]:
+    """The Festo muscles and pulleys a scenario's gait needs (``pma-exo size --json``).
+
+    Stiff joint servos drive the legs along the gait for ``strides`` strides; every DMSP
+    size, length and pulley is tried, and the smallest size keeping ``force_margin`` of its
+    rating free is recommended. Keys: ``sizing``, ``against_norms``, ``treadmill``,
+    ``servo_max_error_deg``, ``servo_raw_torque_range_nm``.
+    """
+
 class Bench:
     """One muscle lifting a load, stepped by a controller written in Python.
 
