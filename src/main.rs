@@ -88,7 +88,7 @@ fn main() {
             std::process::exit(output::INTERRUPTED);
         }
         Err(e) => {
-            eprintln!("error: {}", error_line(&e));
+            eprintln!("error: {}", pma_exo::error_line(&e));
             std::process::exit(1);
         }
     }
@@ -126,22 +126,6 @@ fn rerun_save_joined(
         }
     }
     out
-}
-
-/// One line: the error and its causes, a cause left out when the message before it
-/// already says it (errors that name their file wrap and print their cause).
-fn error_line(e: &anyhow::Error) -> String {
-    let mut line = String::new();
-    for cause in e.chain().map(|c| c.to_string()) {
-        if line.contains(&cause) {
-            continue;
-        }
-        if !line.is_empty() {
-            line.push_str(": ");
-        }
-        line.push_str(&cause);
-    }
-    pma_control::text::one_line(&line)
 }
 
 /// Help and version as clap prints them; any other clap error on one line that keeps its

@@ -398,9 +398,7 @@ impl PendulumRun {
 }
 
 /// `size`'s arguments.
-pub struct SizeArgs<'a> {
-    /// An embedded scenario or a scenario file.
-    pub scenario: &'a str,
+pub struct SizeArgs {
     /// Strides measured.
     pub strides: usize,
     /// Longest muscle considered (m).
@@ -409,7 +407,7 @@ pub struct SizeArgs<'a> {
     pub force_margin: f64,
 }
 
-impl SizeArgs<'_> {
+impl SizeArgs {
     /// Checks every argument but the scenario, before anything runs.
     pub fn check(&self) -> Result<()> {
         if !(self.max_length_m.is_finite() && (0.1..=2.0).contains(&self.max_length_m)) {

@@ -71,7 +71,7 @@ fn shape(v: &VisualShape) -> Shape {
 pub fn leg_layout(viz: &mut Viz, sim: &LegSim, meta: &str) -> Result<usize> {
     leg_scene(viz, sim, meta)?;
     let schema = TrainerSample::schema(
-        &muscle_names(sim),
+        &sim.plant().muscle_names(),
         sim.leg_count(),
         sim.exo().ground().is_some(),
     );
@@ -165,15 +165,6 @@ pub fn foot_on_belt_path(legs: usize, leg: usize) -> String {
     } else {
         "foot_on_belt".to_owned()
     }
-}
-
-/// One leg's muscles' names, in the geometry file's order.
-pub fn muscle_names(sim: &LegSim) -> Vec<String> {
-    sim.plant()
-        .leg_muscles(0)
-        .iter()
-        .map(|m| m.geometry.name.clone())
-        .collect()
 }
 
 /// Logs one period of the exoskeleton (layout of [`leg_layout`]); `scalars` has the

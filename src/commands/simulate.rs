@@ -84,12 +84,7 @@ pub fn run(a: Args) -> Result<i32> {
         ..Provenance::of_this_run()
     };
     output::check_wall_time("this simulation", periods as f64, LEG_PERIOD_S, a.yes)?;
-    let names: Vec<String> = sim
-        .plant()
-        .leg_muscles(0)
-        .iter()
-        .map(|m| m.geometry.name.clone())
-        .collect();
+    let names = sim.plant().muscle_names();
     let plot_files = a
         .plot
         .as_ref()

@@ -63,7 +63,6 @@ const CSV_COLUMNS: [&str; 16] = [
 /// Runs `size`.
 pub fn run(a: Args) -> Result<i32> {
     let args = SizeArgs {
-        scenario: &a.scenario,
         strides: a.strides,
         max_length_m: a.max_length_m,
         force_margin: a.force_margin,

@@ -111,19 +111,17 @@ pub fn fit_gait(
 ) -> Result<GaitFit, LegError> {
     settings.validate()?;
     let Some(treadmill) = &loaded.scenario.treadmill else {
-        return Err(LegError::Parse {
-            file: loaded.scenario.name.clone(),
-            message: "fitting a gait to a belt needs a treadmill scenario ([treadmill])".into(),
-        });
+        return Err(no_treadmill(loaded));
     };
     let body_mass_kg = treadmill.body_mass_kg;
     let mut run = loaded.clone();
     run.scenario.gait.hip_correction = None;
     let data = run.scenario.gait.reference()?;
     let lever = HipLever::new(&run)?;
-    let mut correction = FourierSeries::project(&[0.0; BINS]).ok_or_else(too_few_bins)?;
+    let mut correction = FourierSeries::default();
     let mut steps = Vec::with_capacity(settings.iterations + 1);
-    let mut best: Option<(usize, FourierSeries, f64)> = None;
+    // The run kept: its index, correction, belt speed and contact speed error.
+    let mut kept = (0, correction, f64::NAN, f64::NAN);
     for iteration in 0..=settings.iterations {
         let demand = stride_demand(&run, settings.strides)?;
         let speeds = StanceSpeeds::of(&demand, data.toe_off_phase());
@@ -132,11 +130,9 @@ pub fn fit_gait(
             .as_ref()
             .map_or(f64::NAN, |t| t.belt_speed_m_s);
         let step = step_figures(iteration, &demand, &speeds, belt, body_mass_kg);
-        if best
-            .as_ref()
-            .is_none_or(|(b, _, _)| step.contact_speed_error_rms_m_s < steps_error(&steps, *b))
-        {
-            best = Some((iteration, correction, belt));
+        let error = step.contact_speed_error_rms_m_s;
+        if iteration == 0 || error < kept.3 {
+            kept = (iteration, correction, belt, error);
         }
         steps.push(step);
         if iteration == settings.iterations || should_stop() {
@@ -150,7 +146,7 @@ pub fn fit_gait(
             t.speed_m_per_s = Some(-speeds.mean_stance_m_s);
         }
     }
-    let (best, hip_correction, belt_speed_m_s) = best.ok_or_else(too_few_bins)?;
+    let (best, hip_correction, belt_speed_m_s, _) = kept;
     Ok(GaitFit {
         hip_correction,
         belt_speed_m_s,
@@ -159,10 +155,11 @@ pub fn fit_gait(
     })
 }
 
-fn steps_error(steps: &[GaitFitStep], i: usize) -> f64 {
-    steps
-        .get(i)
-        .map_or(f64::INFINITY, |s| s.contact_speed_error_rms_m_s)
+fn no_treadmill(loaded: &LoadedScenario) -> LegError {
+    LegError::Parse {
+        file: loaded.scenario.name.clone(),
+        message: "fitting a gait to a belt needs a treadmill scenario ([treadmill])".into(),
+    }
 }
 
 fn too_few_bins() -> LegError {
@@ -321,10 +318,7 @@ impl HipLever {
         let chain = exo
             .ground()
             .map(|g| g.chain().clone())
-            .ok_or_else(|| LegError::Parse {
-                file: loaded.scenario.name.clone(),
-                message: "fitting a gait to a belt needs a treadmill scenario ([treadmill])".into(),
-            })?;
+            .ok_or_else(|| no_treadmill(loaded))?;
         if chain.spheres.is_empty() {
             return Err(LegError::Parse {
                 file: loaded.urdf_source.clone(),

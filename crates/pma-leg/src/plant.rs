@@ -239,6 +239,14 @@ impl LegPlant {
         self.muscles.get(at..at + MUSCLES_PER_LEG).unwrap_or(&[])
     }
 
+    /// One leg's muscles' names, in the geometry file's order (every leg has the same).
+    pub fn muscle_names(&self) -> Vec<String> {
+        self.leg_muscles(0)
+            .iter()
+            .map(|m| m.geometry.name.clone())
+            .collect()
+    }
+
     /// Time (s): whole periods since the plant was built.
     pub fn time(&self) -> f64 {
         self.periods as f64 * self.period_s

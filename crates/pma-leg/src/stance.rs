@@ -538,8 +538,10 @@ pub struct TrainerGroundMetrics {
     other_impulse_n_s: f64,
     pelvis_z_m: [f64; 2],
     pelvis_x_m: [f64; 2],
-    /// The pelvis's fore-aft stops (m, world X) and the time spent against one (s).
-    stops: (Option<[f64; 2]>, f64),
+    /// The pelvis's fore-aft stops (m, world X; `None` without a slide).
+    stops_m: Option<[f64; 2]>,
+    /// Time the pelvis spent against one (s).
+    at_stop_s: f64,
     harness: (f64, f64, f64),
     active: bool,
 }
@@ -576,7 +578,8 @@ impl TrainerGroundMetrics {
             other_impulse_n_s: 0.0,
             pelvis_z_m: [f64::INFINITY, f64::NEG_INFINITY],
             pelvis_x_m: [f64::INFINITY, f64::NEG_INFINITY],
-            stops: (exo.ground().and_then(|g| g.fore_aft_stops_m()), 0.0),
+            stops_m: exo.ground().and_then(|g| g.fore_aft_stops_m()),
+            at_stop_s: 0.0,
             harness: (0.0, f64::INFINITY, f64::NEG_INFINITY),
             active,
         }
@@ -607,8 +610,8 @@ impl TrainerGroundMetrics {
             mean_other_leg_bw: per(self.other_impulse_n_s) / bw,
             pelvis_excursion_m: range(self.pelvis_z_m),
             pelvis_fore_aft_excursion_m: range(self.pelvis_x_m),
-            pelvis_at_fore_aft_stop: match self.stops.0 {
-                Some(_) => per(self.stops.1),
+            pelvis_at_fore_aft_stop: match self.stops_m {
+                Some(_) => per(self.at_stop_s),
                 None => 0.0,
             },
             harness_fore_aft_n: Spread {
@@ -643,9 +646,9 @@ impl TrainerGroundMetrics {
         self.time_s += dt;
         self.belt_impulse_n_s += g.belt_load_n() * dt;
         self.other_impulse_n_s += g.contralateral_n * dt;
-        if let Some([lo, hi]) = self.stops.0 {
+        if let Some([lo, hi]) = self.stops_m {
             if pelvis[0] <= lo + AT_STOP_M || pelvis[0] >= hi - AT_STOP_M {
-                self.stops.1 += dt;
+                self.at_stop_s += dt;
             }
         }
         self.pelvis_x_m = [

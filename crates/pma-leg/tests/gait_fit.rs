@@ -77,9 +77,13 @@ fn on_the_shipped_fit_the_stance_feet_move_with_the_belt() {
     let d = stride_demand(&loaded, 3).expect("runs");
     let (error, slip) = stance_figures(&d);
     let t = d.treadmill.as_ref().expect("a treadmill");
+    let body_mass_kg = loaded
+        .scenario
+        .treadmill
+        .map_or(f64::NAN, |t| t.body_mass_kg);
     let peak_kg = |j: usize| {
         let [lo, hi] = d.torque_range_nm(j);
-        lo.abs().max(hi.abs()) / 75.0
+        lo.abs().max(hi.abs()) / body_mass_kg
     };
     eprintln!(
         "fitted hip: contact speed error {error:.4} m/s RMS, slip {:.1} mm per stride, peak demand {:.2} / {:.2} N m/kg, pelvis at its fore-aft stop {:.0} % of the time",

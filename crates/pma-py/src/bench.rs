@@ -1,6 +1,6 @@
 //! `pma_exo.Bench`: the paper's muscle bench, stepped one control period at a time by a
 //! controller written in Python, behind the rig's supervisor.
-use crate::errors::{py_err, to_py, PmaError, SupervisorError};
+use crate::errors::{py_err, to_py, Latch, PmaError};
 use pma_bench::{MuscleBench, PlantConfig};
 use pma_control::supervisor::{Supervised, SupervisorLimits};
 use pma_loop::Backend;
@@ -45,7 +45,7 @@ pub struct Bench {
     reading_m: f64,
     applied_pa: f64,
     periods: u64,
-    fault: Option<String>,
+    fault: Latch,
 }
 
 impl Bench {
@@ -64,19 +64,13 @@ impl Bench {
 
     /// The latched fault, as an exception.
     fn check_fault(&self) -> PyResult<()> {
-        match &self.fault {
-            Some(f) => Err(SupervisorError::new_err(format!(
-                "the supervisor stopped the bench ({f}): call reset() to start again"
-            ))),
-            None => Ok(()),
-        }
+        self.fault.check("bench")
     }
 
     /// A fault: the muscle vented, the fault latched and raised.
     fn trip(&mut self, message: String) -> PyErr {
         self.sup.stop();
-        self.fault = Some(message.clone());
-        SupervisorError::new_err(message)
+        self.fault.set(message)
     }
 }
 
@@ -112,7 +106,7 @@ impl Bench {
             reading_m,
             applied_pa,
             periods: 0,
-            fault: None,
+            fault: Latch::default(),
         })
     }
 
@@ -126,7 +120,7 @@ impl Bench {
         self.reading_m = reading_m;
         self.applied_pa = applied_pa;
         self.periods = 0;
-        self.fault = None;
+        self.fault.clear();
         Ok(reading_m)
     }
 

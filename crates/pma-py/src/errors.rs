@@ -1,7 +1,7 @@
 //! Rust errors as Python exceptions, with the CLI's one-line messages.
 use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
-use pyo3::PyErr;
+use pyo3::{PyErr, PyResult};
 
 create_exception!(
     pma_exo,
@@ -16,30 +16,41 @@ create_exception!(
     "The supervisor stopped a run (a reading outside its window, a NaN reading): the muscles are vented."
 );
 
-/// The error as the CLI prints it: its causes joined on one line, a cause left out when
-/// the message before it already says it (as `error_line` in `src/main.rs`).
-pub fn error_line(e: &anyhow::Error) -> String {
-    let mut line = String::new();
-    for cause in e.chain().map(|c| c.to_string()) {
-        if line.contains(&cause) {
-            continue;
-        }
-        if !line.is_empty() {
-            line.push_str(": ");
-        }
-        line.push_str(&cause);
-    }
-    pma_control::text::one_line(&line)
-}
-
-/// A `PmaError` carrying the CLI's line.
+/// A `PmaError` carrying the CLI's line (`pma_exo::error_line`).
 pub fn to_py(e: anyhow::Error) -> PyErr {
-    PmaError::new_err(error_line(&e))
+    PmaError::new_err(pma_exo::error_line(&e))
 }
 
 /// A `PmaError` from any Rust error.
 pub fn py_err<E: Into<anyhow::Error>>(e: E) -> PyErr {
     to_py(e.into())
+}
+
+/// A supervisor's fault, latched until a reset: every later call raises it again.
+#[derive(Default)]
+pub struct Latch(Option<String>);
+
+impl Latch {
+    /// `Ok` unless latched; else the fault, naming `what` was stopped.
+    pub fn check(&self, what: &str) -> PyResult<()> {
+        match &self.0 {
+            Some(f) => Err(SupervisorError::new_err(format!(
+                "the supervisor stopped the {what} ({f}): call reset() to start again"
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// Latches `message` and returns it as the exception to raise now.
+    pub fn set(&mut self, message: String) -> PyErr {
+        self.0 = Some(message.clone());
+        SupervisorError::new_err(message)
+    }
+
+    /// Clears the fault (a reset).
+    pub fn clear(&mut self) {
+        self.0 = None;
+    }
 }
 
 /// A leg run's error: `SupervisorError` when the supervisor stopped it, else `PmaError`;

@@ -1,6 +1,6 @@
 //! `pma_exo.Leg`: the exoskeleton leg (or the treadmill trainer), stepped one control
 //! period at a time by a controller written in Python, behind the leg's supervisor.
-use crate::errors::{py_err, to_py, PmaError, SupervisorError};
+use crate::errors::{py_err, to_py, Latch, PmaError};
 use numpy::{
     PyArray1, PyArray2, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray, PyUntypedArrayMethods,
 };
@@ -70,7 +70,7 @@ pub struct Leg {
     run: Started,
     periods: u64,
     planned_until_s: f64,
-    fault: Option<String>,
+    fault: Latch,
 }
 
 impl Leg {
@@ -83,18 +83,12 @@ impl Leg {
     }
 
     fn check_fault(&self) -> PyResult<()> {
-        match &self.fault {
-            Some(f) => Err(SupervisorError::new_err(format!(
-                "the supervisor stopped the leg ({f}): call reset() to start again"
-            ))),
-            None => Ok(()),
-        }
+        self.fault.check("leg")
     }
 
     fn trip(&mut self, message: String) -> PyErr {
         self.run.sup.stop();
-        self.fault = Some(message.clone());
-        SupervisorError::new_err(message)
+        self.fault.set(message)
     }
 
     /// Draws the patients' spasms of the next chunk once the clock nears the last one's
@@ -188,11 +182,7 @@ impl Leg {
         let (run, limits) = start(&loaded).map_err(to_py)?;
         let plant = run.sup.inner();
         let legs = plant.leg_count();
-        let muscles = plant
-            .leg_muscles(0)
-            .iter()
-            .map(|m| m.geometry.name.clone())
-            .collect();
+        let muscles = plant.muscle_names();
         let mut leg = Self {
             loaded,
             limits,
@@ -202,7 +192,7 @@ impl Leg {
             run,
             periods: 0,
             planned_until_s: 0.0,
-            fault: None,
+            fault: Latch::default(),
         };
         leg.plan_spasms();
         Ok(leg)
@@ -214,7 +204,7 @@ impl Leg {
         self.run = run;
         self.periods = 0;
         self.planned_until_s = 0.0;
-        self.fault = None;
+        self.fault.clear();
         self.plan_spasms();
         self.array(py, &self.run.reading)
     }

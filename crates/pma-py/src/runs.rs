@@ -122,12 +122,7 @@ pub fn simulate<'py>(
         duration_s: duration,
     })
     .map_err(to_py)?;
-    let names: Vec<String> = sim
-        .plant()
-        .leg_muscles(0)
-        .iter()
-        .map(|m| m.geometry.name.clone())
-        .collect();
+    let names = sim.plant().muscle_names();
     let schema = TrainerSample::schema(&names, sim.leg_count(), sim.exo().ground().is_some());
     let stop = AtomicBool::new(false);
     let settings = settings.with_stop_flag(&stop);
@@ -218,7 +213,6 @@ pub fn size<'py>(
     force_margin: f64,
 ) -> PyResult<Bound<'py, PyAny>> {
     let args = SizeArgs {
-        scenario,
         strides,
         max_length_m,
         force_margin,
