@@ -115,7 +115,12 @@ pub fn fit_gait(
     };
     let body_mass_kg = treadmill.body_mass_kg;
     let mut run = loaded.clone();
+    // From the data and the reference's own belt speed, whatever the scenario holds, so
+    // that a fitted scenario refits to what it holds.
     run.scenario.gait.hip_correction = None;
+    if let Some(t) = &mut run.scenario.treadmill {
+        t.speed_m_per_s = None;
+    }
     let data = run.scenario.gait.reference()?;
     let lever = HipLever::new(&run)?;
     let mut correction = FourierSeries::default();
