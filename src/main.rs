@@ -12,7 +12,7 @@ mod provenance;
 mod studies;
 
 use commands::{
-    compare_leg, fit_gait, identify, pendulum, rig, simulate, single, size, sweep, tune,
+    compare_leg, fit_gait, identify, impedance, pendulum, rig, simulate, single, size, sweep, tune,
 };
 
 #[derive(Parser)]
@@ -55,6 +55,10 @@ enum Command {
     /// runs that change the hip where a stance foot runs ahead of or behind the belt, until
     /// it moves with it; prints (or writes) the scenario's `[gait.hip_correction]`.
     FitGait(fit_gait::Args),
+    /// The joint stiffness a scenario's muscle pairs reach by co-contraction (at rest,
+    /// along a stride, at a test pose) and, for a leg in the air, small-perturbation tests
+    /// of what impedance mode realises at three set points per joint.
+    Impedance(impedance::Args),
     /// The Wartenberg pendulum test: thigh horizontal, knee released, muscles vented;
     /// R2, first swing, oscillations of the scenario's patient.
     Pendulum(pendulum::Args),
@@ -166,6 +170,7 @@ fn run(cli: Cli) -> Result<i32> {
         Command::CompareLeg(a) => compare_leg::run(a),
         Command::Size(a) => size::run(a),
         Command::FitGait(a) => fit_gait::run(a),
+        Command::Impedance(a) => impedance::run(a),
         Command::Sweep(a) => sweep::run(a),
         Command::Identify(a) => identify::run(a),
         Command::Rig { command } => rig::run(command),

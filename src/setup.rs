@@ -6,7 +6,7 @@ use anyhow::{bail, Context, Result};
 use pma_bench::{PlantConfig, RunResult, RunSpec};
 use pma_control::{ChirpReference, ControllerConfig, ControllerKind, Reference, SineReference};
 use pma_leg::patient::{SpasticityPreset, SpasticitySettings};
-use pma_leg::{LegSim, LoadedScenario, Scenario};
+use pma_leg::{ControlMode, LegSim, LoadedScenario, Scenario};
 use pma_loop::LoopSettings;
 use pma_studies::pendulum::PendulumSetup;
 use std::path::Path;
@@ -192,6 +192,47 @@ pub struct LegArgs<'a> {
     pub gains: Option<&'a Path>,
     /// Simulated seconds (`None`: the scenario's).
     pub duration_s: Option<f64>,
+    /// Control mode (`None`: the scenario's).
+    pub mode: Option<Mode>,
+}
+
+/// A control mode on the command line.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Mode {
+    /// Robot in charge: each muscle's controller tracks its length along the reference.
+    Position,
+    /// Each joint a spring and damper about the reference by co-contraction
+    /// (`[control.impedance]`).
+    Impedance,
+}
+
+impl Mode {
+    /// The scenario's mode it selects.
+    pub fn control_mode(self) -> ControlMode {
+        match self {
+            Mode::Position => ControlMode::Position,
+            Mode::Impedance => ControlMode::Impedance,
+        }
+    }
+}
+
+/// Sets `loaded`'s control mode to `mode` (if given) and refuses a muscle controller in a
+/// mode that runs none.
+pub fn apply_mode(
+    loaded: &mut LoadedScenario,
+    mode: Option<Mode>,
+    controller: Option<ControllerKind>,
+) -> Result<()> {
+    if let Some(m) = mode {
+        loaded.scenario.control.mode = m.control_mode();
+    }
+    if let (ControlMode::Impedance, Some(k)) = (loaded.scenario.control.mode, controller) {
+        bail!(
+            "--controller {}: impedance mode sets each pair's pressures by co-contraction through the valves' own pressure loops and runs no muscle controller; use --mode position to run one",
+            k.as_str()
+        );
+    }
+    Ok(())
 }
 
 /// A `simulate` run, assembled and checked: the scenario, the controllers, the simulation
@@ -215,7 +256,8 @@ impl LegRun {
     /// Checks the arguments, loads the scenario and gains and builds the simulation, in
     /// the CLI's order.
     pub fn assemble(a: &LegArgs<'_>) -> Result<Self> {
-        let loaded = Scenario::load(a.scenario)?;
+        let mut loaded = Scenario::load(a.scenario)?;
+        apply_mode(&mut loaded, a.mode, a.controller)?;
         let sc = &loaded.scenario;
         let duration_s = a.duration_s.unwrap_or(sc.duration_s);
         check_duration(duration_s)?;
@@ -232,6 +274,15 @@ impl LegRun {
             settings,
             periods,
         })
+    }
+}
+
+/// What drives the muscles of a run, as outputs name it: the controller, or the mode that
+/// runs none.
+pub fn controller_label(loaded: &LoadedScenario, config: &ControllerConfig) -> String {
+    match loaded.scenario.control.mode {
+        ControlMode::Position => config.kind().as_str().to_owned(),
+        ControlMode::Impedance => "none: impedance by co-contraction".to_owned(),
     }
 }
 

@@ -1152,3 +1152,67 @@ fn simulate_draws_the_run_when_asked() {
     let png = std::fs::read(dir.join("pendulum.png")).expect("pendulum.png");
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
 }
+
+/// Issue 28: impedance mode's bad input is refused before anything runs: a muscle
+/// controller in a mode that runs none, a set point beyond the muscles' reach, a negative
+/// stiffness, a perturbation test's bad arguments; each a one-line error naming the flag
+/// or field.
+#[test]
+fn impedance_mode_refuses_bad_input_in_one_line() {
+    assert_one_line_error(
+        &[
+            "simulate",
+            "gait_training",
+            "--mode",
+            "impedance",
+            "--controller",
+            "psmc",
+        ],
+        "--controller psmc: impedance mode",
+    );
+    let dir = std::env::temp_dir().join(format!("pma-exo-impedance-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let base = include_str!("../crates/pma-leg/models/scenarios/gait_training.toml");
+    for (extra, needle) in [
+        (
+            "[control.impedance]\nhip = { stiffness_nm_per_rad = 200.0 }\n",
+            "control.impedance.hip.stiffness_nm_per_rad = 200 is out of reach: the hip's muscles reach 8.4..=10.9 N m/rad",
+        ),
+        (
+            "[control.impedance]\nknee = { stiffness_nm_per_rad = -1.0 }\n",
+            "control.impedance.knee.stiffness_nm_per_rad",
+        ),
+        (
+            "[control.impedance]\nknee = { stiffnes_nm_per_rad = 5.0 }\n",
+            "unknown field `stiffnes_nm_per_rad`",
+        ),
+    ] {
+        let path = dir.join("bad.toml");
+        std::fs::write(&path, format!("{base}\n{extra}")).unwrap();
+        let p = path.to_str().unwrap();
+        assert_one_line_error(&["simulate", p, "--mode", "impedance", "--duration", "4"], needle);
+    }
+    assert_one_line_error(
+        &["impedance", "gait_training", "--settle", "-1"],
+        "--settle",
+    );
+}
+
+/// `impedance --json`: each joint's ranges and three perturbation tests on the leg in the
+/// air, each within 10 % of its set point (the figures of docs/cooperative.md).
+#[test]
+fn impedance_reports_ranges_and_three_tests_per_joint() {
+    let out = pma_exo_ok(&["impedance", "gait_training", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let joints = v["joints"].as_array().unwrap();
+    assert_eq!(joints.len(), 2);
+    for j in joints {
+        let rest = j["at_rest"].as_array().unwrap();
+        assert!(rest[0].as_f64().unwrap() < rest[1].as_f64().unwrap(), "{j}");
+        let probes = j["probes"].as_array().unwrap();
+        assert_eq!(probes.len(), 3, "{j}");
+        for p in probes {
+            assert!(p["error"].as_f64().unwrap().abs() < 0.10, "{p}");
+        }
+    }
+}

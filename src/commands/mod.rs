@@ -9,6 +9,7 @@ pub use pma_exo::setup::{check_duration, kind_of_gains, load_gains, RefName};
 pub mod compare_leg;
 pub mod fit_gait;
 pub mod identify;
+pub mod impedance;
 pub mod pendulum;
 pub mod rig;
 pub mod simulate;

@@ -6,7 +6,7 @@ use crate::say;
 use anyhow::Result;
 use pma_control::ControllerKind;
 pub use pma_exo::setup::patient_name;
-use pma_exo::setup::{gain_source, LegArgs, LegRun};
+use pma_exo::setup::{controller_label, gain_source, LegArgs, LegRun, Mode};
 use pma_exo::strides::GaitCycles;
 use pma_leg::{LegReport, Scenario, TrainerSample};
 use std::path::PathBuf;
@@ -30,6 +30,11 @@ pub struct Args {
     /// Simulated seconds (default: the scenario's); at least two strides.
     #[arg(long, allow_negative_numbers = true)]
     duration: Option<f64>,
+    /// Control mode (default: the scenario's `control.mode`): `position` (each muscle's
+    /// controller tracks the reference) or `impedance` (each joint a spring about the
+    /// reference by co-contraction, `[control.impedance]`; no --controller).
+    #[arg(long = "mode", value_name = "position|impedance")]
+    control_mode: Option<Mode>,
     /// Run even if it would take over an hour.
     #[arg(long)]
     yes: bool,
@@ -52,6 +57,7 @@ impl Default for Args {
             controller: None,
             gains: None,
             duration: None,
+            control_mode: None,
             yes: false,
             plot: None,
             output: RunOutput::default(),
@@ -73,11 +79,12 @@ pub fn run(a: Args) -> Result<i32> {
         controller: a.controller,
         gains: a.gains.as_deref(),
         duration_s: a.duration,
+        mode: a.control_mode,
     })?;
     let sc = &loaded.scenario;
     let provenance = Provenance {
         scenario: Some(crate::provenance::named(&a.scenario, &sc.name)),
-        controller: Some(config.kind().as_str().to_owned()),
+        controller: Some(controller_label(&loaded, &config)),
         gains: Some(gain_source(a.controller, a.gains.as_deref())),
         patient: Some(patient_name(&loaded)),
         seeds: Seeds::of_scenario(sc),

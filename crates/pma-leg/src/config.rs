@@ -425,6 +425,14 @@ pub struct ControlSettings {
     /// `--gains`, `compare-leg`): `in-air` (default) or `treadmill`.
     #[serde(default)]
     pub gain_set: crate::gains::GainSet,
+    /// How the joints are controlled: `position` (default, each muscle's controller
+    /// tracking its length) or `impedance` (a spring and damper about the reference by
+    /// co-contraction, `[control.impedance]`); `--mode` overrides it.
+    #[serde(default)]
+    pub mode: crate::impedance::ControlMode,
+    /// Impedance mode's set points.
+    #[serde(default)]
+    pub impedance: crate::impedance::ImpedanceSettings,
 }
 
 fn default_rate_max() -> f64 {
@@ -594,6 +602,7 @@ impl Scenario {
             )?;
         }
         self.plant.valve.validate()?;
+        self.control.impedance.validate()?;
         if let Some(f) = self.plant.muscle_rated_force_n {
             positive("plant.muscle_rated_force_n", f)?;
         }

@@ -4,6 +4,7 @@ use crate::config::{MuscleGeometry, Scenario};
 use crate::error::{invalid, LegError};
 use crate::exoskeleton::LegInertia;
 use crate::gait::{GaitReference, GaitSample, JointSample};
+use crate::impedance::{ControlMode, ImpedanceLaw};
 use crate::legs::PerLeg;
 use crate::plant::MuscleActuator;
 use pma_control::{
@@ -97,6 +98,8 @@ pub struct LegControllers {
     gait: GaitReference,
     hold: Option<[f64; 2]>,
     commands: [f64; 4],
+    /// Impedance mode's law (none: position mode, the muscles' controllers in charge).
+    impedance: Option<ImpedanceLaw>,
 }
 
 fn joint(g: &GaitSample, joint: usize) -> &JointSample {
@@ -166,6 +169,15 @@ impl LegControllers {
             filter_s: sc.control.cocontraction_filter_s,
             filtered_pa: sc.control.cocontraction_pa,
         };
+        let impedance = match sc.control.mode {
+            ControlMode::Position => None,
+            ControlMode::Impedance => Some(ImpedanceLaw::new(
+                muscles,
+                inertia,
+                sc.control.impedance,
+                limits.max_pa,
+            )?),
+        };
         Ok(Self {
             levers,
             controllers,
@@ -174,7 +186,13 @@ impl LegControllers {
             gait: sc.gait.reference()?.for_leg(leg),
             hold: None,
             commands: [0.0; 4],
+            impedance,
         })
+    }
+
+    /// Impedance mode's law, if the leg runs in it.
+    pub fn impedance(&self) -> Option<&ImpedanceLaw> {
+        self.impedance.as_ref()
     }
 
     /// The gait reference (also while a pose is held).
@@ -228,6 +246,9 @@ impl LegControllers {
     ) -> LegOutput {
         self.commands = *resting;
         self.cocontraction = [self.regulator_at_rest; 2];
+        if let Some(law) = &mut self.impedance {
+            law.reset(*resting);
+        }
         let g = self.reference(t_s);
         for (lever, c) in self.levers.iter().zip(self.controllers.iter_mut()) {
             let measured = Measurement {
@@ -240,6 +261,21 @@ impl LegControllers {
 
     fn update(&mut self, t_s: f64, angles: &[f64; 2], dt_s: f64) -> LegOutput {
         let g = self.reference(t_s);
+        if let Some(law) = &mut self.impedance {
+            let pressure_cmd_pa = law.update(&g, *angles, dt_s);
+            self.commands = pressure_cmd_pa;
+            return LegOutput {
+                reference_rad: [g.hip.angle_rad, g.knee.angle_rad],
+                reference_velocity_rad_s: [g.hip.velocity_rad_s, g.knee.velocity_rad_s],
+                length_ref_m: std::array::from_fn(|i| {
+                    let lever = &self.levers[i];
+                    lever.reference(joint(&g, lever.joint), 0.0).position_m
+                }),
+                pressure_cmd_pa,
+                diagnostics: [Diagnostics::NONE; 4],
+                reference_in_stance: self.hold.is_some() || self.gait.in_stance(t_s),
+            };
+        }
         let cm = self.common_mode_pa();
         let delta = [
             self.cocontraction[0].update(cm[0], dt_s),
@@ -275,6 +311,9 @@ impl LegControllers {
     fn applied(&mut self, written: &[f64; 4]) {
         for (c, u) in self.controllers.iter_mut().zip(written) {
             c.applied(*u);
+        }
+        if let Some(law) = &mut self.impedance {
+            law.applied(*written);
         }
         self.commands = *written;
     }

@@ -65,6 +65,16 @@ pub enum LegError {
         /// Two stride periods (s).
         two_strides_s: f64,
     },
+    /// A set point the hardware cannot reach (a stiffness beyond the muscles' range).
+    #[error("{name} = {value} is out of reach: {message}")]
+    Unreachable {
+        /// The field.
+        name: String,
+        /// Its value.
+        value: f64,
+        /// What the hardware reaches.
+        message: String,
+    },
     /// A parameter is needed and absent.
     #[error("{name} is missing: {hint}")]
     Missing {

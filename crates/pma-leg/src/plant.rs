@@ -44,6 +44,18 @@ impl MuscleActuator {
         }
     }
 
+    /// The muscle its model-based laws assume, in its own form: Table I for an eq. (1)
+    /// muscle, the measured map for a Festo size (impedance by co-contraction needs the
+    /// map's slope, which the eq. (1) fit of [`MuscleActuator::assumed`] flattens).
+    pub fn assumed_model(&self) -> MuscleModel {
+        match self.model {
+            MuscleModel::ThreeElement(_) => {
+                MuscleModel::ThreeElement(pma_model::MuscleParams::TABLE_I)
+            }
+            festo @ MuscleModel::Festo(_) => festo,
+        }
+    }
+
     /// Contraction (m) at its leg's joint angles `q`.
     pub fn contraction(&self, q: [f64; 2]) -> f64 {
         self.geometry.contraction(q[self.joint])
@@ -155,6 +167,8 @@ pub struct LegPlant {
     /// Each leg's patient (empty: the passive limb).
     patients: Vec<Patient>,
     muscles_attached: bool,
+    /// A load on each leg's joints (N m, flexion positive): a perturbation test's weight.
+    external_nm: [[f64; 2]; MAX_LEGS],
 }
 
 impl LegPlant {
@@ -179,7 +193,16 @@ impl LegPlant {
             slack_s: [[0.0; 4]; MAX_LEGS],
             patients: Vec::new(),
             muscles_attached: true,
+            external_nm: [[0.0; 2]; MAX_LEGS],
         })
+    }
+
+    /// Hangs a constant load on leg `leg`'s joints (N m, flexion positive; zero to take it
+    /// off): a perturbation test's weight, beside the muscles and the patient.
+    pub fn set_external_torque(&mut self, leg: usize, torque_nm: [f64; 2]) {
+        if let Some(t) = self.external_nm.get_mut(leg) {
+            *t = torque_nm;
+        }
     }
 
     /// Puts a patient in each leg (empty: the passive limb).
@@ -307,15 +330,19 @@ impl LegPlant {
         let muscles = &mut self.muscles;
         let patients = &mut self.patients;
         let attached = self.muscles_attached;
+        let external = self.external_nm;
         let legs = self.exo.leg_count();
         let h = self.period_s / f64::from(self.exo.substeps());
         let t0 = self.periods as f64 * self.period_s;
         let mut slack = [[0.0; 4]; MAX_LEGS];
         self.exo.step(|exo, sub| {
             let t = t0 + sub as f64 * h;
-            let mut tau = PerLeg::from_fn(legs, |leg| match patients.get_mut(leg) {
-                Some(p) => p.torques(t, exo.angles(leg), exo.velocities(leg)).total(),
-                None => [0.0; 2],
+            let mut tau = PerLeg::from_fn(legs, |leg| {
+                let patient = match patients.get_mut(leg) {
+                    Some(p) => p.torques(t, exo.angles(leg), exo.velocities(leg)).total(),
+                    None => [0.0; 2],
+                };
+                [patient[0] + external[leg][0], patient[1] + external[leg][1]]
             });
             for m in muscles.iter_mut() {
                 let (q, qd) = (exo.angles(m.leg), exo.velocities(m.leg));

@@ -22,6 +22,11 @@ fn controller_kind(name: Option<&str>) -> PyResult<Option<ControllerKind>> {
         .transpose()
 }
 
+/// A control mode by its name as on the command line (`None`: the scenario's).
+fn mode_of(name: Option<&str>) -> PyResult<Option<pma_exo::setup::Mode>> {
+    name.map(|n| choice("mode", n)).transpose()
+}
+
 /// A value of a choice, by its name as on the command line.
 fn choice<T: clap::ValueEnum>(what: &str, name: &str) -> PyResult<T> {
     T::from_str(name, false).map_err(|_| {
@@ -100,15 +105,17 @@ pub fn single<'py>(
 /// Returns a dict of 1-D float64 arrays named as the CLI's CSV columns (`t_s`, the
 /// joints' angles and references, each muscle's pressure, command and force, the
 /// patient's torques; on a treadmill the feet and the pelvis) and `metrics`: the dict
-/// `simulate --json` prints (without its provenance).
+/// `simulate --json` prints (without its provenance). `mode`: `"position"` or
+/// `"impedance"` (default: the scenario's), as `simulate --mode`.
 #[pyfunction]
-#[pyo3(signature = (scenario = "gait_training", controller = None, gains = None, duration = None))]
+#[pyo3(signature = (scenario = "gait_training", controller = None, gains = None, duration = None, mode = None))]
 pub fn simulate<'py>(
     py: Python<'py>,
     scenario: &str,
     controller: Option<&str>,
     gains: Option<PathBuf>,
     duration: Option<f64>,
+    mode: Option<&str>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let LegRun {
         mut sim,
@@ -120,6 +127,7 @@ pub fn simulate<'py>(
         controller: controller_kind(controller)?,
         gains: gains.as_deref(),
         duration_s: duration,
+        mode: mode_of(mode)?,
     })
     .map_err(to_py)?;
     let names = sim.plant().muscle_names();

@@ -41,6 +41,10 @@ LEG_CASES = [
     (lambda: pma_exo.simulate("no_such_scenario"), ["simulate", "no_such_scenario"]),
     (lambda: pma_exo.simulate(duration=1.0), ["simulate", "--duration", "1"]),
     (lambda: pma_exo.simulate(duration=math.inf), ["simulate", "--duration", "inf"]),
+    (
+        lambda: pma_exo.simulate(mode="impedance", controller="psmc"),
+        ["simulate", "--mode", "impedance", "--controller", "psmc"],
+    ),
     (lambda: pma_exo.pendulum(knee_deg=120.0), ["pendulum", "--knee-deg", "120"]),
     (lambda: pma_exo.pendulum(duration=700.0), ["pendulum", "--duration", "700"]),
 ]
@@ -56,6 +60,8 @@ def test_leg_errors_carry_the_cli_message(call, args, cli):
 def test_unknown_names_raise():
     with pytest.raises(pma_exo.PmaError, match="unknown controller"):
         pma_exo.single(controller="lqr")
+    with pytest.raises(pma_exo.PmaError, match="unknown mode `stiff`"):
+        pma_exo.simulate(mode="stiff")
     with pytest.raises(pma_exo.PmaError, match="unknown reference `square`"):
         pma_exo.single(reference="square")
     with pytest.raises(pma_exo.PmaError, match="unknown spasticity `extreme`"):

@@ -47,13 +47,16 @@ def simulate(
     controller: Optional[str] = None,
     gains: Optional[_Path] = None,
     duration: Optional[float] = None,
+    mode: Optional[str] = None,
 ) -> Run:
     """Gait training on the exoskeleton leg (``pma-exo simulate``).
 
     ``scenario``: an embedded name (gait_training, gait_realistic, gait_spastic,
     gait_spasms, gait_resistive, gait_treadmill, ...) or a scenario .toml file;
     ``controller``: on every muscle (default: APRC-NDO with the scenario's gains);
-    ``gains``: a gain file; ``duration``: simulated seconds (default: the scenario's).
+    ``gains``: a gain file; ``duration``: simulated seconds (default: the scenario's);
+    ``mode``: ``"position"`` or ``"impedance"`` (default: the scenario's ``control.mode``;
+    impedance runs no muscle controller, so no ``controller`` with it).
     """
 
 def pendulum(

@@ -1,0 +1,676 @@
+//! Impedance by co-contraction: each joint's stiffness set through its muscle pair's
+//! pressure sum and its torque through their difference (Tondu and Lopez 2000; Verrelst
+//! et al. 2005), the valves' own pressure loops as the inner loops.
+//!
+//! A muscle at constant pressure `P` is a spring in its contraction `x`: `dF/dx = -k(P)`
+//! for eq. (1), the map's slope for a Festo size. On a pulley of signed arm `m` its
+//! contraction is `x0 + m q`, so the pair's joint stiffness at constant pressures is
+//! `K = m_f^2 k_f(P_f) + m_e^2 k_e(P_e)`, which grows with both pressures, while the torque
+//! `m_f F_f + m_e F_e` grows with their difference. Each period the law solves the two
+//! equations "stiffness = set point, torque at the reference pose = what the reference
+//! needs" for the two pressures; the muscles then are a spring of the set stiffness about
+//! the reference, by their own physics, with no position feedback: a push on the leg
+//! deflects it by `torque / K` whatever the controller does within the valve's lag.
+//!
+//! What the torque at the reference pose holds: the rigid leg's inverse dynamics along the
+//! reference, with gravity at the *measured* pose (the device's weight compensated where it
+//! is, so that gravity adds no stiffness of its own), the muscles' own damping along the
+//! reference's velocity (so that the damping acts about the reference), and a damping
+//! feedback on the velocity error for whatever the set point asks beyond the muscles' own.
+use crate::config::Side;
+use crate::error::LegError;
+use crate::exoskeleton::LegInertia;
+use crate::gait::GaitSample;
+use crate::plant::MuscleActuator;
+use pma_model::error::within;
+use pma_model::{DampingMode, MuscleModel};
+use serde::{Deserialize, Serialize};
+
+/// How a leg's joints are controlled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ControlMode {
+    /// Robot in charge: each muscle's controller tracks its length along the reference.
+    #[default]
+    Position,
+    /// Each joint a spring and damper about the reference, its stiffness set by the pair's
+    /// co-contraction ([`ImpedanceSettings`]).
+    Impedance,
+}
+
+impl std::fmt::Display for ControlMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Position => "position",
+            Self::Impedance => "impedance",
+        })
+    }
+}
+
+/// One joint's impedance set point.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointImpedance {
+    /// Stiffness about the reference (N m/rad), realised by co-contraction. Default: the
+    /// middle of what the joint's pair reaches at rest ([`MusclePair::stiffness_range`]).
+    #[serde(default)]
+    pub stiffness_nm_per_rad: Option<f64>,
+    /// Damping about the reference (N m s/rad): the muscles' own, plus a feedback on the
+    /// velocity error for any more. Default 0 (the muscles' own only).
+    #[serde(default)]
+    pub damping_nm_s_per_rad: f64,
+}
+
+/// `[control.impedance]`: the set points of impedance mode.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImpedanceSettings {
+    /// The hip's set point.
+    #[serde(default)]
+    pub hip: JointImpedance,
+    /// The knee's set point.
+    #[serde(default)]
+    pub knee: JointImpedance,
+    /// Time constant of the filter on the encoder's differentiated angle (s).
+    #[serde(default = "default_velocity_filter")]
+    pub velocity_filter_s: f64,
+}
+
+impl Default for JointImpedance {
+    fn default() -> Self {
+        Self {
+            stiffness_nm_per_rad: None,
+            damping_nm_s_per_rad: 0.0,
+        }
+    }
+}
+
+fn default_velocity_filter() -> f64 {
+    0.005
+}
+
+impl Default for ImpedanceSettings {
+    fn default() -> Self {
+        Self {
+            hip: JointImpedance::default(),
+            knee: JointImpedance::default(),
+            velocity_filter_s: default_velocity_filter(),
+        }
+    }
+}
+
+/// Highest stiffness a set point may name (N m/rad): ten times what LOPES II renders at
+/// most (1500 N m/rad), beyond any gait trainer's; what a pair reaches is checked against
+/// its muscles when the leg is built.
+pub const STIFFNESS_MAX_NM_PER_RAD: f64 = 15_000.0;
+
+impl ImpedanceSettings {
+    /// The set point of joint `joint` (0 hip, 1 knee).
+    pub fn joint(&self, joint: usize) -> JointImpedance {
+        if joint == 0 {
+            self.hip
+        } else {
+            self.knee
+        }
+    }
+
+    /// Checks every field's range (the muscles' reach is checked by [`MusclePair`]).
+    pub fn validate(&self) -> Result<(), LegError> {
+        for (name, j) in [("hip", self.hip), ("knee", self.knee)] {
+            if let Some(k) = j.stiffness_nm_per_rad {
+                within(
+                    format!("control.impedance.{name}.stiffness_nm_per_rad"),
+                    k,
+                    f64::MIN_POSITIVE,
+                    STIFFNESS_MAX_NM_PER_RAD,
+                    "must be > 0 and at most 15000 N m/rad (ten times LOPES II's 1500)",
+                )?;
+            }
+            within(
+                format!("control.impedance.{name}.damping_nm_s_per_rad"),
+                j.damping_nm_s_per_rad,
+                0.0,
+                1000.0,
+                "must be 0..=1000 N m s/rad",
+            )?;
+        }
+        within(
+            "control.impedance.velocity_filter_s",
+            self.velocity_filter_s,
+            0.0,
+            0.1,
+            "must be 0..=0.1 s",
+        )?;
+        Ok(())
+    }
+}
+
+/// One muscle of a pair as the law models it.
+#[derive(Debug, Clone, Copy)]
+struct PairMuscle {
+    /// Signed moment arm (m): contraction per radian of flexion.
+    arm_m: f64,
+    contraction_at_zero_m: f64,
+    model: MuscleModel,
+}
+
+/// Step of the numerical slope of a Festo map (m): a tenth of a millimetre.
+const DX_M: f64 = 1e-4;
+
+impl PairMuscle {
+    fn contraction(&self, q_rad: f64) -> f64 {
+        self.contraction_at_zero_m + self.arm_m * q_rad
+    }
+
+    /// Static force (N) at pressure `p` and joint angle `q`, unclamped.
+    fn force(&self, p: f64, q_rad: f64) -> f64 {
+        self.model
+            .force_unclamped(p, self.contraction(q_rad), 0.0, DampingMode::Inflation)
+    }
+
+    /// This muscle's share of the joint stiffness (N m/rad) at pressure `p`.
+    fn stiffness(&self, p: f64, q_rad: f64) -> f64 {
+        let x = self.contraction(q_rad);
+        let at = |x: f64| {
+            self.model
+                .force_unclamped(p, x, 0.0, DampingMode::Inflation)
+        };
+        -self.arm_m * self.arm_m * (at(x + DX_M) - at(x - DX_M)) / (2.0 * DX_M)
+    }
+
+    /// Its share of the joint damping (N m s/rad) at pressure `p`: the mean of the
+    /// inflating and deflating coefficients (which one acts depends on the valve's
+    /// direction, unknown ahead).
+    fn damping(&self, p: f64) -> f64 {
+        let b = |mode| match self.model {
+            MuscleModel::ThreeElement(m) => m.damping(p, mode),
+            MuscleModel::Festo(f) => f.damping(p, mode),
+        };
+        self.arm_m * self.arm_m * 0.5 * (b(DampingMode::Inflation) + b(DampingMode::Deflation))
+    }
+}
+
+/// A joint's flexor and extensor as the impedance law models them (their assumed
+/// models: Table I for an eq. (1) muscle, the map for a Festo size).
+#[derive(Debug, Clone, Copy)]
+pub struct MusclePair {
+    joint: usize,
+    /// Flexor, extensor.
+    muscles: [PairMuscle; 2],
+    /// Their places among the leg's four muscles.
+    indices: [usize; 2],
+    pressure_max_pa: f64,
+}
+
+/// What a pair reaches at one pose and torque.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StiffnessRange {
+    /// Lowest stiffness (N m/rad) with both muscles pulling within the valve's range.
+    pub min_nm_per_rad: f64,
+    /// Highest.
+    pub max_nm_per_rad: f64,
+}
+
+/// Points of the pressure-sum scan of [`MusclePair::stiffness_range`].
+const RANGE_POINTS: usize = 400;
+
+impl MusclePair {
+    /// The pair on joint `joint` of a leg's four muscles.
+    pub fn new(
+        muscles: &[MuscleActuator],
+        joint: usize,
+        pressure_max_pa: f64,
+    ) -> Result<Self, LegError> {
+        let find = |side: Side| {
+            muscles
+                .iter()
+                .position(|m| m.joint == joint && m.geometry.side == side)
+                .ok_or_else(|| LegError::Muscle {
+                    muscle: format!("joint {joint}"),
+                    message: format!("has no {side:?} (impedance needs a pair on each joint)")
+                        .to_lowercase(),
+                })
+        };
+        let indices = [find(Side::Flexor)?, find(Side::Extensor)?];
+        let muscles = indices.map(|i| {
+            let m = &muscles[i];
+            PairMuscle {
+                arm_m: m.geometry.moment_arm_m(),
+                contraction_at_zero_m: m.geometry.contraction_at_zero_m,
+                model: m.assumed_model(),
+            }
+        });
+        Ok(Self {
+            joint,
+            muscles,
+            indices,
+            pressure_max_pa,
+        })
+    }
+
+    /// Joint stiffness (N m/rad) at pressures `[flexor, extensor]` and angle `q`.
+    pub fn stiffness(&self, p: [f64; 2], q_rad: f64) -> f64 {
+        self.muscles[0].stiffness(p[0], q_rad) + self.muscles[1].stiffness(p[1], q_rad)
+    }
+
+    /// Static joint torque (N m, flexion positive) at pressures `p` and angle `q`.
+    pub fn torque(&self, p: [f64; 2], q_rad: f64) -> f64 {
+        self.muscles[0].arm_m * self.muscles[0].force(p[0], q_rad)
+            + self.muscles[1].arm_m * self.muscles[1].force(p[1], q_rad)
+    }
+
+    /// The muscles' own joint damping (N m s/rad) at pressures `p`.
+    pub fn damping(&self, p: [f64; 2]) -> f64 {
+        self.muscles[0].damping(p[0]) + self.muscles[1].damping(p[1])
+    }
+
+    /// Pressures `[flexor, extensor]` (Pa, not clamped) at which the pair has stiffness
+    /// `stiffness` and holds `torque` at angle `q`: Newton's method on the two equations
+    /// (exact in one step for eq. (1) muscles, whose stiffness and torque are affine in the
+    /// pressures). `None` if the equations are singular there.
+    pub fn pressures_for(&self, stiffness: f64, torque: f64, q_rad: f64) -> Option<[f64; 2]> {
+        const DP: f64 = 1e3;
+        let mut p = [0.5 * self.pressure_max_pa; 2];
+        for _ in 0..6 {
+            let r = [
+                self.stiffness(p, q_rad) - stiffness,
+                self.torque(p, q_rad) - torque,
+            ];
+            let d = |i: usize| {
+                let mut q = p;
+                q[i] += DP;
+                [
+                    (self.stiffness(q, q_rad) - stiffness - r[0]) / DP,
+                    (self.torque(q, q_rad) - torque - r[1]) / DP,
+                ]
+            };
+            let (c0, c1) = (d(0), d(1));
+            let det = c0[0] * c1[1] - c1[0] * c0[1];
+            if !det.is_finite() || det.abs() < 1e-30 {
+                return None;
+            }
+            let step = [
+                (r[0] * c1[1] - c1[0] * r[1]) / det,
+                (c0[0] * r[1] - r[0] * c0[1]) / det,
+            ];
+            p = [p[0] - step[0], p[1] - step[1]];
+            if step[0].abs() + step[1].abs() < 1e-3 {
+                break;
+            }
+        }
+        p.iter().all(|v| v.is_finite()).then_some(p)
+    }
+
+    /// Whether pressures `p` are within the valve's range with both muscles pulling at `q`.
+    fn feasible(&self, p: [f64; 2], q_rad: f64) -> bool {
+        p.iter().all(|&v| (0.0..=self.pressure_max_pa).contains(&v))
+            && self.muscles[0].force(p[0], q_rad) > 0.0
+            && self.muscles[1].force(p[1], q_rad) > 0.0
+    }
+
+    /// The stiffness the pair reaches while holding `torque` at angle `q`: a scan of the
+    /// pressure sum, each point's difference solved for the torque. `None` if no pressures
+    /// within the valve's range hold that torque with both muscles pulling.
+    pub fn stiffness_range(&self, torque: f64, q_rad: f64) -> Option<StiffnessRange> {
+        let mut range: Option<StiffnessRange> = None;
+        for i in 0..=RANGE_POINTS {
+            let mean = self.pressure_max_pa * i as f64 / RANGE_POINTS as f64;
+            let Some(p) = self.pressures_for_mean(mean, torque, q_rad) else {
+                continue;
+            };
+            if !self.feasible(p, q_rad) {
+                continue;
+            }
+            let k = self.stiffness(p, q_rad);
+            range = Some(match range {
+                None => StiffnessRange {
+                    min_nm_per_rad: k,
+                    max_nm_per_rad: k,
+                },
+                Some(r) => StiffnessRange {
+                    min_nm_per_rad: r.min_nm_per_rad.min(k),
+                    max_nm_per_rad: r.max_nm_per_rad.max(k),
+                },
+            });
+        }
+        range
+    }
+
+    /// Pressures of mean `mean` holding `torque` at `q` (bisection on the difference, the
+    /// torque rising with it).
+    fn pressures_for_mean(&self, mean: f64, torque: f64, q_rad: f64) -> Option<[f64; 2]> {
+        let at = |d: f64| [mean + 0.5 * d, mean - 0.5 * d];
+        let (mut lo, mut hi) = (-2.0 * self.pressure_max_pa, 2.0 * self.pressure_max_pa);
+        if (self.torque(at(lo), q_rad) - torque) * (self.torque(at(hi), q_rad) - torque) > 0.0 {
+            return None;
+        }
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if self.torque(at(mid), q_rad) < torque {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        Some(at(0.5 * (lo + hi)))
+    }
+
+    /// The stiffness `set` asks of this pair (its default: the middle of the range at
+    /// rest), checked against what the pair reaches standing (the rest pose, no torque);
+    /// out of reach is an error naming the field.
+    pub fn resolve(&self, set: JointImpedance) -> Result<f64, LegError> {
+        let name = crate::exoskeleton::JOINT_NAMES[self.joint];
+        let field = format!("control.impedance.{name}.stiffness_nm_per_rad");
+        let Some(range) = self.stiffness_range(0.0, 0.0) else {
+            return Err(LegError::Unreachable {
+                name: field,
+                value: set.stiffness_nm_per_rad.unwrap_or(f64::NAN),
+                message: format!(
+                    "the {name}'s muscles cannot hold the rest pose within the valve's range"
+                ),
+            });
+        };
+        let k = set
+            .stiffness_nm_per_rad
+            .unwrap_or(0.5 * (range.min_nm_per_rad + range.max_nm_per_rad));
+        if !(range.min_nm_per_rad..=range.max_nm_per_rad).contains(&k) {
+            return Err(LegError::Unreachable {
+                name: field,
+                value: k,
+                message: format!(
+                    "the {name}'s muscles reach {:.1}..={:.1} N m/rad at rest by co-contraction (`pma-exo impedance SCENARIO` shows the ranges)",
+                    range.min_nm_per_rad, range.max_nm_per_rad
+                ),
+            });
+        }
+        Ok(k)
+    }
+}
+
+/// One leg's impedance law: two pairs, their set points and the leg's rigid model.
+#[derive(Debug, Clone)]
+pub struct ImpedanceLaw {
+    pairs: [MusclePair; 2],
+    settings: ImpedanceSettings,
+    /// Each joint's stiffness (N m/rad), defaults resolved.
+    stiffness_nm_per_rad: [f64; 2],
+    inertia: LegInertia,
+    velocity_rad_s: [f64; 2],
+    last_rad: Option<[f64; 2]>,
+    commands_pa: [f64; 4],
+}
+
+impl ImpedanceLaw {
+    /// The law of a leg of four muscles, each set point checked against its pair's reach.
+    pub fn new(
+        muscles: &[MuscleActuator],
+        inertia: &LegInertia,
+        settings: ImpedanceSettings,
+        pressure_max_pa: f64,
+    ) -> Result<Self, LegError> {
+        settings.validate()?;
+        let pairs = [
+            MusclePair::new(muscles, 0, pressure_max_pa)?,
+            MusclePair::new(muscles, 1, pressure_max_pa)?,
+        ];
+        let stiffness_nm_per_rad = [
+            pairs[0].resolve(settings.hip)?,
+            pairs[1].resolve(settings.knee)?,
+        ];
+        Ok(Self {
+            pairs,
+            settings,
+            stiffness_nm_per_rad,
+            inertia: *inertia,
+            velocity_rad_s: [0.0; 2],
+            last_rad: None,
+            commands_pa: [0.0; 4],
+        })
+    }
+
+    /// The joints' pairs (hip, knee).
+    pub fn pairs(&self) -> &[MusclePair; 2] {
+        &self.pairs
+    }
+
+    /// Each joint's stiffness set point (N m/rad), defaults resolved.
+    pub fn stiffness_nm_per_rad(&self) -> [f64; 2] {
+        self.stiffness_nm_per_rad
+    }
+
+    /// Restarts the velocity estimate at rest, from the valves' present commands.
+    pub fn reset(&mut self, commands_pa: [f64; 4]) {
+        self.velocity_rad_s = [0.0; 2];
+        self.last_rad = None;
+        self.commands_pa = commands_pa;
+    }
+
+    /// The last commands the valves took (the damping estimate's pressures).
+    pub fn applied(&mut self, commands_pa: [f64; 4]) {
+        self.commands_pa = commands_pa;
+    }
+
+    fn estimate_velocity(&mut self, q: [f64; 2], dt_s: f64) {
+        if let Some(last) = self.last_rad {
+            let a = dt_s / (self.settings.velocity_filter_s + dt_s);
+            for j in 0..2 {
+                let raw = (q[j] - last[j]) / dt_s;
+                self.velocity_rad_s[j] += a * (raw - self.velocity_rad_s[j]);
+            }
+        }
+        self.last_rad = Some(q);
+    }
+
+    /// The four pressure commands (Pa, within the valve's range) for reference `g` at
+    /// measured angles `q` (rad).
+    pub fn update(&mut self, g: &GaitSample, q: [f64; 2], dt_s: f64) -> [f64; 4] {
+        self.estimate_velocity(q, dt_s);
+        let q_ref = [g.hip.angle_rad, g.knee.angle_rad];
+        let qd_ref = [g.hip.velocity_rad_s, g.knee.velocity_rad_s];
+        let qdd_ref = [g.hip.acceleration_rad_s2, g.knee.acceleration_rad_s2];
+        let feedforward = self.inertia.inverse_dynamics(q, qd_ref, qdd_ref);
+        let mut out = self.commands_pa;
+        for pair in &self.pairs {
+            let j = pair.joint;
+            let set = self.settings.joint(j);
+            let held = [
+                self.commands_pa[pair.indices[0]],
+                self.commands_pa[pair.indices[1]],
+            ];
+            let own = pair.damping(held);
+            let extra = (set.damping_nm_s_per_rad - own).max(0.0);
+            let torque =
+                feedforward[j] + own * qd_ref[j] + extra * (qd_ref[j] - self.velocity_rad_s[j]);
+            let p = pair
+                .pressures_for(self.stiffness_nm_per_rad[j], torque, q_ref[j])
+                .unwrap_or(held);
+            for (k, &i) in pair.indices.iter().enumerate() {
+                out[i] = p[k].clamp(0.0, pair.pressure_max_pa);
+            }
+        }
+        out
+    }
+}
+
+/// A small-perturbation test of one joint's realised stiffness.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct StiffnessProbe {
+    /// The joint (`hip`, `knee`).
+    pub joint: &'static str,
+    /// Stiffness asked (N m/rad).
+    pub set_nm_per_rad: f64,
+    /// Stiffness measured: the load over the deflection (N m/rad); NaN if the joint did
+    /// not move (`held_by_friction`).
+    pub realised_nm_per_rad: f64,
+    /// `realised / set - 1` (NaN if the joint did not move).
+    pub error: f64,
+    /// Whether the joint's friction held the load: the deflection under a tenth of what
+    /// the set point gives, no stiffness measured.
+    pub held_by_friction: bool,
+    /// Load hung each way (N m).
+    pub load_nm: f64,
+    /// Deflection between the two loads (deg).
+    pub deflection_deg: f64,
+}
+
+/// Deflection the perturbation aims at (rad): a degree each way, small against the gait's
+/// range and large against the valves' pressure resolution.
+const PROBE_DEFLECTION_RAD: f64 = 0.017_453_292_519_943_295;
+
+/// Holds the first leg of an in-air scenario at `pose_rad` in impedance mode, joint `joint`
+/// at `stiffness` N m/rad (the other joint at its default), and hangs a load of `stiffness`
+/// times a degree on the joint, first flexing, then extending, each for `settle_s`: the
+/// realised stiffness is twice the load over the deflection between the two steady poses.
+pub fn probe_stiffness(
+    loaded: &crate::LoadedScenario,
+    joint: usize,
+    stiffness: f64,
+    pose_rad: [f64; 2],
+    settle_s: f64,
+) -> Result<StiffnessProbe, LegError> {
+    let name = crate::exoskeleton::JOINT_NAMES
+        .get(joint)
+        .copied()
+        .ok_or_else(|| {
+            crate::error::invalid("joint", joint as f64, "must be 0 (hip) or 1 (knee)")
+        })?;
+    if loaded.scenario.treadmill.is_some() {
+        return Err(LegError::Unreachable {
+            name: "treadmill".into(),
+            value: f64::NAN,
+            message: format!(
+                "the perturbation test holds a leg in the air, and scenario `{}` stands on a treadmill",
+                loaded.scenario.name
+            ),
+        });
+    }
+    let mut loaded = loaded.clone();
+    let control = &mut loaded.scenario.control;
+    control.mode = ControlMode::Impedance;
+    let set = if joint == 0 {
+        &mut control.impedance.hip
+    } else {
+        &mut control.impedance.knee
+    };
+    set.stiffness_nm_per_rad = Some(stiffness);
+    let mut sim = crate::LegSim::new(&loaded)?;
+    sim.hold_pose(pose_rad);
+    sim.set_state(pose_rad, [0.0; 2]);
+    let load_nm = stiffness * PROBE_DEFLECTION_RAD;
+    let mut settled = |sign: f64| -> Result<f64, LegError> {
+        let mut torque = [0.0; 2];
+        torque[joint] = sign * load_nm;
+        sim.plant_mut().set_external_torque(0, torque);
+        sim.run(settle_s, &mut ())?;
+        Ok(sim.exo().angles(0)[joint])
+    };
+    let flexed = settled(1.0)?;
+    let extended = settled(-1.0)?;
+    let deflection = flexed - extended;
+    let held_by_friction = deflection < 0.1 * 2.0 * PROBE_DEFLECTION_RAD;
+    let realised = if held_by_friction {
+        f64::NAN
+    } else {
+        2.0 * load_nm / deflection
+    };
+    Ok(StiffnessProbe {
+        joint: name,
+        set_nm_per_rad: stiffness,
+        realised_nm_per_rad: realised,
+        error: realised / stiffness - 1.0,
+        held_by_friction,
+        load_nm,
+        deflection_deg: deflection.to_degrees(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pma_model::MuscleParams;
+
+    /// A pair of Table I muscles on pulleys of 15 mm, 30 mm contracted at zero angle.
+    fn table_i_pair() -> MusclePair {
+        let muscle = |arm_m: f64| PairMuscle {
+            arm_m,
+            contraction_at_zero_m: 0.03,
+            model: MuscleModel::ThreeElement(MuscleParams::TABLE_I),
+        };
+        MusclePair {
+            joint: 0,
+            muscles: [muscle(0.015), muscle(-0.015)],
+            indices: [0, 1],
+            pressure_max_pa: 6e5,
+        }
+    }
+
+    #[test]
+    fn an_eq1_pairs_stiffness_is_r_squared_times_the_sum_of_its_springs() {
+        let pair = table_i_pair();
+        let t = MuscleParams::TABLE_I;
+        for (pf, pe, q) in [(1e5, 4e5, 0.0), (3e5, 3e5, 0.3), (5.5e5, 0.5e5, -0.2)] {
+            let analytic = 0.015f64.powi(2) * (t.stiffness(pf) + t.stiffness(pe));
+            let k = pair.stiffness([pf, pe], q);
+            assert!((k / analytic - 1.0).abs() < 1e-9, "{k} against {analytic}");
+        }
+    }
+
+    #[test]
+    fn the_pressures_solved_give_the_stiffness_and_torque_asked() {
+        let pair = table_i_pair();
+        for (k, tau, q) in [(9.0, 0.0, 0.0), (10.0, 5.0, 0.2), (8.8, -4.0, -0.3)] {
+            let p = pair.pressures_for(k, tau, q).expect("a solution");
+            assert!((pair.stiffness(p, q) - k).abs() < 1e-6, "{p:?}");
+            assert!((pair.torque(p, q) - tau).abs() < 1e-6, "{p:?}");
+        }
+    }
+
+    #[test]
+    fn the_stiffness_range_grows_with_the_pressure_sum_and_ends_at_the_valves_limit() {
+        let pair = table_i_pair();
+        let r = pair.stiffness_range(0.0, 0.0).expect("a range");
+        let t = MuscleParams::TABLE_I;
+        // Both at 6 bar is the stiffest; the softest has both muscles just pulling.
+        let top = 2.0 * 0.015f64.powi(2) * t.stiffness(6e5);
+        assert!(
+            (r.max_nm_per_rad / top - 1.0).abs() < 0.01,
+            "{r:?} against {top}"
+        );
+        assert!(r.min_nm_per_rad < r.max_nm_per_rad);
+        assert!(r.min_nm_per_rad >= 2.0 * 0.015f64.powi(2) * t.k0_n_per_m);
+        // A torque narrows it: one muscle has to pull harder than the other.
+        let loaded = pair.stiffness_range(20.0, 0.0).expect("a range");
+        assert!(loaded.max_nm_per_rad < r.max_nm_per_rad);
+    }
+
+    #[test]
+    fn bad_set_points_name_their_field() {
+        let mut s = ImpedanceSettings::default();
+        s.knee.stiffness_nm_per_rad = Some(-5.0);
+        let e = s.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("control.impedance.knee.stiffness_nm_per_rad"),
+            "{e}"
+        );
+        let mut s = ImpedanceSettings::default();
+        s.hip.damping_nm_s_per_rad = f64::NAN;
+        let e = s.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("control.impedance.hip.damping_nm_s_per_rad"),
+            "{e}"
+        );
+        let pair = table_i_pair();
+        let e = pair
+            .resolve(JointImpedance {
+                stiffness_nm_per_rad: Some(200.0),
+                damping_nm_s_per_rad: 0.0,
+            })
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("control.impedance.hip.stiffness_nm_per_rad = 200 is out of reach"),
+            "{e}"
+        );
+        assert!(!e.contains('\n'), "{e}");
+    }
+}

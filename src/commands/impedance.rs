@@ -1,0 +1,187 @@
+//! `pma-exo impedance`: what stiffness a scenario's muscle pairs reach by co-contraction,
+//! and, for a leg in the air, small-perturbation tests of what impedance mode realises.
+use crate::provenance::Provenance;
+use crate::say;
+use anyhow::Result;
+use pma_leg::exoskeleton::JOINT_NAMES;
+use pma_leg::impedance::{probe_stiffness, StiffnessProbe, StiffnessRange};
+use pma_leg::{LegSim, MusclePair, Scenario};
+use serde::Serialize;
+
+/// `impedance`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// An embedded scenario or a scenario .toml file.
+    #[arg(default_value = "gait_training")]
+    scenario: String,
+    /// Hip and knee flexion (deg) at which the perturbation tests hold the leg.
+    #[arg(long, value_delimiter = ',', num_args = 2, default_values_t = [20.0, 30.0], allow_negative_numbers = true)]
+    pose_deg: Vec<f64>,
+    /// Seconds each load is held before the pose is read: several times the pair's time
+    /// constant, its own damping over its stiffness (1.6 s for gait_training's hip).
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
+    settle: f64,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Share of the range at the test pose where the three set points sit.
+const SET_POINTS: [f64; 3] = [0.2, 0.5, 0.8];
+/// Reference samples over a stride for the range along the gait.
+const STRIDE_SAMPLES: usize = 200;
+
+/// One joint's reach and tests.
+#[derive(Serialize)]
+struct JointReach {
+    joint: &'static str,
+    /// At rest, no torque (N m/rad).
+    at_rest: Option<[f64; 2]>,
+    /// Reached at every sample of a stride in the air (N m/rad): the intersection.
+    over_stride_in_air: Option<[f64; 2]>,
+    /// At the test pose holding its gravity.
+    at_pose: Option<[f64; 2]>,
+    probes: Vec<StiffnessProbe>,
+}
+
+fn pair(r: Option<StiffnessRange>) -> Option<[f64; 2]> {
+    r.map(|r| [r.min_nm_per_rad, r.max_nm_per_rad])
+}
+
+/// Runs `impedance`.
+pub fn run(a: Args) -> Result<i32> {
+    if !(a.settle.is_finite() && (0.2..=30.0).contains(&a.settle)) {
+        anyhow::bail!("--settle must be 0.2..=30 s (got {})", a.settle);
+    }
+    let pose_deg = [a.pose_deg[0], a.pose_deg[1]];
+    if pose_deg.iter().any(|d| !d.is_finite()) {
+        anyhow::bail!("--pose-deg must be two finite angles in degrees");
+    }
+    let loaded = Scenario::load(&a.scenario)?;
+    let sc = &loaded.scenario;
+    let sim = LegSim::new(&loaded)?;
+    let inertia = *sim.exo().inertia();
+    let gait = sc.gait.reference()?;
+    let pose_rad = pose_deg.map(f64::to_radians);
+    let in_air = sc.treadmill.is_none();
+    let mut joints = Vec::with_capacity(2);
+    for (j, name) in JOINT_NAMES.iter().enumerate() {
+        let p = MusclePair::new(
+            sim.plant().leg_muscles(0),
+            j,
+            sc.plant.valve.pressure_max_pa,
+        )?;
+        let over_stride = stride_reach(&p, &inertia, &gait, j);
+        let gravity = inertia.inverse_dynamics(pose_rad, [0.0; 2], [0.0; 2])[j];
+        let at_pose = p.stiffness_range(gravity, pose_rad[j]);
+        let mut probes = Vec::new();
+        if let (true, Some(r)) = (in_air, at_pose) {
+            for share in SET_POINTS {
+                let k = r.min_nm_per_rad + share * (r.max_nm_per_rad - r.min_nm_per_rad);
+                probes.push(probe_stiffness(&loaded, j, k, pose_rad, a.settle)?);
+            }
+        }
+        joints.push(JointReach {
+            joint: name,
+            at_rest: pair(p.stiffness_range(0.0, 0.0)),
+            over_stride_in_air: over_stride,
+            at_pose: pair(at_pose),
+            probes,
+        });
+    }
+    let provenance = Provenance {
+        scenario: Some(crate::provenance::named(&a.scenario, &sc.name)),
+        ..Provenance::of_this_run()
+    };
+    if a.json {
+        let json = serde_json::json!({
+            "provenance": provenance,
+            "pose_deg": pose_deg,
+            "joints": joints,
+        });
+        say!("{}", serde_json::to_string(&json)?);
+        return Ok(0);
+    }
+    say!(
+        "{}: joint stiffness by co-contraction (each pair's pressure sum; the valves' range 0..{:.2} bar, both muscles pulling)",
+        sc.name,
+        sc.plant.valve.pressure_max_pa / 1e5
+    );
+    let range = |r: Option<[f64; 2]>| {
+        r.map_or("none".to_owned(), |[lo, hi]| {
+            format!("{lo:.1}..{hi:.1} N m/rad")
+        })
+    };
+    for j in &joints {
+        say!(
+            "  {:<5} at rest {}; at every point of a stride in the air {}; at {:.0}/{:.0} deg holding gravity {}",
+            j.joint,
+            range(j.at_rest),
+            range(j.over_stride_in_air),
+            pose_deg[0],
+            pose_deg[1],
+            range(j.at_pose)
+        );
+        for p in &j.probes {
+            if p.held_by_friction {
+                say!(
+                    "        set {:7.2} N m/rad: the joint did not move (deflection {:.4} deg under +/-{:.3} N m): its friction ({:.2} N m) holds the load",
+                    p.set_nm_per_rad,
+                    p.deflection_deg,
+                    p.load_nm,
+                    friction_nm(sc, j.joint)
+                );
+                continue;
+            }
+            say!(
+                "        set {:7.2} N m/rad: realised {:7.2} N m/rad ({:+.1} %), load +/-{:.3} N m, deflection {:.3} deg",
+                p.set_nm_per_rad,
+                p.realised_nm_per_rad,
+                100.0 * p.error,
+                p.load_nm,
+                p.deflection_deg
+            );
+        }
+    }
+    if !in_air {
+        say!("  (no perturbation tests: they hold a leg in the air, and this scenario stands on a treadmill)");
+    }
+    say!("{}", provenance.line());
+    Ok(0)
+}
+
+/// The scenario's Coulomb friction on joint `name` (N m).
+fn friction_nm(sc: &Scenario, name: &str) -> f64 {
+    if name == "hip" {
+        sc.joints.hip.friction_nm
+    } else {
+        sc.joints.knee.friction_nm
+    }
+}
+
+/// The stiffness the pair reaches at every sample of a stride of the leg in the air (the
+/// rigid leg's inverse dynamics along the reference): the intersection of the samples'.
+fn stride_reach(
+    p: &MusclePair,
+    inertia: &pma_leg::LegInertia,
+    gait: &pma_leg::gait::GaitReference,
+    joint: usize,
+) -> Option<[f64; 2]> {
+    let t0 = gait.ramp_s() + gait.stride_period_s();
+    let mut reach = [f64::NEG_INFINITY, f64::INFINITY];
+    for i in 0..STRIDE_SAMPLES {
+        let g = gait.sample(t0 + gait.stride_period_s() * i as f64 / STRIDE_SAMPLES as f64);
+        let q = [g.hip.angle_rad, g.knee.angle_rad];
+        let torque = inertia.inverse_dynamics(
+            q,
+            [g.hip.velocity_rad_s, g.knee.velocity_rad_s],
+            [g.hip.acceleration_rad_s2, g.knee.acceleration_rad_s2],
+        )[joint];
+        let r = p.stiffness_range(torque, q[joint])?;
+        reach = [
+            reach[0].max(r.min_nm_per_rad),
+            reach[1].min(r.max_nm_per_rad),
+        ];
+    }
+    (reach[0] <= reach[1]).then_some(reach)
+}
