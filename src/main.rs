@@ -12,7 +12,8 @@ mod provenance;
 mod studies;
 
 use commands::{
-    compare_leg, fit_gait, identify, impedance, pendulum, rig, simulate, single, size, sweep, tune,
+    compare_leg, compare_modes, fit_gait, identify, impedance, pendulum, rig, simulate, single,
+    size, sweep, tune,
 };
 
 #[derive(Parser)]
@@ -55,6 +56,10 @@ enum Command {
     /// runs that change the hip where a stance foot runs ahead of or behind the belt, until
     /// it moves with it; prints (or writes) the scenario's `[gait.hip_correction]`.
     FitGait(fit_gait::Args),
+    /// One patient under position, impedance, path and transparent control and with the
+    /// muscles unhooked: interaction torques, work, the patient's stride variability, time
+    /// in the tunnel, spasms (in the air).
+    CompareModes(compare_modes::Args),
     /// The joint stiffness a scenario's muscle pairs reach by co-contraction (at rest,
     /// along a stride, at a test pose) and, for a leg in the air, small-perturbation tests
     /// of what impedance mode realises at three set points per joint.
@@ -171,6 +176,7 @@ fn run(cli: Cli) -> Result<i32> {
         Command::Size(a) => size::run(a),
         Command::FitGait(a) => fit_gait::run(a),
         Command::Impedance(a) => impedance::run(a),
+        Command::CompareModes(a) => compare_modes::run(a),
         Command::Sweep(a) => sweep::run(a),
         Command::Identify(a) => identify::run(a),
         Command::Rig { command } => rig::run(command),

@@ -204,6 +204,12 @@ pub enum Mode {
     /// Each joint a spring and damper about the reference by co-contraction
     /// (`[control.impedance]`).
     Impedance,
+    /// Free inside a tunnel around the reference's path, a wall outside, support along it
+    /// (`[control.path]`).
+    Path,
+    /// Patient in charge: only the device's own weight and the muscles' damping
+    /// compensated.
+    Transparent,
 }
 
 impl Mode {
@@ -212,6 +218,8 @@ impl Mode {
         match self {
             Mode::Position => ControlMode::Position,
             Mode::Impedance => ControlMode::Impedance,
+            Mode::Path => ControlMode::Path,
+            Mode::Transparent => ControlMode::Transparent,
         }
     }
 }
@@ -226,9 +234,10 @@ pub fn apply_mode(
     if let Some(m) = mode {
         loaded.scenario.control.mode = m.control_mode();
     }
-    if let (ControlMode::Impedance, Some(k)) = (loaded.scenario.control.mode, controller) {
+    let mode = loaded.scenario.control.mode;
+    if let (false, Some(k)) = (mode.runs_muscle_controllers(), controller) {
         bail!(
-            "--controller {}: impedance mode sets each pair's pressures by co-contraction through the valves' own pressure loops and runs no muscle controller; use --mode position to run one",
+            "--controller {}: {mode} mode sets each pair's pressures through the valves' own pressure loops and runs no muscle controller; use --mode position to run one",
             k.as_str()
         );
     }
@@ -282,7 +291,7 @@ impl LegRun {
 pub fn controller_label(loaded: &LoadedScenario, config: &ControllerConfig) -> String {
     match loaded.scenario.control.mode {
         ControlMode::Position => config.kind().as_str().to_owned(),
-        ControlMode::Impedance => "none: impedance by co-contraction".to_owned(),
+        mode => format!("none: {mode} mode, the pairs set by pressure"),
     }
 }
 

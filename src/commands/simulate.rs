@@ -31,9 +31,11 @@ pub struct Args {
     #[arg(long, allow_negative_numbers = true)]
     duration: Option<f64>,
     /// Control mode (default: the scenario's `control.mode`): `position` (each muscle's
-    /// controller tracks the reference) or `impedance` (each joint a spring about the
-    /// reference by co-contraction, `[control.impedance]`; no --controller).
-    #[arg(long = "mode", value_name = "position|impedance")]
+    /// controller tracks the reference), `impedance` (each joint a spring about the
+    /// reference by co-contraction, `[control.impedance]`), `path` (a tunnel around the
+    /// reference's path, `[control.path]`) or `transparent`; the last three run no
+    /// --controller.
+    #[arg(long = "mode", value_name = "position|impedance|path|transparent")]
     control_mode: Option<Mode>,
     /// Run even if it would take over an hour.
     #[arg(long)]

@@ -29,7 +29,7 @@ pub const EMBEDDED_GAIT_TRAINING: &str = include_str!("../models/scenarios/gait_
 pub const EMBEDDED_GAIT_REALISTIC: &str = include_str!("../models/scenarios/gait_realistic.toml");
 
 /// Every embedded scenario: name and text (`crates/pma-leg/models/scenarios/<name>.toml`).
-pub const EMBEDDED_SCENARIOS: [(&str, &str); 8] = [
+pub const EMBEDDED_SCENARIOS: [(&str, &str); 9] = [
     ("gait_training", EMBEDDED_GAIT_TRAINING),
     ("gait_realistic", EMBEDDED_GAIT_REALISTIC),
     (
@@ -43,6 +43,10 @@ pub const EMBEDDED_SCENARIOS: [(&str, &str); 8] = [
     (
         "gait_resistive",
         include_str!("../models/scenarios/gait_resistive.toml"),
+    ),
+    (
+        "gait_active",
+        include_str!("../models/scenarios/gait_active.toml"),
     ),
     (
         "gait_treadmill",
@@ -59,7 +63,7 @@ pub const EMBEDDED_SCENARIOS: [(&str, &str); 8] = [
 ];
 
 /// The embedded scenarios' names, for help texts and messages.
-pub const EMBEDDED_SCENARIO_NAMES: &str = "gait_training, gait_realistic, gait_spastic, gait_spasms, gait_resistive, gait_treadmill, gait_treadmill_spastic, gait_treadmill_one_leg";
+pub const EMBEDDED_SCENARIO_NAMES: &str = "gait_training, gait_realistic, gait_spastic, gait_spasms, gait_resistive, gait_active, gait_treadmill, gait_treadmill_spastic, gait_treadmill_one_leg";
 
 fn embedded_text(name: &str) -> Option<&'static str> {
     EMBEDDED_SCENARIOS
@@ -433,6 +437,13 @@ pub struct ControlSettings {
     /// Impedance mode's set points.
     #[serde(default)]
     pub impedance: crate::impedance::ImpedanceSettings,
+    /// Path mode's tunnel and support.
+    #[serde(default)]
+    pub path: crate::impedance::PathSettings,
+    /// What the pressure-set modes carry: `leg` (default, a passive patient) or `device`
+    /// (the frames only; an active patient carries their limb).
+    #[serde(default)]
+    pub compensation: crate::impedance::Compensation,
 }
 
 fn default_rate_max() -> f64 {

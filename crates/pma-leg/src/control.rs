@@ -169,21 +169,17 @@ impl LegControllers {
             filter_s: sc.control.cocontraction_filter_s,
             filtered_pa: sc.control.cocontraction_pa,
         };
+        let gait = sc.gait.reference()?.for_leg(leg);
         let impedance = match sc.control.mode {
             ControlMode::Position => None,
-            ControlMode::Impedance => Some(ImpedanceLaw::new(
-                muscles,
-                inertia,
-                sc.control.impedance,
-                limits.max_pa,
-            )?),
+            _ => Some(ImpedanceLaw::new(sc, muscles, inertia, &gait)?),
         };
         Ok(Self {
             levers,
             controllers,
             cocontraction: [regulator; 2],
             regulator_at_rest: regulator,
-            gait: sc.gait.reference()?.for_leg(leg),
+            gait,
             hold: None,
             commands: [0.0; 4],
             impedance,

@@ -92,7 +92,61 @@ pub struct LegInertia {
     pub pelvis_pitch_rad: f64,
 }
 
+/// Mass of the exoskeleton's thigh frame (kg): the URDFs' stated design, an aluminium bar
+/// (`models/exo_leg.urdf`, `models/exo_trainer.urdf`).
+pub const FRAME_THIGH_KG: f64 = 2.0;
+/// Mass of its shank frame (kg).
+pub const FRAME_SHANK_KG: f64 = 1.5;
+/// Where each frame's centre of mass sits below its joint (m): the middle of a 0.40 m bar.
+pub const FRAME_COM_M: f64 = 0.20;
+
+impl LinkInertia {
+    /// A uniform bar of `mass_kg` whose middle is `FRAME_COM_M` below its joint.
+    fn frame_bar(mass_kg: f64) -> Self {
+        let length = 2.0 * FRAME_COM_M;
+        Self {
+            mass_kg,
+            com_below_joint_m: FRAME_COM_M,
+            inertia_kg_m2: mass_kg * length * length / 12.0,
+        }
+    }
+
+    /// This link without `part` (both about the same joint): the rest's mass, centre and
+    /// inertia about its own centre (parallel axes).
+    fn without(&self, part: &LinkInertia) -> Self {
+        let mass_kg = self.mass_kg - part.mass_kg;
+        let com = (self.mass_kg * self.com_below_joint_m - part.mass_kg * part.com_below_joint_m)
+            / mass_kg;
+        let about_joint =
+            |l: &LinkInertia| l.inertia_kg_m2 + l.mass_kg * l.com_below_joint_m.powi(2);
+        Self {
+            mass_kg,
+            com_below_joint_m: com,
+            inertia_kg_m2: about_joint(self) - about_joint(part) - mass_kg * com * com,
+        }
+    }
+}
+
 impl LegInertia {
+    /// The exoskeleton's own frames on this leg's geometry (the URDFs' stated design).
+    pub fn frames(&self) -> Self {
+        Self {
+            thigh: LinkInertia::frame_bar(FRAME_THIGH_KG),
+            shank: LinkInertia::frame_bar(FRAME_SHANK_KG),
+            ..*self
+        }
+    }
+
+    /// The patient's limb alone: this leg without the exoskeleton's frames.
+    pub fn limb(&self) -> Self {
+        let frames = self.frames();
+        Self {
+            thigh: self.thigh.without(&frames.thigh),
+            shank: self.shank.without(&frames.shank),
+            ..*self
+        }
+    }
+
     /// Inertia about the knee of the shank (kg m^2).
     pub fn knee_inertia(&self) -> f64 {
         let s = &self.shank;

@@ -36,6 +36,166 @@ pub enum ControlMode {
     /// Each joint a spring and damper about the reference, its stiffness set by the pair's
     /// co-contraction ([`ImpedanceSettings`]).
     Impedance,
+    /// Path control (Duschau-Wicke et al. 2010): free inside a tunnel around the
+    /// reference's path in joint space, whatever the timing; a wall outside; a supportive
+    /// torque along the path ([`PathSettings`]). The pairs at their softest.
+    Path,
+    /// Patient in charge: no torque on the limb but what compensates the device (its
+    /// weight, the muscles' own damping); the pairs at their softest.
+    Transparent,
+}
+
+impl ControlMode {
+    /// Whether the muscles' own controllers run (position mode) or the pairs are set by
+    /// pressure (every other mode).
+    pub fn runs_muscle_controllers(self) -> bool {
+        self == Self::Position
+    }
+}
+
+/// Whose weight and inertia the pressure-set modes carry besides their own law.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Compensation {
+    /// The whole leg, limb and frames: a passive patient is carried (default).
+    #[default]
+    Leg,
+    /// The exoskeleton's own frames only: an active patient carries their own limb.
+    Device,
+}
+
+/// `[control.path]`: path control's tunnel and support.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PathSettings {
+    /// Half-width of the tunnel around the path in the hip-knee plane (deg).
+    #[serde(default = "default_width")]
+    pub width_deg: f64,
+    /// Stiffness of the wall beyond it (N m/rad).
+    #[serde(default = "default_wall")]
+    pub wall_nm_per_rad: f64,
+    /// Supportive torque along the path (N m, as a vector in the hip-knee plane).
+    #[serde(default)]
+    pub support_nm: f64,
+}
+
+fn default_width() -> f64 {
+    5.0
+}
+fn default_wall() -> f64 {
+    100.0
+}
+
+impl Default for PathSettings {
+    fn default() -> Self {
+        Self {
+            width_deg: default_width(),
+            wall_nm_per_rad: default_wall(),
+            support_nm: 0.0,
+        }
+    }
+}
+
+impl PathSettings {
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<(), LegError> {
+        within(
+            "control.path.width_deg",
+            self.width_deg,
+            0.0,
+            30.0,
+            "must be 0..=30 deg (a tunnel half-width in the hip-knee plane)",
+        )?;
+        within(
+            "control.path.wall_nm_per_rad",
+            self.wall_nm_per_rad,
+            0.0,
+            STIFFNESS_MAX_NM_PER_RAD,
+            "must be 0..=15000 N m/rad",
+        )?;
+        within(
+            "control.path.support_nm",
+            self.support_nm,
+            0.0,
+            100.0,
+            "must be 0..=100 N m",
+        )?;
+        Ok(())
+    }
+}
+
+/// Points of the reference's path over a stride.
+const PATH_POINTS: usize = 200;
+
+/// The reference's path over one stride in the hip-knee plane (rad), closed.
+#[derive(Debug, Clone)]
+pub struct Tunnel {
+    points: Vec<[f64; 2]>,
+    width_rad: f64,
+}
+
+/// Where a pose is against the tunnel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PathPoint {
+    /// From the nearest point of the path to the pose (rad).
+    pub offset_rad: [f64; 2],
+    /// Distance to the path (rad).
+    pub distance_rad: f64,
+    /// Unit tangent of the path there, in the gait's direction.
+    pub tangent: [f64; 2],
+}
+
+impl Tunnel {
+    /// The path of `gait` over its stride after the start-up, of half-width `width_deg`.
+    pub fn new(gait: &crate::gait::GaitReference, width_deg: f64) -> Self {
+        let t0 = gait.ramp_s() + gait.stride_period_s();
+        let points = (0..PATH_POINTS)
+            .map(|i| {
+                let g = gait.sample(t0 + gait.stride_period_s() * i as f64 / PATH_POINTS as f64);
+                [g.hip.angle_rad, g.knee.angle_rad]
+            })
+            .collect();
+        Self {
+            points,
+            width_rad: width_deg.to_radians(),
+        }
+    }
+
+    /// Half-width (rad).
+    pub fn width_rad(&self) -> f64 {
+        self.width_rad
+    }
+
+    /// The nearest point of the path to `q` (a scan of its segments).
+    pub fn locate(&self, q: [f64; 2]) -> PathPoint {
+        let n = self.points.len();
+        let mut best = PathPoint {
+            offset_rad: [f64::INFINITY; 2],
+            distance_rad: f64::INFINITY,
+            tangent: [1.0, 0.0],
+        };
+        for i in 0..n {
+            let a = self.points[i];
+            let b = self.points[(i + 1) % n];
+            let ab = [b[0] - a[0], b[1] - a[1]];
+            let len2 = ab[0] * ab[0] + ab[1] * ab[1];
+            if len2 <= 0.0 {
+                continue;
+            }
+            let s = (((q[0] - a[0]) * ab[0] + (q[1] - a[1]) * ab[1]) / len2).clamp(0.0, 1.0);
+            let offset = [q[0] - a[0] - s * ab[0], q[1] - a[1] - s * ab[1]];
+            let d = offset[0].hypot(offset[1]);
+            if d < best.distance_rad {
+                let len = len2.sqrt();
+                best = PathPoint {
+                    offset_rad: offset,
+                    distance_rad: d,
+                    tangent: [ab[0] / len, ab[1] / len],
+                };
+            }
+        }
+        best
+    }
 }
 
 impl std::fmt::Display for ControlMode {
@@ -43,6 +203,8 @@ impl std::fmt::Display for ControlMode {
         f.write_str(match self {
             Self::Position => "position",
             Self::Impedance => "impedance",
+            Self::Path => "path",
+            Self::Transparent => "transparent",
         })
     }
 }
@@ -387,28 +549,43 @@ impl MusclePair {
     }
 }
 
-/// One leg's impedance law: two pairs, their set points and the leg's rigid model.
+/// Where in its range a pressure-set mode without a stiffness set point holds each pair:
+/// near its softest at rest, with room for the torques.
+const SOFT_SHARE: f64 = 0.15;
+
+/// One leg's law in every mode that sets the pairs' pressures (impedance, path,
+/// transparent): two pairs, their set points and the leg's rigid model.
 #[derive(Debug, Clone)]
 pub struct ImpedanceLaw {
+    mode: ControlMode,
     pairs: [MusclePair; 2],
     settings: ImpedanceSettings,
+    path: PathSettings,
+    tunnel: Option<Tunnel>,
+    /// The model whose dynamics the law carries (the leg's or the frames').
+    carried: LegInertia,
+    /// Each pair's stiffness in path and transparent modes (N m/rad).
+    soft_nm_per_rad: [f64; 2],
     /// Each joint's stiffness (N m/rad), defaults resolved.
     stiffness_nm_per_rad: [f64; 2],
-    inertia: LegInertia,
     velocity_rad_s: [f64; 2],
     last_rad: Option<[f64; 2]>,
     commands_pa: [f64; 4],
 }
 
 impl ImpedanceLaw {
-    /// The law of a leg of four muscles, each set point checked against its pair's reach.
+    /// The law of `sc`'s mode for a leg of four muscles on `gait`, each set point checked
+    /// against its pair's reach.
     pub fn new(
+        sc: &crate::Scenario,
         muscles: &[MuscleActuator],
         inertia: &LegInertia,
-        settings: ImpedanceSettings,
-        pressure_max_pa: f64,
+        gait: &crate::gait::GaitReference,
     ) -> Result<Self, LegError> {
+        let settings = sc.control.impedance;
+        let pressure_max_pa = sc.plant.valve.pressure_max_pa;
         settings.validate()?;
+        sc.control.path.validate()?;
         let pairs = [
             MusclePair::new(muscles, 0, pressure_max_pa)?,
             MusclePair::new(muscles, 1, pressure_max_pa)?,
@@ -417,11 +594,25 @@ impl ImpedanceLaw {
             pairs[0].resolve(settings.hip)?,
             pairs[1].resolve(settings.knee)?,
         ];
+        let soft = |p: &MusclePair| {
+            p.stiffness_range(0.0, 0.0).map_or(f64::NAN, |r| {
+                r.min_nm_per_rad + SOFT_SHARE * (r.max_nm_per_rad - r.min_nm_per_rad)
+            })
+        };
+        let carried = match sc.control.compensation {
+            Compensation::Leg => *inertia,
+            Compensation::Device => inertia.frames(),
+        };
         Ok(Self {
+            mode: sc.control.mode,
             pairs,
             settings,
+            path: sc.control.path,
+            tunnel: (sc.control.mode == ControlMode::Path)
+                .then(|| Tunnel::new(gait, sc.control.path.width_deg)),
+            carried,
+            soft_nm_per_rad: [soft(&pairs[0]), soft(&pairs[1])],
             stiffness_nm_per_rad,
-            inertia: *inertia,
             velocity_rad_s: [0.0; 2],
             last_rad: None,
             commands_pa: [0.0; 4],
@@ -465,10 +656,13 @@ impl ImpedanceLaw {
     /// measured angles `q` (rad).
     pub fn update(&mut self, g: &GaitSample, q: [f64; 2], dt_s: f64) -> [f64; 4] {
         self.estimate_velocity(q, dt_s);
+        if self.mode != ControlMode::Impedance {
+            return self.update_soft(q);
+        }
         let q_ref = [g.hip.angle_rad, g.knee.angle_rad];
         let qd_ref = [g.hip.velocity_rad_s, g.knee.velocity_rad_s];
         let qdd_ref = [g.hip.acceleration_rad_s2, g.knee.acceleration_rad_s2];
-        let feedforward = self.inertia.inverse_dynamics(q, qd_ref, qdd_ref);
+        let feedforward = self.carried.inverse_dynamics(q, qd_ref, qdd_ref);
         let mut out = self.commands_pa;
         for pair in &self.pairs {
             let j = pair.joint;
@@ -489,6 +683,46 @@ impl ImpedanceLaw {
             }
         }
         out
+    }
+
+    /// Path and transparent modes: the pairs at their soft stiffness, holding at the
+    /// measured pose the carried model's weight, the muscles' own damping cancelled, and
+    /// in path mode the tunnel's wall and the support along the path.
+    fn update_soft(&mut self, q: [f64; 2]) -> [f64; 4] {
+        let mut torque = self.carried.inverse_dynamics(q, [0.0; 2], [0.0; 2]);
+        if let Some(t) = &self.tunnel {
+            let at = t.locate(q);
+            let beyond = at.distance_rad - t.width_rad();
+            if beyond > 0.0 && at.distance_rad > 0.0 {
+                for (j, tau) in torque.iter_mut().enumerate() {
+                    *tau -= self.path.wall_nm_per_rad * beyond * at.offset_rad[j] / at.distance_rad;
+                }
+            }
+            for (j, tau) in torque.iter_mut().enumerate() {
+                *tau += self.path.support_nm * at.tangent[j];
+            }
+        }
+        let mut out = self.commands_pa;
+        for pair in &self.pairs {
+            let j = pair.joint;
+            let held = [
+                self.commands_pa[pair.indices[0]],
+                self.commands_pa[pair.indices[1]],
+            ];
+            let tau = torque[j] + pair.damping(held) * self.velocity_rad_s[j];
+            let p = pair
+                .pressures_for(self.soft_nm_per_rad[j], tau, q[j])
+                .unwrap_or(held);
+            for (k, &i) in pair.indices.iter().enumerate() {
+                out[i] = p[k].clamp(0.0, pair.pressure_max_pa);
+            }
+        }
+        out
+    }
+
+    /// The tunnel of path mode.
+    pub fn tunnel(&self) -> Option<&Tunnel> {
+        self.tunnel.as_ref()
     }
 }
 
@@ -641,6 +875,60 @@ mod tests {
         // A torque narrows it: one muscle has to pull harder than the other.
         let loaded = pair.stiffness_range(20.0, 0.0).expect("a range");
         assert!(loaded.max_nm_per_rad < r.max_nm_per_rad);
+    }
+
+    #[test]
+    fn the_tunnel_locates_a_pose_on_and_off_the_path() {
+        let gait = crate::gait::GaitReference::adult(0.5, 1.6, 1.6).unwrap();
+        let tunnel = Tunnel::new(&gait, 5.0);
+        let g = gait.sample(1.6 + 1.6 + 0.4);
+        let on = [g.hip.angle_rad, g.knee.angle_rad];
+        let at = tunnel.locate(on);
+        assert!(at.distance_rad < 1e-3, "{at:?}");
+        let t = at.tangent;
+        assert!((t[0].hypot(t[1]) - 1.0).abs() < 1e-9);
+        // Moved off along the normal by 0.05 rad: that far from the path (the path
+        // bends, so no nearer than that and not much farther).
+        let off = [on[0] - 0.05 * t[1], on[1] + 0.05 * t[0]];
+        let d = tunnel.locate(off).distance_rad;
+        assert!(d <= 0.05 + 1e-9 && d > 0.03, "{d}");
+    }
+
+    #[test]
+    fn bad_path_settings_name_their_field() {
+        for (s, field) in [
+            (
+                PathSettings {
+                    width_deg: -1.0,
+                    ..PathSettings::default()
+                },
+                "control.path.width_deg",
+            ),
+            (
+                PathSettings {
+                    width_deg: 45.0,
+                    ..PathSettings::default()
+                },
+                "control.path.width_deg",
+            ),
+            (
+                PathSettings {
+                    wall_nm_per_rad: -3.0,
+                    ..PathSettings::default()
+                },
+                "control.path.wall_nm_per_rad",
+            ),
+            (
+                PathSettings {
+                    support_nm: f64::NAN,
+                    ..PathSettings::default()
+                },
+                "control.path.support_nm",
+            ),
+        ] {
+            let e = s.validate().unwrap_err().to_string();
+            assert!(e.contains(field), "{e}");
+        }
     }
 
     #[test]

@@ -8,6 +8,7 @@
 
 pub mod config;
 pub mod control;
+pub mod cooperative;
 pub mod demand;
 mod error;
 pub mod exoskeleton;

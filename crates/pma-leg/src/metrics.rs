@@ -250,6 +250,8 @@ pub struct LegReport {
     pub safety: SafetyReport,
     /// Stance and swing, ground reaction forces, slip and heel strikes, on a treadmill.
     pub treadmill: Option<crate::stance::TreadmillReport>,
+    /// What the device did to the patient and the patient's own gait, leg by leg.
+    pub cooperation: Vec<crate::cooperative::CooperationReport>,
 }
 
 /// Accumulates the [`LegReport`] figures period by period.
@@ -390,6 +392,7 @@ impl LegMetrics {
             spasms: Vec::new(),
             safety: SafetyReport::default(),
             treadmill: None,
+            cooperation: Vec::new(),
         }
     }
 }

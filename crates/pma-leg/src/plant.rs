@@ -205,6 +205,11 @@ impl LegPlant {
         }
     }
 
+    /// Whether the muscles' cables are hooked to the joints (see `attach_muscles`).
+    pub fn muscles_attached(&self) -> bool {
+        self.muscles_attached
+    }
+
     /// Puts a patient in each leg (empty: the passive limb).
     pub fn set_patients(&mut self, patients: Vec<Patient>) {
         self.patients = patients;

@@ -710,6 +710,23 @@ impl LegSim {
             })
             .collect();
         let mut ground = TrainerGroundMetrics::new(self.plant.exo(), sc.gait.stride_period_s);
+        let width_deg = match sc.control.mode {
+            crate::ControlMode::Path => sc.control.path.width_deg,
+            _ => crate::cooperative::TUNNEL_WIDTH_DEG,
+        };
+        let mut cooperation: Vec<OnLeg<crate::cooperative::CooperationMetrics>> = (0..legs)
+            .map(|leg| {
+                OnLeg::new(
+                    leg,
+                    crate::cooperative::CooperationMetrics::new(
+                        &self.plant,
+                        leg,
+                        self.controllers.leg(leg).gait(),
+                        width_deg,
+                    ),
+                )
+            })
+            .collect();
         let outcome = pma_loop::run(
             &mut self.plant,
             &mut self.controllers,
@@ -717,7 +734,7 @@ impl LegSim {
                 &mut metrics,
                 &mut patients,
                 &mut feet,
-                &mut ground,
+                &mut (&mut ground, &mut cooperation),
                 recorder,
             ),
             settings,
@@ -759,6 +776,7 @@ impl LegSim {
         );
         report.interrupted = interrupted;
         report.treadmill = ground.report(feet.iter().map(|f| f.inner.report()).collect());
+        report.cooperation = cooperation.iter().map(|c| c.inner.report()).collect();
         Ok((report, fault))
     }
 }

@@ -190,6 +190,108 @@ impl PatientTorques {
     }
 }
 
+/// A patient who walks ([`ActiveSettings`]): their own clock along the reference's shape,
+/// tracked by their own joint impedance over their limb's inverse dynamics.
+#[derive(Debug, Clone)]
+struct Walker {
+    settings: ActiveSettings,
+    limb: LegInertia,
+    rng: Xoshiro256PlusPlus,
+    /// The reference's time they aim at now.
+    clock_s: f64,
+    /// Their clock's rate this stride: the reference's stride over theirs.
+    rate: f64,
+    last_t_s: f64,
+    /// Where on their clock their next stride starts.
+    next_stride_s: f64,
+    reference_stride_s: f64,
+    ramp_s: f64,
+}
+
+impl Walker {
+    fn new(settings: ActiveSettings, gait: &GaitReference, inertia: &LegInertia) -> Self {
+        let mut w = Self {
+            settings,
+            limb: inertia.limb(),
+            rng: Xoshiro256PlusPlus::seed_from_u64(settings.seed),
+            clock_s: 0.0,
+            rate: 1.0,
+            last_t_s: 0.0,
+            next_stride_s: 0.0,
+            reference_stride_s: gait.stride_period_s(),
+            ramp_s: gait.ramp_s(),
+        };
+        w.reset();
+        w
+    }
+
+    fn reset(&mut self) {
+        self.rng = Xoshiro256PlusPlus::seed_from_u64(self.settings.seed);
+        self.clock_s = 0.0;
+        self.rate = 1.0;
+        // Restarted where the next run starts (see `advance`).
+        self.last_t_s = f64::NAN;
+        self.next_stride_s = self.ramp_s;
+    }
+
+    /// Their next stride's period (s): their mean, varied by a normal draw of their CV
+    /// (Box-Muller), kept within half to one and a half of the mean.
+    fn draw_period(&mut self) -> f64 {
+        let mean = self
+            .settings
+            .stride_period_s
+            .unwrap_or(self.reference_stride_s);
+        let (u1, u2): (f64, f64) = (self.rng.random::<f64>().max(1e-300), self.rng.random());
+        let normal = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+        (mean * (1.0 + self.settings.stride_cv * normal)).clamp(0.5 * mean, 1.5 * mean)
+    }
+
+    fn advance(&mut self, t_s: f64) {
+        if self.last_t_s.is_nan() {
+            // A run starting at `t_s`: in step with the reference there.
+            self.last_t_s = t_s;
+            self.clock_s = t_s;
+            let strides = ((t_s - self.ramp_s) / self.reference_stride_s)
+                .ceil()
+                .max(0.0);
+            self.next_stride_s = self.ramp_s + strides * self.reference_stride_s;
+        }
+        let dt = (t_s - self.last_t_s).max(0.0);
+        self.last_t_s = t_s;
+        // Through the start-up they move with the reference; then on their own clock.
+        self.clock_s += if self.clock_s < self.ramp_s {
+            dt
+        } else {
+            self.rate * dt
+        };
+        while self.clock_s >= self.next_stride_s {
+            self.rate = self.reference_stride_s / self.draw_period();
+            self.next_stride_s += self.reference_stride_s;
+        }
+    }
+
+    /// Their torques (N m) at `t_s` with the limb at `q`, `qd`.
+    fn torques(&mut self, gait: &GaitReference, t_s: f64, q: [f64; 2], qd: [f64; 2]) -> [f64; 2] {
+        self.advance(t_s);
+        let g = gait.sample(self.clock_s);
+        let (a, r) = (self.settings.amplitude, self.rate);
+        let aim = [a * g.hip.angle_rad, a * g.knee.angle_rad];
+        let aim_v = [a * r * g.hip.velocity_rad_s, a * r * g.knee.velocity_rad_s];
+        let aim_a = [
+            a * r * r * g.hip.acceleration_rad_s2,
+            a * r * r * g.knee.acceleration_rad_s2,
+        ];
+        let own = self.limb.inverse_dynamics(aim, aim_v, aim_a);
+        let s = &self.settings;
+        std::array::from_fn(|j| {
+            s.strength
+                * (own[j]
+                    + s.stiffness_nm_per_rad[j] * (aim[j] - q[j])
+                    + s.damping_nm_s_per_rad[j] * (aim_v[j] - qd[j]))
+        })
+    }
+}
+
 /// The patient of a run: the resolved model, its delay lines and its spasm plan.
 #[derive(Debug, Clone)]
 pub struct Patient {
@@ -204,6 +306,7 @@ pub struct Patient {
     inertia: LegInertia,
     damping_nm_s_per_rad: [f64; 2],
     last: PatientTorques,
+    walker: Option<Walker>,
 }
 
 impl Patient {
@@ -253,7 +356,9 @@ impl Patient {
         }
         events.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
         let joints: [JointPatient; 2] = [joints.remove(0), joints.remove(0)];
+        let walker = settings.active.map(|a| Walker::new(a, &gait, &inertia));
         Ok(Self {
+            walker,
             joints,
             sources,
             events,
@@ -298,6 +403,9 @@ impl Patient {
             }
         }
         self.first_open = 0;
+        if let Some(w) = &mut self.walker {
+            w.reset();
+        }
     }
 
     /// The reference gait's inverse-dynamics torque at `t_s` (N m): what it takes to move
@@ -361,6 +469,12 @@ impl Patient {
                     };
                     out.effort_nm[k] = e.fraction * tau[k];
                 }
+            }
+        }
+        if let Some(w) = &mut self.walker {
+            let own = w.torques(&self.gait, t_s, q, qd);
+            for (e, o) in out.effort_nm.iter_mut().zip(own) {
+                *e += o;
             }
         }
         self.last = out;

@@ -1,7 +1,7 @@
 //! The patient's settings (the scenario's `[patient]`): presets, overrides, and their
 //! validation, resolved into the parameters the model runs on.
 use crate::error::{invalid, LegError};
-use pma_model::error::{finite, non_negative, positive};
+use pma_model::error::{finite, non_negative, positive, within};
 use serde::Deserialize;
 
 /// Severity presets of the stretch reflex.
@@ -265,6 +265,109 @@ pub struct PatientSettings {
     /// Knee.
     #[serde(default)]
     pub knee: JointPatientSettings,
+    /// A patient who walks: their own gait, tracked by their own muscles.
+    #[serde(default)]
+    pub active: Option<ActiveSettings>,
+}
+
+/// `[patient.active]`: a patient who produces their own joint torques to walk with their
+/// own timing and amplitude. They aim at the reference's shape on their own clock, whose
+/// stride period is drawn afresh every stride (seeded), scaled by `amplitude`, and track
+/// it with their own joint impedance on top of their limb's inverse dynamics, all times
+/// `strength`. The torque goes into the patient's effort (`effort_nm`).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ActiveSettings {
+    /// Their own mean stride period (s); default: the reference's.
+    #[serde(default)]
+    pub stride_period_s: Option<f64>,
+    /// Stride-to-stride coefficient of variation of their stride period. Default 0.02:
+    /// healthy adults' stride time varies by about 2 % (Hausdorff et al. 1996, J Appl
+    /// Physiol 80(5)).
+    #[serde(default = "default_stride_cv")]
+    pub stride_cv: f64,
+    /// Scale of their joint excursions against the reference's (default 1).
+    #[serde(default = "one")]
+    pub amplitude: f64,
+    /// Their joint stiffness about their own aim (N m/rad), hip and knee. Default
+    /// [60, 30]: an assumption (no measured hip or knee impedance during walking was
+    /// found here), stiff enough to walk their own way against the device's frames.
+    #[serde(default = "default_patient_stiffness")]
+    pub stiffness_nm_per_rad: [f64; 2],
+    /// Their joint damping (N m s/rad), hip and knee. Default [3, 1.5].
+    #[serde(default = "default_patient_damping")]
+    pub damping_nm_s_per_rad: [f64; 2],
+    /// Share of a healthy limb's torque they produce (default 1; below 1 a weak limb).
+    #[serde(default = "one")]
+    pub strength: f64,
+    /// Seed of their stride-to-stride variation (each leg adds its index).
+    #[serde(default)]
+    pub seed: u64,
+}
+
+fn default_stride_cv() -> f64 {
+    0.02
+}
+fn one() -> f64 {
+    1.0
+}
+fn default_patient_stiffness() -> [f64; 2] {
+    [60.0, 30.0]
+}
+fn default_patient_damping() -> [f64; 2] {
+    [3.0, 1.5]
+}
+
+impl ActiveSettings {
+    fn validate(&self) -> Result<(), LegError> {
+        if let Some(t) = self.stride_period_s {
+            within(
+                "patient.active.stride_period_s",
+                t,
+                0.5,
+                10.0,
+                "must be 0.5..=10 s",
+            )?;
+        }
+        within(
+            "patient.active.stride_cv",
+            self.stride_cv,
+            0.0,
+            0.2,
+            "must be 0..=0.2 (healthy adults about 0.02)",
+        )?;
+        within(
+            "patient.active.amplitude",
+            self.amplitude,
+            0.0,
+            1.5,
+            "must be 0..=1.5",
+        )?;
+        within(
+            "patient.active.strength",
+            self.strength,
+            0.0,
+            2.0,
+            "must be 0..=2",
+        )?;
+        for (j, name) in ["hip", "knee"].iter().enumerate() {
+            within(
+                format!("patient.active.stiffness_nm_per_rad[{j}] ({name})"),
+                self.stiffness_nm_per_rad[j],
+                0.0,
+                2000.0,
+                "must be 0..=2000 N m/rad",
+            )?;
+            within(
+                format!("patient.active.damping_nm_s_per_rad[{j}] ({name})"),
+                self.damping_nm_s_per_rad[j],
+                0.0,
+                200.0,
+                "must be 0..=200 N m s/rad",
+            )?;
+        }
+        Ok(())
+    }
 }
 
 fn range(name: String, r: [f64; 2], positive_low: bool) -> Result<[f64; 2], LegError> {
@@ -549,17 +652,21 @@ impl PatientSettings {
                 s.seed = s.seed.wrapping_add(leg as u64);
             }
         }
+        if let Some(a) = &mut out.active {
+            a.seed = a.seed.wrapping_add(leg as u64);
+        }
         out
     }
 
     /// Whether no part is set at either joint (the passive limb).
     pub fn is_passive(&self) -> bool {
-        self.joints().iter().all(|j| {
-            j.spasticity.is_none()
-                && j.spasms.is_none()
-                && j.effort.is_none()
-                && j.stiffness.is_none()
-        })
+        self.active.is_none()
+            && self.joints().iter().all(|j| {
+                j.spasticity.is_none()
+                    && j.spasms.is_none()
+                    && j.effort.is_none()
+                    && j.stiffness.is_none()
+            })
     }
 
     pub(super) fn joints(&self) -> [&JointPatientSettings; 2] {
@@ -568,6 +675,9 @@ impl PatientSettings {
 
     /// Range checks, each error naming its field (`patient.knee.spasms.rate_per_min`).
     pub fn validate(&self) -> Result<(), LegError> {
+        if let Some(a) = &self.active {
+            a.validate()?;
+        }
         for (j, (name, s)) in ["hip", "knee"].iter().zip(self.joints()).enumerate() {
             let at = format!("patient.{name}");
             if let Some(sp) = &s.spasticity {

@@ -1,0 +1,241 @@
+//! What the device does to the patient, and what the patient does: the figures of
+//! patient-cooperative control (issue 28).
+//!
+//! The limb and the exoskeleton's frames move as one rigid chain here (cuffs of infinite
+//! stiffness), so the torque the device puts into the limb through the cuffs is, joint by
+//! joint, the muscles' torque less what moves the frames themselves: `tau_int = tau_muscles -
+//! M_f(q) qdd - C_f(q, qd) qd - G_f(q)`, the frames' inverse dynamics in joint space (the
+//! URDFs' stated design: aluminium bars, thigh 2.0 kg and shank 1.5 kg; [`LegInertia::frames`]).
+//! The acceleration is the true velocity's difference over the control period. Compliant
+//! cuffs (two bodies per segment) are not modelled, and a URDF joint stop's torque is not
+//! separated from the device's: a run against a stop shows its impacts in the peaks.
+use crate::exoskeleton::{LegInertia, JOINT_NAMES};
+use crate::gait::GaitReference;
+use crate::impedance::Tunnel;
+use crate::metrics::{LegPeriod, LegRecorder};
+use crate::plant::LegPlant;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// Half-width of the tunnel every run's share inside is measured against when the scenario
+/// runs no path mode (deg): `[control.path] width_deg`'s default.
+pub const TUNNEL_WIDTH_DEG: f64 = 5.0;
+
+/// One joint's interaction and work.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct InteractionStats {
+    /// RMS of the torque the device puts into the limb (N m).
+    pub interaction_rms_nm: f64,
+    /// Its largest magnitude (N m).
+    pub interaction_peak_nm: f64,
+    /// Work of the patient's own torques on the joint (J).
+    pub patient_work_j: f64,
+    /// Work of the device's torque on the limb (J).
+    pub device_work_j: f64,
+}
+
+/// One leg's cooperation figures, after the start-up ramp and a stride.
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct CooperationReport {
+    /// Per joint (`hip`, `knee`).
+    pub joints: BTreeMap<String, InteractionStats>,
+    /// Strides of the leg's own kinematics measured (peaks of hip flexion).
+    pub strides: usize,
+    /// Their mean duration (s).
+    pub stride_time_mean_s: f64,
+    /// Coefficient of variation of their durations.
+    pub stride_time_cv: f64,
+    /// Standard deviation over strides of the peak hip flexion (deg).
+    pub hip_peak_sd_deg: f64,
+    /// Of the peak knee flexion (deg).
+    pub knee_peak_sd_deg: f64,
+    /// Share of the time the leg was within the tunnel around the reference's path.
+    pub inside_tunnel_share: f64,
+    /// That tunnel's half-width (deg).
+    pub tunnel_width_deg: f64,
+}
+
+/// Running count, sum and sum of squares.
+#[derive(Debug, Clone, Copy, Default)]
+struct Moments(usize, f64, f64);
+
+impl Moments {
+    fn push(&mut self, x: f64) {
+        self.0 += 1;
+        self.1 += x;
+        self.2 += x * x;
+    }
+    fn mean(&self) -> f64 {
+        self.1 / self.0 as f64
+    }
+    fn sd(&self) -> f64 {
+        if self.0 < 2 {
+            return f64::NAN;
+        }
+        let n = self.0 as f64;
+        ((self.2 - self.1 * self.1 / n) / (n - 1.0)).max(0.0).sqrt()
+    }
+}
+
+/// Accumulates a leg's [`CooperationReport`] period by period (allocation-free).
+#[derive(Debug, Clone)]
+pub struct CooperationMetrics {
+    arms_m: [f64; 4],
+    joint_of: [usize; 4],
+    frames: LegInertia,
+    from_s: f64,
+    previous_velocity: Option<[f64; 2]>,
+    n: usize,
+    sum_sq: [f64; 2],
+    peak: [f64; 2],
+    patient_work: [f64; 2],
+    device_work: [f64; 2],
+    tunnel: Tunnel,
+    inside_s: f64,
+    counted_s: f64,
+    hip_mid_rad: f64,
+    /// The peak of hip flexion being followed, while above the middle.
+    rising: Option<f64>,
+    /// The hip's previous reading (time, angle): the crossings are interpolated.
+    previous_hip: Option<(f64, f64)>,
+    /// When the hip last rose through the middle of its range: a stride starts there.
+    last_crossing_s: Option<f64>,
+    knee_max: f64,
+    stride_s: Moments,
+    hip_peak: Moments,
+    knee_peak: Moments,
+}
+
+impl CooperationMetrics {
+    /// Figures of `plant`'s leg `leg` on `gait`, counted after its start-up and a stride,
+    /// the tunnel `width_deg` wide.
+    pub fn new(plant: &LegPlant, leg: usize, gait: &GaitReference, width_deg: f64) -> Self {
+        let muscles = plant.leg_muscles(leg);
+        let tunnel = Tunnel::new(gait, width_deg);
+        let (lo, hi) = (0..100).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), i| {
+            let t = gait.ramp_s() + gait.stride_period_s() * (1.0 + i as f64 / 100.0);
+            let h = gait.sample(t).hip.angle_rad;
+            (lo.min(h), hi.max(h))
+        });
+        Self {
+            arms_m: std::array::from_fn(|i| {
+                muscles.get(i).map_or(0.0, |m| m.geometry.moment_arm_m())
+            }),
+            joint_of: std::array::from_fn(|i| muscles.get(i).map_or(0, |m| m.joint)),
+            frames: plant.exo().inertia().frames(),
+            from_s: gait.ramp_s() + gait.stride_period_s(),
+            previous_velocity: None,
+            n: 0,
+            sum_sq: [0.0; 2],
+            peak: [0.0; 2],
+            patient_work: [0.0; 2],
+            device_work: [0.0; 2],
+            tunnel,
+            inside_s: 0.0,
+            counted_s: 0.0,
+            hip_mid_rad: 0.5 * (lo + hi),
+            rising: None,
+            previous_hip: None,
+            last_crossing_s: None,
+            knee_max: f64::NEG_INFINITY,
+            stride_s: Moments::default(),
+            hip_peak: Moments::default(),
+            knee_peak: Moments::default(),
+        }
+    }
+
+    /// The figures so far.
+    pub fn report(&self) -> CooperationReport {
+        let n = self.n.max(1) as f64;
+        let joints = JOINT_NAMES
+            .iter()
+            .enumerate()
+            .map(|(j, name)| {
+                (
+                    (*name).to_owned(),
+                    InteractionStats {
+                        interaction_rms_nm: if self.n > 0 {
+                            (self.sum_sq[j] / n).sqrt()
+                        } else {
+                            f64::NAN
+                        },
+                        interaction_peak_nm: self.peak[j],
+                        patient_work_j: self.patient_work[j],
+                        device_work_j: self.device_work[j],
+                    },
+                )
+            })
+            .collect();
+        CooperationReport {
+            joints,
+            strides: self.stride_s.0,
+            stride_time_mean_s: self.stride_s.mean(),
+            stride_time_cv: self.stride_s.sd() / self.stride_s.mean(),
+            hip_peak_sd_deg: self.hip_peak.sd().to_degrees(),
+            knee_peak_sd_deg: self.knee_peak.sd().to_degrees(),
+            inside_tunnel_share: self.inside_s / self.counted_s,
+            tunnel_width_deg: self.tunnel.width_rad().to_degrees(),
+        }
+    }
+
+    /// Follows the hip: a stride starts each time it rises through the middle of the
+    /// reference's range (the time interpolated between readings); the peaks of hip and
+    /// knee flexion are taken between two such crossings.
+    fn follow_strides(&mut self, t_s: f64, q: [f64; 2]) {
+        self.knee_max = self.knee_max.max(q[1]);
+        let mid = self.hip_mid_rad;
+        if q[0] > mid {
+            self.rising = Some(self.rising.map_or(q[0], |p| p.max(q[0])));
+        }
+        let previous = self.previous_hip.replace((t_s, q[0]));
+        let Some((t0, h0)) = previous else {
+            return;
+        };
+        if !(h0 <= mid && q[0] > mid) {
+            return;
+        }
+        let crossing = t0 + (t_s - t0) * (mid - h0) / (q[0] - h0);
+        if let (Some(last), Some(peak)) = (self.last_crossing_s, self.rising) {
+            self.stride_s.push(crossing - last);
+            self.hip_peak.push(peak);
+            self.knee_peak.push(self.knee_max);
+        }
+        self.last_crossing_s = Some(crossing);
+        self.rising = Some(q[0]);
+        self.knee_max = q[1];
+    }
+}
+
+impl LegRecorder for CooperationMetrics {
+    fn record(&mut self, p: &LegPeriod<'_>) {
+        let s = p.state;
+        let (q, qd) = (s.angle_rad, s.velocity_rad_s);
+        let previous = self.previous_velocity.replace(qd);
+        let (Some(before), true) = (previous, p.t_s >= self.from_s && p.dt_s > 0.0) else {
+            return;
+        };
+        let qdd = [(qd[0] - before[0]) / p.dt_s, (qd[1] - before[1]) / p.dt_s];
+        let frames = self.frames.inverse_dynamics(q, qd, qdd);
+        let mut muscles = [0.0; 2];
+        let hooked = p.plant.muscles_attached();
+        for i in 0..4 {
+            if hooked && s.force_n[i].is_finite() {
+                muscles[self.joint_of[i]] += self.arms_m[i] * s.force_n[i];
+            }
+        }
+        let own = s.patient.total();
+        self.n += 1;
+        for j in 0..2 {
+            let interaction = muscles[j] - frames[j];
+            self.sum_sq[j] += interaction * interaction;
+            self.peak[j] = self.peak[j].max(interaction.abs());
+            self.patient_work[j] += own[j] * qd[j] * p.dt_s;
+            self.device_work[j] += interaction * qd[j] * p.dt_s;
+        }
+        self.counted_s += p.dt_s;
+        if self.tunnel.locate(q).distance_rad <= self.tunnel.width_rad() {
+            self.inside_s += p.dt_s;
+        }
+        self.follow_strides(p.t_s, q);
+    }
+}

@@ -1,0 +1,86 @@
+//! Patient-cooperative control on the leg in the air (issue 28): the interaction torque's
+//! model against the leg's dynamics, the active patient's own gait, and the ordering of the
+//! modes on the same patient.
+use pma_leg::impedance::ControlMode;
+use pma_leg::{LegReport, LegSim, Scenario};
+
+/// The limb and the frames make the leg: their inverse dynamics add up to the leg's at any
+/// state (the mass matrices and gravity of rigidly joined bodies add).
+#[test]
+fn the_limb_and_the_frames_add_up_to_the_leg() {
+    let loaded = Scenario::load("gait_training").unwrap();
+    let sim = LegSim::new(&loaded).unwrap();
+    let leg = *sim.exo().inertia();
+    let (limb, frames) = (leg.limb(), leg.frames());
+    for (q, qd, qdd) in [
+        ([0.3, 0.5], [1.0, -2.0], [5.0, 12.0]),
+        ([-0.2, 1.1], [-0.5, 3.0], [-20.0, 4.0]),
+    ] {
+        let whole = leg.inverse_dynamics(q, qd, qdd);
+        let parts = [
+            limb.inverse_dynamics(q, qd, qdd),
+            frames.inverse_dynamics(q, qd, qdd),
+        ];
+        for j in 0..2 {
+            let sum = parts[0][j] + parts[1][j];
+            assert!(
+                (whole[j] - sum).abs() < 1e-9 * whole[j].abs().max(1.0),
+                "{whole:?} {parts:?}"
+            );
+        }
+    }
+    assert!(limb.thigh.mass_kg > 0.0 && limb.shank.inertia_kg_m2 > 0.0);
+}
+
+fn run(mode: Option<ControlMode>, unhooked: bool, seconds: f64) -> LegReport {
+    let mut loaded = Scenario::load("gait_active").unwrap();
+    if let Some(m) = mode {
+        loaded.scenario.control.mode = m;
+    }
+    let mut sim = LegSim::new(&loaded).unwrap();
+    if unhooked {
+        sim.release_muscles().unwrap();
+    }
+    sim.run(seconds, &mut ()).unwrap()
+}
+
+/// Left alone (the muscles unhooked), the active patient walks their own stride: 1.5 s on
+/// average, varying by about the 2 % they are given.
+#[test]
+fn the_active_patient_walks_their_own_stride_when_left_alone() {
+    let r = run(None, true, 40.0);
+    let c = &r.cooperation[0];
+    assert!(c.strides >= 20, "{c:?}");
+    assert!((c.stride_time_mean_s - 1.5).abs() < 0.03, "{c:?}");
+    assert!((0.005..0.04).contains(&c.stride_time_cv), "{c:?}");
+}
+
+/// Duschau-Wicke et al. 2010 found interaction torques ordered position > impedance >
+/// path control on the same patients; so does this patient, at both joints. Position
+/// control also imposes its stride: the patient's stride time varies least under it.
+#[test]
+fn interaction_torque_falls_from_position_to_impedance_to_path_control() {
+    let secs = 30.0;
+    let [position, impedance, path] = [
+        ControlMode::Position,
+        ControlMode::Impedance,
+        ControlMode::Path,
+    ]
+    .map(|m| run(Some(m), false, secs).cooperation[0].clone());
+    for j in ["hip", "knee"] {
+        let rms = |c: &pma_leg::cooperative::CooperationReport| c.joints[j].interaction_rms_nm;
+        assert!(
+            rms(&position) > rms(&impedance),
+            "{j}: {position:?} {impedance:?}"
+        );
+        assert!(rms(&impedance) > rms(&path), "{j}: {impedance:?} {path:?}");
+    }
+    assert!(
+        position.stride_time_cv < path.stride_time_cv,
+        "{position:?} {path:?}"
+    );
+    assert!(
+        (position.stride_time_mean_s - 1.6).abs() < 0.01,
+        "{position:?}"
+    );
+}
