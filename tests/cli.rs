@@ -1216,3 +1216,20 @@ fn impedance_reports_ranges_and_three_tests_per_joint() {
         }
     }
 }
+
+/// Issue 27's experiments are refused in one line when their input is bad: a start-up
+/// hold out of range, a body speed that is neither.
+#[test]
+fn the_treadmill_experiments_refuse_bad_input_in_one_line() {
+    let dir = std::env::temp_dir().join(format!("pma-exo-hold-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let base = include_str!("../crates/pma-leg/models/scenarios/gait_treadmill.toml");
+    let path = dir.join("held.toml");
+    std::fs::write(&path, format!("{base}pelvis_held_until_s = -1.0\n")).unwrap();
+    assert_one_line_error(
+        &["size", path.to_str().unwrap()],
+        "treadmill.pelvis_held_until_s",
+    );
+    let out = pma_exo(&["fit-gait", "--body-speed", "swinging"]);
+    assert!(!out.status.success());
+}

@@ -4,9 +4,19 @@ use crate::provenance::Provenance;
 use crate::say;
 use anyhow::Result;
 use pma_leg::gait::{FourierSeries, HARMONICS};
+use pma_leg::gait_fit::BodySpeed;
 use pma_leg::{fit_gait, GaitFit, GaitFitSettings, Scenario};
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
+
+/// The body's speed on the command line.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum BodySpeedArg {
+    /// The pelvis stands still over the belt.
+    Constant,
+    /// The pelvis swings as the adults' does.
+    Normative,
+}
 
 /// `fit-gait`'s arguments.
 #[derive(clap::Args)]
@@ -24,6 +34,11 @@ pub struct Args {
     /// Strides measured per run.
     #[arg(long, default_value_t = 3)]
     strides: usize,
+    /// The body's fore-aft speed the stance is fitted to: `constant` (the pelvis stands
+    /// still over the belt) or `normative` (it swings as the adults' does, from their
+    /// fore-aft ground reaction).
+    #[arg(long, default_value = "constant", value_name = "constant|normative")]
+    body_speed: BodySpeedArg,
     /// Where to write the `[gait.hip_correction]` and the belt speed for the scenario
     /// (nothing is written without it).
     #[arg(long)]
@@ -39,6 +54,10 @@ pub fn run(a: Args) -> Result<i32> {
         iterations: a.iterations,
         gain: a.gain,
         strides: a.strides,
+        body_speed: match a.body_speed {
+            BodySpeedArg::Constant => BodySpeed::Constant,
+            BodySpeedArg::Normative => BodySpeed::Normative,
+        },
     };
     settings.validate().map_err(|e| anyhow::anyhow!("--{e}"))?;
     let loaded = Scenario::load(&a.scenario)?;

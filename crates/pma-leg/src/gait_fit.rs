@@ -22,6 +22,20 @@ use crate::exoskeleton::Mount;
 use crate::gait::{FourierSeries, GaitReference};
 use crate::sim::build_exo;
 
+/// What the body's fore-aft speed does over a stride, which the stance feet's speed
+/// relative to the hip has to give.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BodySpeed {
+    /// Constant: each stance foot moves back at the belt's speed, the pelvis stands still.
+    #[default]
+    Constant,
+    /// Swinging as the adults' does: the pelvis's speed is the integral of the normative
+    /// fore-aft ground reaction of both feet (Fukuchi et al. 2018, at the gait's speed)
+    /// over the body's mass, the reaction scaled by the share of the weight the belt
+    /// carries; zero mean.
+    Normative,
+}
+
 /// How a fit runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GaitFitSettings {
@@ -31,6 +45,8 @@ pub struct GaitFitSettings {
     pub gain: f64,
     /// Strides measured per run.
     pub strides: usize,
+    /// The body's speed over the stride the stance is fitted to.
+    pub body_speed: BodySpeed,
 }
 
 impl Default for GaitFitSettings {
@@ -39,6 +55,7 @@ impl Default for GaitFitSettings {
             iterations: 15,
             gain: 0.8,
             strides: 3,
+            body_speed: BodySpeed::Constant,
         }
     }
 }
@@ -123,13 +140,17 @@ pub fn fit_gait(
     }
     let data = run.scenario.gait.reference()?;
     let lever = HipLever::new(&run)?;
+    let body = match settings.body_speed {
+        BodySpeed::Constant => vec![0.0; BINS],
+        BodySpeed::Normative => normative_body_speed(&run, data.stride_period_s())?,
+    };
     let mut correction = FourierSeries::default();
     let mut steps = Vec::with_capacity(settings.iterations + 1);
     // The run kept: its index, correction, belt speed and contact speed error.
     let mut kept = (0, correction, f64::NAN, f64::NAN);
     for iteration in 0..=settings.iterations {
         let demand = stride_demand(&run, settings.strides)?;
-        let speeds = StanceSpeeds::of(&demand, data.toe_off_phase());
+        let speeds = StanceSpeeds::of(&demand, data.toe_off_phase(), &body);
         let belt = demand
             .treadmill
             .as_ref()
@@ -207,6 +228,56 @@ fn step_figures(
     }
 }
 
+/// The body's fore-aft speed over the cycle (m/s, zero mean, per phase bin) as the adults'
+/// swings at the scenario's gait speed: the integral of both feet's normative fore-aft
+/// reaction over the body's mass, the reaction scaled by the belt's share of the weight.
+fn normative_body_speed(loaded: &LoadedScenario, period_s: f64) -> Result<Vec<f64>, LegError> {
+    let Some(speed) = loaded.scenario.gait.speed_m_per_s else {
+        return Err(LegError::Missing {
+            name: "gait.speed_m_per_s".into(),
+            hint: "a normative body speed needs the adults' data (gait.data = \"fukuchi2018\")",
+        });
+    };
+    let norms = crate::gait::AdultNorms::at(speed)?;
+    let f = &norms.curves.grf_fore_aft_bw;
+    let load = loaded
+        .scenario
+        .treadmill
+        .as_ref()
+        .map_or(1.0, |t| 1.0 - t.bws_fraction);
+    let at = |phase: f64| {
+        let x = phase.rem_euclid(1.0) * (f.len() - 1) as f64;
+        let (i, w) = (x.floor() as usize, x.fract());
+        f[i.min(f.len() - 1)] * (1.0 - w) + f[(i + 1).min(f.len() - 1)] * w
+    };
+    let dt = period_s / BINS as f64;
+    let force: Vec<f64> = (0..BINS)
+        .map(|k| {
+            let phase = (k as f64 + 0.5) / BINS as f64;
+            at(phase) + at(phase + 0.5)
+        })
+        .collect();
+    // The data's net fore-aft impulse over a stride (the treadmill's, or the averaging's)
+    // is taken out: a walker at a steady speed has none.
+    let net = force.iter().sum::<f64>() / BINS as f64;
+    let mut v = 0.0;
+    let mut speeds: Vec<f64> = force
+        .iter()
+        .map(|f| {
+            v += (f - net) * G_M_S2 * load * dt;
+            v
+        })
+        .collect();
+    let mean = speeds.iter().sum::<f64>() / BINS as f64;
+    for s in &mut speeds {
+        *s -= mean;
+    }
+    Ok(speeds)
+}
+
+/// Standard gravity (m/s^2).
+const G_M_S2: f64 = 9.80665;
+
 /// The stance contact's speed relative to the hip over the cycle, averaged over strides
 /// and legs in phase bins.
 struct StanceSpeeds {
@@ -216,10 +287,13 @@ struct StanceSpeeds {
     stance: Vec<bool>,
     /// Their mean over the stance bins (m/s, negative: backwards).
     mean_stance_m_s: f64,
+    /// The body's speed per bin the stance has to give (m/s, zero mean): the contact's
+    /// target is the stance's mean less it.
+    body_m_s: Vec<f64>,
 }
 
 impl StanceSpeeds {
-    fn of(demand: &Demand, toe_off: f64) -> Self {
+    fn of(demand: &Demand, toe_off: f64, body_m_s: &[f64]) -> Self {
         let mut sum = vec![0.0; BINS];
         let mut count = vec![0usize; BINS];
         for s in demand
@@ -250,6 +324,7 @@ impl StanceSpeeds {
             per_bin_m_s,
             stance,
             mean_stance_m_s: if n > 0 { total / n as f64 } else { f64::NAN },
+            body_m_s: body_m_s.to_vec(),
         }
     }
 
@@ -259,9 +334,10 @@ impl StanceSpeeds {
             .per_bin_m_s
             .iter()
             .zip(&self.stance)
-            .filter(|(_, &st)| st)
-            .fold((0.0, 0usize), |(sq, n), (v, _)| {
-                (sq + (v + belt_speed_m_s).powi(2), n + 1)
+            .zip(&self.body_m_s)
+            .filter(|((_, &st), _)| st)
+            .fold((0.0, 0usize), |(sq, n), ((v, _), u)| {
+                (sq + (v + belt_speed_m_s + u).powi(2), n + 1)
             });
         if n > 0 {
             (sq / n as f64).sqrt()
@@ -296,7 +372,8 @@ impl StanceSpeeds {
             }
             let phase = (k as f64 + 0.5) / BINS as f64;
             let dx_dhip = lever.at(reference, phase);
-            angle -= gain * (speed - self.mean_stance_m_s) / dx_dhip * dt;
+            let target = self.mean_stance_m_s - self.body_m_s[k];
+            angle -= gain * (speed - target) / dx_dhip * dt;
             *c = angle;
             last_stance = k;
         }
@@ -377,6 +454,24 @@ mod tests {
             let e = s.validate().expect_err("refused").to_string();
             assert!(e.contains(field), "{e}");
         }
+    }
+
+    #[test]
+    fn the_normative_body_speed_swings_about_zero_twice_a_stride() {
+        let loaded = crate::Scenario::load("gait_treadmill").expect("embedded");
+        let v = normative_body_speed(&loaded, 1.75).expect("adult data");
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        assert!(mean.abs() < 1e-12, "{mean}");
+        let (lo, hi) = v
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(l, h), x| (l.min(*x), h.max(*x)));
+        // Both feet's reaction: the swing repeats every half stride.
+        let half = BINS / 2;
+        for k in 0..half {
+            assert!((v[k] - v[k + half]).abs() < 1e-3 * (hi - lo), "{k}");
+        }
+        // Slow walking at 70 % of the weight: a few centimetres per second.
+        assert!((0.005..0.3).contains(&(hi - lo)), "{lo}..{hi}");
     }
 
     #[test]

@@ -279,7 +279,16 @@ pub struct TreadmillSettings {
     /// Damping of that hold (N s/m). Default 200.
     #[serde(default = "default_fore_aft_damping")]
     pub pelvis_fore_aft_damping_n_s_per_m: f64,
+    /// Until when (s from the start) the harness holds the pelvis firmly fore-aft at its
+    /// start ([`START_HOLD_N_PER_M`]), so that the start-up, whose stance does not yet match
+    /// the belt, does not throw it onto its stop. Default 0: no hold.
+    #[serde(default)]
+    pub pelvis_held_until_s: f64,
 }
+
+/// Stiffness of the start-up's fore-aft hold (N/m) and its damping (N s/m): a pelvis
+/// held within millimetres against the start-up's hundreds of newtons.
+pub const START_HOLD_N_PER_M: (f64, f64) = (2.0e4, 2.0e3);
 
 fn one_leg() -> usize {
     1
@@ -314,6 +323,7 @@ impl TreadmillSettings {
             contralateral: None,
             pelvis_fore_aft_n_per_m: default_fore_aft_stiffness(),
             pelvis_fore_aft_damping_n_s_per_m: default_fore_aft_damping(),
+            pelvis_held_until_s: 0.0,
         }
     }
 
@@ -393,6 +403,13 @@ impl TreadmillSettings {
             0.0,
             1e5,
             "must be 0..=1e5 N s/m",
+        )?;
+        within(
+            "treadmill.pelvis_held_until_s",
+            self.pelvis_held_until_s,
+            0.0,
+            60.0,
+            "must be 0..=60 s",
         )?;
         self.contact.validate()?;
         self.ankle.validate()
@@ -976,8 +993,15 @@ impl Ground {
             let held = match self.setup.fore_aft_at_m {
                 Some(x0) => {
                     let t = &self.setup.settings;
-                    -t.pelvis_fore_aft_n_per_m * (f64::from(rb.translation().x) - x0)
-                        - t.pelvis_fore_aft_damping_n_s_per_m * f64::from(rb.linvel().x)
+                    let (k, c) = if self.clock_s < t.pelvis_held_until_s {
+                        START_HOLD_N_PER_M
+                    } else {
+                        (
+                            t.pelvis_fore_aft_n_per_m,
+                            t.pelvis_fore_aft_damping_n_s_per_m,
+                        )
+                    };
+                    -k * (f64::from(rb.translation().x) - x0) - c * f64::from(rb.linvel().x)
                 }
                 None => 0.0,
             };
