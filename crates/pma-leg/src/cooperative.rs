@@ -5,15 +5,15 @@
 //! stiffness), so the torque the device puts into the limb through the cuffs is, joint by
 //! joint, the muscles' torque less what moves the frames themselves: `tau_int = tau_muscles -
 //! M_f(q) qdd - C_f(q, qd) qd - G_f(q)`, the frames' inverse dynamics in joint space (the
-//! URDFs' stated design: aluminium bars, thigh 2.0 kg and shank 1.5 kg; [`LegInertia::frames`]).
-//! The acceleration is the true velocity's difference over the control period. Compliant
+//! URDFs' stated design: aluminium bars, thigh 2.0 kg and shank 1.5 kg; [`crate::LegInertia::frames`]).
+//! The acceleration is the true velocity's change over the control period; the plant
+//! reports the torque every period ([`crate::LegState::interaction_nm`]). Compliant
 //! cuffs (two bodies per segment) are not modelled, and a URDF joint stop's torque is not
 //! separated from the device's: a run against a stop shows its impacts in the peaks.
-use crate::exoskeleton::{LegInertia, JOINT_NAMES};
+use crate::exoskeleton::JOINT_NAMES;
 use crate::gait::GaitReference;
 use crate::impedance::Tunnel;
 use crate::metrics::{LegPeriod, LegRecorder};
-use crate::plant::LegPlant;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -80,17 +80,15 @@ impl Moments {
 /// Accumulates a leg's [`CooperationReport`] period by period (allocation-free).
 #[derive(Debug, Clone)]
 pub struct CooperationMetrics {
-    arms_m: [f64; 4],
-    joint_of: [usize; 4],
-    frames: LegInertia,
     from_s: f64,
-    previous_velocity: Option<[f64; 2]>,
     n: usize,
     sum_sq: [f64; 2],
     peak: [f64; 2],
     patient_work: [f64; 2],
     device_work: [f64; 2],
     tunnel: Tunnel,
+    /// The tunnel's last nearest segment.
+    tunnel_hint: usize,
     inside_s: f64,
     counted_s: f64,
     hip_mid_rad: f64,
@@ -107,10 +105,9 @@ pub struct CooperationMetrics {
 }
 
 impl CooperationMetrics {
-    /// Figures of `plant`'s leg `leg` on `gait`, counted after its start-up and a stride,
-    /// the tunnel `width_deg` wide.
-    pub fn new(plant: &LegPlant, leg: usize, gait: &GaitReference, width_deg: f64) -> Self {
-        let muscles = plant.leg_muscles(leg);
+    /// Figures of a leg on `gait`, counted after its start-up and a stride, the tunnel
+    /// `width_deg` wide.
+    pub fn new(gait: &GaitReference, width_deg: f64) -> Self {
         let tunnel = Tunnel::new(gait, width_deg);
         let (lo, hi) = (0..100).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), i| {
             let t = gait.ramp_s() + gait.stride_period_s() * (1.0 + i as f64 / 100.0);
@@ -118,19 +115,14 @@ impl CooperationMetrics {
             (lo.min(h), hi.max(h))
         });
         Self {
-            arms_m: std::array::from_fn(|i| {
-                muscles.get(i).map_or(0.0, |m| m.geometry.moment_arm_m())
-            }),
-            joint_of: std::array::from_fn(|i| muscles.get(i).map_or(0, |m| m.joint)),
-            frames: plant.exo().inertia().frames(),
             from_s: gait.ramp_s() + gait.stride_period_s(),
-            previous_velocity: None,
             n: 0,
             sum_sq: [0.0; 2],
             peak: [0.0; 2],
             patient_work: [0.0; 2],
             device_work: [0.0; 2],
             tunnel,
+            tunnel_hint: 0,
             inside_s: 0.0,
             counted_s: 0.0,
             hip_mid_rad: 0.5 * (lo + hi),
@@ -209,31 +201,26 @@ impl CooperationMetrics {
 impl LegRecorder for CooperationMetrics {
     fn record(&mut self, p: &LegPeriod<'_>) {
         let s = p.state;
-        let (q, qd) = (s.angle_rad, s.velocity_rad_s);
-        let previous = self.previous_velocity.replace(qd);
-        let (Some(before), true) = (previous, p.t_s >= self.from_s && p.dt_s > 0.0) else {
+        if p.t_s < self.from_s || p.dt_s <= 0.0 {
             return;
-        };
-        let qdd = [(qd[0] - before[0]) / p.dt_s, (qd[1] - before[1]) / p.dt_s];
-        let frames = self.frames.inverse_dynamics(q, qd, qdd);
-        let mut muscles = [0.0; 2];
-        let hooked = p.plant.muscles_attached();
-        for i in 0..4 {
-            if hooked && s.force_n[i].is_finite() {
-                muscles[self.joint_of[i]] += self.arms_m[i] * s.force_n[i];
-            }
         }
+        let (q, qd) = (s.angle_rad, s.velocity_rad_s);
         let own = s.patient.total();
         self.n += 1;
         for j in 0..2 {
-            let interaction = muscles[j] - frames[j];
+            let interaction = s.interaction_nm[j];
             self.sum_sq[j] += interaction * interaction;
             self.peak[j] = self.peak[j].max(interaction.abs());
             self.patient_work[j] += own[j] * qd[j] * p.dt_s;
             self.device_work[j] += interaction * qd[j] * p.dt_s;
         }
         self.counted_s += p.dt_s;
-        if self.tunnel.locate(q).distance_rad <= self.tunnel.width_rad() {
+        let inside = self
+            .tunnel
+            .locate_near(q, &mut self.tunnel_hint)
+            .distance_rad
+            <= self.tunnel.width_rad();
+        if inside {
             self.inside_s += p.dt_s;
         }
         self.follow_strides(p.t_s, q);

@@ -126,6 +126,9 @@ impl PathSettings {
 
 /// Points of the reference's path over a stride.
 const PATH_POINTS: usize = 200;
+/// Segments scanned each way from the last nearest one (a stride's 200 segments pass in
+/// 1-2 s, a few per 1 ms period).
+const LOCAL_SEGMENTS: usize = 12;
 
 /// The reference's path over one stride in the hip-knee plane (rad), closed.
 #[derive(Debug, Clone)]
@@ -166,15 +169,38 @@ impl Tunnel {
         self.width_rad
     }
 
-    /// The nearest point of the path to `q` (a scan of its segments).
+    /// The nearest point of the path to `q` (a scan of all its segments).
     pub fn locate(&self, q: [f64; 2]) -> PathPoint {
+        self.nearest(q, 0..self.points.len()).0
+    }
+
+    /// As [`Tunnel::locate`], scanning first only the segments within `LOCAL_SEGMENTS` of
+    /// `*hint` (the last one found, updated): a leg moves a few segments per period. A
+    /// distance within the tunnel found so is within it for the full scan too (the full
+    /// scan can only find a nearer point); beyond it, all segments are scanned, so that
+    /// whether the leg is inside, and the wall's push, are exactly the full scan's.
+    pub fn locate_near(&self, q: [f64; 2], hint: &mut usize) -> PathPoint {
+        let n = self.points.len();
+        let start = *hint + n - LOCAL_SEGMENTS;
+        let (mut at, mut index) =
+            self.nearest(q, (start..start + 2 * LOCAL_SEGMENTS + 1).map(|i| i % n));
+        if at.distance_rad > self.width_rad {
+            (at, index) = self.nearest(q, 0..n);
+        }
+        *hint = index;
+        at
+    }
+
+    /// The nearest point over segments `range` and its segment's index.
+    fn nearest(&self, q: [f64; 2], range: impl Iterator<Item = usize>) -> (PathPoint, usize) {
         let n = self.points.len();
         let mut best = PathPoint {
             offset_rad: [f64::INFINITY; 2],
             distance_rad: f64::INFINITY,
             tangent: [1.0, 0.0],
         };
-        for i in 0..n {
+        let mut index = 0;
+        for i in range {
             let a = self.points[i];
             let b = self.points[(i + 1) % n];
             let ab = [b[0] - a[0], b[1] - a[1]];
@@ -192,9 +218,10 @@ impl Tunnel {
                     distance_rad: d,
                     tangent: [ab[0] / len, ab[1] / len],
                 };
+                index = i;
             }
         }
-        best
+        (best, index)
     }
 }
 
@@ -562,6 +589,8 @@ pub struct ImpedanceLaw {
     settings: ImpedanceSettings,
     path: PathSettings,
     tunnel: Option<Tunnel>,
+    /// The tunnel's last nearest segment.
+    tunnel_hint: usize,
     /// The model whose dynamics the law carries (the leg's or the frames').
     carried: LegInertia,
     /// Each pair's stiffness in path and transparent modes (N m/rad).
@@ -610,6 +639,7 @@ impl ImpedanceLaw {
             path: sc.control.path,
             tunnel: (sc.control.mode == ControlMode::Path)
                 .then(|| Tunnel::new(gait, sc.control.path.width_deg)),
+            tunnel_hint: 0,
             carried,
             soft_nm_per_rad: [soft(&pairs[0]), soft(&pairs[1])],
             stiffness_nm_per_rad,
@@ -691,7 +721,7 @@ impl ImpedanceLaw {
     fn update_soft(&mut self, q: [f64; 2]) -> [f64; 4] {
         let mut torque = self.carried.inverse_dynamics(q, [0.0; 2], [0.0; 2]);
         if let Some(t) = &self.tunnel {
-            let at = t.locate(q);
+            let at = t.locate_near(q, &mut self.tunnel_hint);
             let beyond = at.distance_rad - t.width_rad();
             if beyond > 0.0 && at.distance_rad > 0.0 {
                 for (j, tau) in torque.iter_mut().enumerate() {
@@ -892,6 +922,32 @@ mod tests {
         let off = [on[0] - 0.05 * t[1], on[1] + 0.05 * t[0]];
         let d = tunnel.locate(off).distance_rad;
         assert!(d <= 0.05 + 1e-9 && d > 0.03, "{d}");
+    }
+
+    #[test]
+    fn the_local_search_finds_what_the_full_scan_finds_along_a_gait() {
+        let gait = crate::gait::GaitReference::adult(0.5, 1.6, 1.6).unwrap();
+        let tunnel = Tunnel::new(&gait, 5.0);
+        let mut hint = 0;
+        for k in 0..4000 {
+            // A leg a little off the path, a millisecond per step, over two strides, now
+            // inside the 5-degree tunnel (0.087 rad), now beyond it.
+            let g = gait.sample(3.2 + k as f64 * 1e-3);
+            let off = if (k / 500) % 2 == 0 { 0.02 } else { 0.3 };
+            let q = [g.hip.angle_rad + off, g.knee.angle_rad - 0.01];
+            let near = tunnel.locate_near(q, &mut hint);
+            let full = tunnel.locate(q);
+            // Inside the tunnel, what matters is that it is inside; beyond it, the push.
+            let width = tunnel.width_rad();
+            assert_eq!(
+                near.distance_rad <= width,
+                full.distance_rad <= width,
+                "step {k}"
+            );
+            if full.distance_rad > width {
+                assert_eq!(near.offset_rad, full.offset_rad, "step {k}");
+            }
+        }
     }
 
     #[test]

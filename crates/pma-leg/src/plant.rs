@@ -135,6 +135,10 @@ pub struct LegState {
     pub slack_s: [f64; 4],
     /// The patient's torques at the last substep (N m, flexion positive).
     pub patient: PatientTorques,
+    /// The torque the device puts into the limb through the cuffs (N m, flexion positive):
+    /// the muscles' torque less the frames' own inverse dynamics, the acceleration the
+    /// mean over the last period (`crate::cooperative`).
+    pub interaction_nm: [f64; 2],
     /// The passive ankle's angle (rad, dorsiflexion positive; NaN without one).
     pub ankle_rad: f64,
     /// The orthosis's torque on the ankle (N m, dorsiflexion positive).
@@ -169,6 +173,8 @@ pub struct LegPlant {
     muscles_attached: bool,
     /// A load on each leg's joints (N m, flexion positive): a perturbation test's weight.
     external_nm: [[f64; 2]; MAX_LEGS],
+    /// Each leg's mean joint acceleration over the last period (rad/s^2).
+    acceleration: [[f64; 2]; MAX_LEGS],
 }
 
 impl LegPlant {
@@ -194,6 +200,7 @@ impl LegPlant {
             patients: Vec::new(),
             muscles_attached: true,
             external_nm: [[0.0; 2]; MAX_LEGS],
+            acceleration: [[0.0; 2]; MAX_LEGS],
         })
     }
 
@@ -340,6 +347,13 @@ impl LegPlant {
         let h = self.period_s / f64::from(self.exo.substeps());
         let t0 = self.periods as f64 * self.period_s;
         let mut slack = [[0.0; 4]; MAX_LEGS];
+        let before: [[f64; 2]; MAX_LEGS] = std::array::from_fn(|leg| {
+            if leg < legs {
+                self.exo.velocities(leg)
+            } else {
+                [0.0; 2]
+            }
+        });
         self.exo.step(|exo, sub| {
             let t = t0 + sub as f64 * h;
             let mut tau = PerLeg::from_fn(legs, |leg| {
@@ -362,6 +376,13 @@ impl LegPlant {
             tau
         });
         self.slack_s = slack;
+        for (leg, v0) in before.iter().enumerate().take(legs) {
+            let v = self.exo.velocities(leg);
+            self.acceleration[leg] = [
+                (v[0] - v0[0]) / self.period_s,
+                (v[1] - v0[1]) / self.period_s,
+            ];
+        }
         self.periods += 1;
     }
 
@@ -384,9 +405,21 @@ impl LegPlant {
         let each = |f: &dyn Fn(&MuscleActuator) -> f64| -> [f64; 4] {
             std::array::from_fn(|i| m.get(i).map_or(f64::NAN, f))
         };
+        let mut muscles_nm = [0.0; 2];
+        if self.muscles_attached {
+            for mm in m {
+                muscles_nm[mm.joint] += mm.torque(q, qd);
+            }
+        }
+        let frames = self
+            .exo
+            .inertia()
+            .frames()
+            .inverse_dynamics(q, qd, self.acceleration[leg]);
         LegState {
             angle_rad: q,
             velocity_rad_s: qd,
+            interaction_nm: [muscles_nm[0] - frames[0], muscles_nm[1] - frames[1]],
             pressure_pa: each(&|m| m.pressure()),
             force_n: each(&|m| m.force(q, qd)),
             length_m: each(&|m| m.contraction(q)),

@@ -62,6 +62,8 @@ pub struct LegSample {
     /// Its parts (N m): reflex, spasm (non-zero while a spasm acts on the joint), voluntary
     /// effort, passive stiffness.
     pub patient_parts_nm: PatientTorques,
+    /// The torque the device puts into the limb (N m, flexion positive).
+    pub interaction_nm: [f64; 2],
     /// Its foot on the belt, on a treadmill.
     pub foot: Option<FootSample>,
 }
@@ -108,6 +110,7 @@ impl LegSample {
             diagnostics: output.diagnostics,
             patient_nm: s.patient.total(),
             patient_parts_nm: s.patient,
+            interaction_nm: s.interaction_nm,
             foot: state.ground.and_then(|g| {
                 Some(FootSample {
                     reaction: *g.feet.get(leg)?,
@@ -163,6 +166,12 @@ impl LegSample {
                     j,
                     "stiffness_torque_nm",
                     "patient's passive stiffness (N m, flexion +)",
+                )
+                .push_part(
+                    "joints",
+                    j,
+                    "interaction_torque_nm",
+                    "device's torque on the limb (N m, flexion +)",
                 );
         }
         for m in muscles {
@@ -257,6 +266,7 @@ impl LegSample {
                 p.spasm_nm[j],
                 p.effort_nm[j],
                 p.stiffness_nm[j],
+                self.interaction_nm[j],
             ] {
                 put(v);
             }
@@ -719,8 +729,6 @@ impl LegSim {
                 OnLeg::new(
                     leg,
                     crate::cooperative::CooperationMetrics::new(
-                        &self.plant,
-                        leg,
                         self.controllers.leg(leg).gait(),
                         width_deg,
                     ),
