@@ -544,3 +544,27 @@ fn norm_comparison(
         .map_or((75.0, 0.0), |t| (t.body_mass_kg, t.bws_fraction));
     Ok(pma_leg::demand::against_norms(demand, &norms, mass, bws))
 }
+
+/// A rig log for identification: refused if `rig replay` would refuse it (cut short,
+/// edited, periods missing) unless `force`; on a virtual rig, each command as the valve
+/// received it through the output converter (an ideal valve feels the converter's step,
+/// regression of issue 26).
+pub fn load_id_log(path: &std::path::Path, force: bool) -> Result<pma_studies::identify::IdLog> {
+    let verified = match pma_rig::verify(path) {
+        Ok(v) => Some(v),
+        Err(_) if force => None,
+        Err(e) => {
+            return Err(anyhow::Error::new(e)
+                .context("identification reads only logs it can trust (--force reads it anyway)"))
+        }
+    };
+    let mut log = pma_studies::identify::read_log(path)?;
+    if let Some(v) = verified {
+        if let Some(delivered) = pma_rig::delivered_valve_pa(&v.config)? {
+            for c in &mut log.command_pa {
+                *c = delivered(*c);
+            }
+        }
+    }
+    Ok(log)
+}

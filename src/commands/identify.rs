@@ -2,7 +2,7 @@
 use crate::output::{self, OutFile};
 use crate::say;
 use anyhow::{bail, Context, Result};
-use pma_studies::identify::{identify_logs, read_log, IdLog};
+use pma_studies::identify::identify_logs;
 use std::path::PathBuf;
 
 /// `identify`'s arguments.
@@ -48,7 +48,7 @@ pub fn run(a: Args) -> Result<i32> {
     let logs = a
         .logs
         .iter()
-        .map(|l| load_log(l, a.force))
+        .map(|l| pma_exo::setup::load_id_log(l, a.force))
         .collect::<Result<Vec<_>>>()?;
     // The operator's stop before the output exists: a signal never leaves its `.part`.
     let stop = output::stop_flag()?;
@@ -132,28 +132,4 @@ pub fn run(a: Args) -> Result<i32> {
         say!("  not separable: {p} and {q} (correlation {rho:.3})");
     }
     Ok(0)
-}
-
-/// A rig log for identification: refused if `rig replay` would refuse it (cut short,
-/// edited, periods missing) unless `force`; on a virtual rig, each command as the valve
-/// received it through the output converter (an ideal valve feels the converter's step,
-/// regression of issue 26).
-pub(crate) fn load_log(path: &std::path::Path, force: bool) -> Result<IdLog> {
-    let verified = match pma_rig::verify(path) {
-        Ok(v) => Some(v),
-        Err(_) if force => None,
-        Err(e) => {
-            return Err(anyhow::Error::new(e)
-                .context("identification reads only logs it can trust (--force reads it anyway)"))
-        }
-    };
-    let mut log = read_log(path)?;
-    if let Some(v) = verified {
-        if let Some(delivered) = pma_rig::delivered_valve_pa(&v.config)? {
-            for c in &mut log.command_pa {
-                *c = delivered(*c);
-            }
-        }
-    }
-    Ok(log)
 }

@@ -230,3 +230,77 @@ pub fn size<'py>(
     let run = SizeRun::of(&loaded, &args).map_err(to_py)?;
     json_to_py(py, &serde_json::Value::Object(run.figures()))
 }
+
+/// How often a call running on a worker thread looks for the operator's Ctrl-C.
+const SIGNAL_POLL: std::time::Duration = std::time::Duration::from_millis(20);
+
+/// A plant from rig logs: `pma-exo identify LOG... --json`.
+///
+/// `logs`: one log path (`rig excite --out`, or any `rig run` log) or a list of up to 8
+/// (an added-mass protocol's pair); `load_kg`: the load weighed (default the log's
+/// `[load] mass_kg`, else identified from the added-mass logs); `seed`: the bootstrap's;
+/// `force`: read logs `rig replay` would refuse. Returns the dict `identify --json` prints
+/// (without its provenance) and `plant`: the plant file's content as a dict (what
+/// `identify --out` writes; the caller decides whether its `fit_percent` suffices). The
+/// fit runs on a worker thread; Ctrl-C stops it (KeyboardInterrupt).
+#[pyfunction]
+#[pyo3(signature = (logs, load_kg = None, seed = 1, force = false))]
+pub fn identify<'py>(
+    py: Python<'py>,
+    logs: Bound<'py, PyAny>,
+    load_kg: Option<f64>,
+    seed: u64,
+    force: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    let paths: Vec<PathBuf> = match logs.extract::<PathBuf>() {
+        Ok(p) => vec![p],
+        Err(_) => logs.extract::<Vec<PathBuf>>().map_err(|_| {
+            crate::PmaError::new_err("logs must be a path or a list of 1 to 8 paths")
+        })?,
+    };
+    if !(1..=8).contains(&paths.len()) {
+        return Err(crate::PmaError::new_err(format!(
+            "logs: {} given, 1 to 8 expected",
+            paths.len()
+        )));
+    }
+    if let Some(m) = load_kg {
+        if !(m.is_finite() && m > 0.0) {
+            return Err(crate::PmaError::new_err(format!(
+                "load_kg = {m} must be a positive mass in kg"
+            )));
+        }
+    }
+    let read = paths
+        .iter()
+        .map(|p| pma_exo::setup::load_id_log(p, force))
+        .collect::<anyhow::Result<Vec<_>>>()
+        .map_err(to_py)?;
+    let load = load_kg.or(read[0].weighed_kg);
+    let stop = AtomicBool::new(false);
+    let outcome = std::thread::scope(|s| -> PyResult<_> {
+        let worker = s.spawn(|| pma_studies::identify::identify_logs(&read, load, seed, &stop));
+        while !worker.is_finished() {
+            if let Err(e) = py.check_signals() {
+                stop.store(true, std::sync::atomic::Ordering::Relaxed);
+                let _ = worker.join();
+                return Err(e);
+            }
+            // Other Python threads run meanwhile.
+            py.detach(|| std::thread::sleep(SIGNAL_POLL));
+        }
+        worker
+            .join()
+            .map_err(|_| crate::PmaError::new_err("the identification panicked"))
+    })?;
+    let id = outcome.map_err(py_err)?;
+    let plant = id.plant_config(&read[0]);
+    let mut figures = serde_json::to_value(&id).map_err(py_err)?;
+    if let Some(o) = figures.as_object_mut() {
+        o.insert(
+            "plant".into(),
+            serde_json::to_value(&plant).map_err(py_err)?,
+        );
+    }
+    json_to_py(py, &figures)
+}

@@ -1,6 +1,6 @@
 """Type stubs of pma_exo (pma-exo's Python bindings)."""
 import os
-from typing import Any, Dict, List, Optional, Union
+from typing import Any, Dict, List, Optional, Sequence, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -84,6 +84,21 @@ def size(
     size, length and pulley is tried, and the smallest size keeping ``force_margin`` of its
     rating free is recommended. Keys: ``sizing``, ``against_norms``, ``treadmill``,
     ``servo_max_error_deg``, ``servo_raw_torque_range_nm``.
+    """
+
+def identify(
+    logs: Union[_Path, Sequence[_Path]],
+    load_kg: Optional[float] = None,
+    seed: int = 1,
+    force: bool = False,
+) -> Dict[str, Any]:
+    """A plant from rig logs (``pma-exo identify LOG... --json``).
+
+    ``logs``: one log (``rig excite --out``, or any ``rig run`` log) or up to 8 (the
+    added-mass protocol's pair); ``load_kg``: the load weighed (default the log's, else
+    identified from the added-mass logs); ``seed``: the bootstrap's; ``force``: read logs
+    ``rig replay`` would refuse. Returns the figures ``identify --json`` prints and
+    ``plant``, the plant file's content (what ``identify --out`` writes). Ctrl-C stops it.
     """
 
 class Bench:

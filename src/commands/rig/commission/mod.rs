@@ -9,11 +9,11 @@
 mod report;
 
 use super::supervised::{check_rig_wall_time, warn_if_not_vented, with_added_mass};
-use crate::commands::identify::load_log;
 use crate::commands::tune::{check_robust, check_tuning_wall_time, evaluations};
 use crate::output::{self, OutFile};
 use anyhow::{bail, Context, Result};
 use pma_control::{ControllerConfig, ControllerKind};
+use pma_exo::setup::load_id_log as load_log;
 use pma_rig::{RigConfig, RunOptions};
 use pma_studies::identify::{identify_logs, IdLog, Identified, MIN_LOG_S};
 use pma_studies::tune::{
