@@ -907,6 +907,8 @@ pub struct LegTrace {
     pub force_n: [Vec<f64>; 4],
     /// The patient's torque (N m) at hip and knee.
     pub patient_nm: [Vec<f64>; 2],
+    /// The device's torque on the limb (N m) at hip and knee.
+    pub interaction_nm: [Vec<f64>; 2],
     /// Muscle names.
     pub muscles: Vec<String>,
     /// Spasms: joint (0 hip, 1 knee), onset and end (s).
@@ -1079,8 +1081,8 @@ fn time_window(t: &[f64], stride_s: f64) -> (usize, Range<f64>, Option<String>) 
 }
 
 /// `simulate --plot`: joint angles over their references, tracking errors, the four
-/// pressures against the valve's limit, the forces against the rating, and the patient's
-/// torques (unless the patient is passive), spasms shaded; on a treadmill also the
+/// pressures against the valve's limit, the forces against the rating, and the torques on
+/// the limb (the device's, and the patient's unless passive), spasms shaded; on a treadmill also the
 /// vertical ground reaction of every foot against the unsupported weight and the
 /// pelvis's height. A run of more than [`TIME_VIEW_MAX_STRIDES`] strides is drawn by its
 /// last [`TIME_VIEW_STRIDES`], each panel's caption saying so.
@@ -1133,28 +1135,33 @@ pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawRe
             spasms: spasms(None),
         },
     ];
-    // A passive patient's torques are zero throughout: no panel of nothing.
+    // The torques on the limb: the device's always, the patient's unless passive (zero
+    // throughout, no lines of nothing).
+    let mut torques: Vec<(String, &[f64], RGBColor, bool)> = Vec::new();
     if tr.patient_nm.iter().flatten().any(|v| *v != 0.0) {
-        panels.push(LinePanel {
-            y_desc: "patient torque (N m, flexion +)",
-            lines: vec![
-                (
-                    "hip".into(),
-                    tail(&tr.patient_nm[0], first),
-                    colour(0),
-                    false,
-                ),
-                (
-                    "knee".into(),
-                    tail(&tr.patient_nm[1], first),
-                    colour(1),
-                    false,
-                ),
-            ],
-            marks: Vec::new(),
-            spasms: spasms(None),
-        });
+        for (j, name) in ["hip", "knee"].iter().enumerate() {
+            torques.push((
+                format!("patient, {name}"),
+                tail(&tr.patient_nm[j], first),
+                colour(j),
+                false,
+            ));
+        }
     }
+    for (j, name) in ["hip", "knee"].iter().enumerate() {
+        torques.push((
+            format!("device on the limb, {name}"),
+            tail(&tr.interaction_nm[j], first),
+            colour(j),
+            true,
+        ));
+    }
+    panels.push(LinePanel {
+        y_desc: "torque on the limb (N m, flexion +)",
+        lines: torques,
+        marks: Vec::new(),
+        spasms: spasms(None),
+    });
     panels.push(LinePanel {
         y_desc: "pressure (bar)",
         lines: muscle_lines(tr, &tr.pressure_bar, first),

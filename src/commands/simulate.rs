@@ -118,7 +118,7 @@ pub fn run(a: Args) -> Result<i32> {
         })
         .transpose()?;
     let meta = format!(
-        "# {}\n\n{}\n\n{}\n\ngait `{}` at a {} s stride; co-contraction {} bar; {} gains:\n\n{}",
+        "# {}\n\n{}\n\n{}\n\ngait `{}` at a {} s stride; co-contraction {} bar; {} gains (mode {}):\n\n{}",
         sc.name,
         provenance.line(),
         sc.description,
@@ -126,6 +126,7 @@ pub fn run(a: Args) -> Result<i32> {
         sc.gait.stride_period_s,
         sc.control.cocontraction_pa / 1e5,
         config.kind(),
+        sc.control.mode,
         super::gains_block(&config)
     );
     let viz = viz::leg(&a.output.rerun, &sim, &meta)?;
@@ -192,7 +193,12 @@ pub fn run(a: Args) -> Result<i32> {
             })
             .collect();
         crate::plot::register_font()?;
-        let title = format!("{}: {} on every muscle", sc.name, config.kind());
+        let title = match sc.control.mode {
+            pma_leg::ControlMode::Position => {
+                format!("{}: {} on every muscle", sc.name, config.kind())
+            }
+            mode => format!("{}: {mode} mode, no muscle controller", sc.name),
+        };
         let leg_title = if sim.leg_count() > 1 {
             format!("{title} ({} leg)", pma_leg::SIDES[0])
         } else {
@@ -269,6 +275,7 @@ impl Trace {
             pressure_bar: [v(), v(), v(), v()],
             force_n: [v(), v(), v(), v()],
             patient_nm: [v(), v()],
+            interaction_nm: [v(), v()],
             ..Default::default()
         })
     }
@@ -289,6 +296,7 @@ impl pma_loop::Recorder<pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutp
             t.reference_deg[j].push(o.reference_rad[j].to_degrees());
             t.angle_deg[j].push(s.angle_rad[j].to_degrees());
             t.patient_nm[j].push(torque);
+            t.interaction_nm[j].push(s.interaction_nm[j]);
         }
         for (i, (p, f)) in s.pressure_pa.iter().zip(&s.force_n).enumerate() {
             t.pressure_bar[i].push(p / 1e5);
