@@ -304,3 +304,64 @@ pub fn identify<'py>(
     }
     json_to_py(py, &figures)
 }
+
+/// A treadmill scenario's hip made consistent with its belt: `pma-exo fit-gait --json`.
+///
+/// `iterations` servo-driven runs after the data's (each the start-up, a stride and
+/// `strides` measured), `gain` of each speed error corrected per run, `body_speed`
+/// `"constant"` or `"normative"`. Returns the dict `fit-gait --json` prints (without its
+/// provenance): `steps`, `best`, `belt_speed_m_s`, `hip_correction` (`cos_deg`,
+/// `sin_deg`). Ctrl-C between runs raises KeyboardInterrupt.
+#[pyfunction]
+#[pyo3(signature = (scenario = "gait_treadmill", iterations = 15, gain = 0.8, strides = 3, body_speed = "constant"))]
+pub fn fit_gait<'py>(
+    py: Python<'py>,
+    scenario: &str,
+    iterations: usize,
+    gain: f64,
+    strides: usize,
+    body_speed: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    use pma_leg::gait_fit::{BodySpeed, GaitFitSettings};
+    let body_speed = match body_speed {
+        "constant" => BodySpeed::Constant,
+        "normative" => BodySpeed::Normative,
+        other => {
+            return Err(crate::PmaError::new_err(format!(
+                "unknown body_speed `{other}` (expected one of: constant, normative)"
+            )))
+        }
+    };
+    let settings = GaitFitSettings {
+        iterations,
+        gain,
+        strides,
+        body_speed,
+    };
+    settings
+        .validate()
+        .map_err(|e| crate::PmaError::new_err(format!("--{e}")))?;
+    let loaded = pma_leg::Scenario::load(scenario).map_err(py_err)?;
+    let interrupt = std::cell::RefCell::new(None);
+    let fit = pma_leg::fit_gait(&loaded, &settings, || match py.check_signals() {
+        Ok(()) => false,
+        Err(e) => {
+            interrupt.replace(Some(e));
+            true
+        }
+    })
+    .map_err(py_err)?;
+    if let Some(e) = interrupt.into_inner() {
+        return Err(e);
+    }
+    let figures = serde_json::json!({
+        "steps": fit.steps,
+        "best": fit.best,
+        "belt_speed_m_s": fit.belt_speed_m_s,
+        "hip_correction": {
+            "cos_deg": fit.hip_correction.cos_deg,
+            "sin_deg": fit.hip_correction.sin_deg,
+        },
+    });
+    json_to_py(py, &figures)
+}

@@ -101,6 +101,21 @@ def identify(
     ``plant``, the plant file's content (what ``identify --out`` writes). Ctrl-C stops it.
     """
 
+def fit_gait(
+    scenario: _Path = "gait_treadmill",
+    iterations: int = 15,
+    gain: float = 0.8,
+    strides: int = 3,
+    body_speed: str = "constant",
+) -> Dict[str, Any]:
+    """A treadmill scenario's hip made consistent with its belt (``pma-exo fit-gait --json``).
+
+    ``iterations`` servo-driven runs after the data's, ``gain`` of each speed error corrected
+    per run, ``strides`` measured per run, ``body_speed`` ``"constant"`` or ``"normative"``.
+    Keys: ``steps``, ``best``, ``belt_speed_m_s``, ``hip_correction`` (``cos_deg``,
+    ``sin_deg``: the scenario's ``[gait.hip_correction]``). Ctrl-C between runs stops it.
+    """
+
 class Bench:
     """One muscle lifting a load, stepped by a controller written in Python.
 
