@@ -568,3 +568,23 @@ pub fn load_id_log(path: &std::path::Path, force: bool) -> Result<pma_studies::i
     }
     Ok(log)
 }
+
+/// A gait fit's figures as `fit-gait --json` prints them (without the provenance):
+/// `steps`, `best`, `belt_speed_m_s`, `hip_correction` (`cos_deg`, `sin_deg`).
+pub fn fit_figures(fit: &pma_leg::GaitFit) -> serde_json::Map<String, serde_json::Value> {
+    let mut out = serde_json::Map::new();
+    out.insert("steps".into(), serde_json::json!(fit.steps));
+    out.insert("best".into(), serde_json::json!(fit.best));
+    out.insert(
+        "belt_speed_m_s".into(),
+        serde_json::json!(fit.belt_speed_m_s),
+    );
+    out.insert(
+        "hip_correction".into(),
+        serde_json::json!({
+            "cos_deg": fit.hip_correction.cos_deg,
+            "sin_deg": fit.hip_correction.sin_deg,
+        }),
+    );
+    out
+}

@@ -80,16 +80,8 @@ pub fn run(a: Args) -> Result<i32> {
     };
     let snippet = scenario_snippet(&fit, &provenance.command);
     if a.json {
-        let json = serde_json::json!({
-            "provenance": provenance,
-            "steps": fit.steps,
-            "best": fit.best,
-            "belt_speed_m_s": fit.belt_speed_m_s,
-            "hip_correction": {
-                "cos_deg": fit.hip_correction.cos_deg,
-                "sin_deg": fit.hip_correction.sin_deg,
-            },
-        });
+        let mut json = pma_exo::setup::fit_figures(&fit);
+        json.insert("provenance".into(), serde_json::to_value(&provenance)?);
         say!("{}", serde_json::to_string(&json)?);
     } else {
         print_steps(&fit)?;

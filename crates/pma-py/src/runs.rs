@@ -354,14 +354,6 @@ pub fn fit_gait<'py>(
     if let Some(e) = interrupt.into_inner() {
         return Err(e);
     }
-    let figures = serde_json::json!({
-        "steps": fit.steps,
-        "best": fit.best,
-        "belt_speed_m_s": fit.belt_speed_m_s,
-        "hip_correction": {
-            "cos_deg": fit.hip_correction.cos_deg,
-            "sin_deg": fit.hip_correction.sin_deg,
-        },
-    });
+    let figures = serde_json::Value::Object(pma_exo::setup::fit_figures(&fit));
     json_to_py(py, &figures)
 }
