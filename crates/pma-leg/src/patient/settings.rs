@@ -300,6 +300,10 @@ pub struct ActiveSettings {
     /// Share of a healthy limb's torque they produce (default 1; below 1 a weak limb).
     #[serde(default = "one")]
     pub strength: f64,
+    /// The share per leg on a two-leg trainer, `[right, left]`, instead of `strength`: a
+    /// patient weaker on one side (after a stroke, say).
+    #[serde(default)]
+    pub strength_by_leg: Option<[f64; 2]>,
     /// Seed of their stride-to-stride variation (each leg adds its index).
     #[serde(default)]
     pub seed: u64,
@@ -350,6 +354,17 @@ impl ActiveSettings {
             2.0,
             "must be 0..=2",
         )?;
+        for (leg, side) in ["right", "left"].iter().enumerate() {
+            if let Some(by_leg) = self.strength_by_leg {
+                within(
+                    format!("patient.active.strength_by_leg[{leg}] ({side})"),
+                    by_leg[leg],
+                    0.0,
+                    2.0,
+                    "must be 0..=2",
+                )?;
+            }
+        }
         for (j, name) in ["hip", "knee"].iter().enumerate() {
             within(
                 format!("patient.active.stiffness_nm_per_rad[{j}] ({name})"),
@@ -654,6 +669,9 @@ impl PatientSettings {
         }
         if let Some(a) = &mut out.active {
             a.seed = a.seed.wrapping_add(leg as u64);
+            if let Some(by_leg) = a.strength_by_leg {
+                a.strength = by_leg[leg.min(1)];
+            }
         }
         out
     }
@@ -712,6 +730,23 @@ pub(super) mod tests {
             seed,
             events: Vec::new(),
         }
+    }
+
+    #[test]
+    fn a_patient_weaker_on_one_side_gives_each_leg_its_strength() {
+        let text = "[active]\nstrength_by_leg = [1.0, 0.4]\nseed = 3\n";
+        let p: PatientSettings = toml::from_str(text).unwrap();
+        p.validate().unwrap();
+        let [right, left] = [0, 1].map(|leg| p.for_leg(leg).active.unwrap());
+        assert_eq!((right.strength, left.strength), (1.0, 0.4));
+        assert_eq!((right.seed, left.seed), (3, 4));
+        let bad: PatientSettings =
+            toml::from_str("[active]\nstrength_by_leg = [1.0, -0.5]\n").unwrap();
+        let e = bad.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("patient.active.strength_by_leg[1] (left)"),
+            "{e}"
+        );
     }
 
     #[test]
