@@ -749,11 +749,6 @@ impl ImpedanceLaw {
         }
         out
     }
-
-    /// The tunnel of path mode.
-    pub fn tunnel(&self) -> Option<&Tunnel> {
-        self.tunnel.as_ref()
-    }
 }
 
 /// A small-perturbation test of one joint's realised stiffness.
