@@ -4,6 +4,7 @@ The SIGINT comes from another process, as a terminal's or a notebook kernel mana
 does: a run holds the GIL, so a Python thread could not send it before the run ends.
 """
 import os
+import signal
 import subprocess
 import time
 
@@ -18,6 +19,10 @@ import pma_exo
     ids=["single", "simulate"],
 )
 def test_sigint_raises_keyboard_interrupt(run):
+    # Python raises KeyboardInterrupt only if SIGINT was not ignored when it started, and a
+    # shell's background job starts with it ignored (regression: this test failed in a CI
+    # launched as one): the handler a terminal's Python has is installed for the test.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     killer = subprocess.Popen(["sh", "-c", f"sleep 0.5; kill -INT {os.getpid()}"])
     start = time.monotonic()
     try:
@@ -25,4 +30,5 @@ def test_sigint_raises_keyboard_interrupt(run):
             run()
     finally:
         killer.wait()
+        signal.signal(signal.SIGINT, previous)
     assert time.monotonic() - start < 5.0
