@@ -208,7 +208,7 @@ fn push_leg_frame(
     let mut feet = [(0usize, [f64::NAN; 3], [0.0; 3]); pma_leg::MAX_LEGS];
     let has_ground = if let Some(g) = exo.ground() {
         // The stripes travel backwards with the belt, wrapping every spacing.
-        let travelled = g.settings().belt_speed_m_s() * t_s;
+        let travelled = g.belt_travel_m();
         poses[n] = (
             [-travelled.rem_euclid(STRIPE_SPACING_M), 0.0, 0.0],
             [0.0, 0.0, 0.0, 1.0],

@@ -284,7 +284,19 @@ pub struct TreadmillSettings {
     /// the belt, does not throw it onto its stop. Default 0: no hold.
     #[serde(default)]
     pub pelvis_held_until_s: f64,
+    /// A self-paced belt (1/s; default 0, a belt at constant speed): after the start-up
+    /// the belt's speed changes by this gain times how far the pelvis's stride-mean
+    /// position (low-passed over [`SELF_PACED_FILTER_S`]) lies ahead of its start, so that
+    /// a pelvis free fore-aft stays over the belt without resting on a stop, as a
+    /// self-paced treadmill keeps its walker in place (Sloot et al. 2014) and the Lokomat
+    /// synchronises its belt to the orthosis.
+    #[serde(default)]
+    pub self_paced_gain_per_s: f64,
 }
+
+/// Low-pass of the pelvis position a self-paced belt follows (s): a stride or so, so that
+/// the belt does not follow the body's swing within a stride.
+pub const SELF_PACED_FILTER_S: f64 = 1.0;
 
 /// Stiffness of the start-up's fore-aft hold (N/m) and its damping (N s/m): a pelvis
 /// held within millimetres against the start-up's hundreds of newtons.
@@ -324,6 +336,7 @@ impl TreadmillSettings {
             pelvis_fore_aft_n_per_m: default_fore_aft_stiffness(),
             pelvis_fore_aft_damping_n_s_per_m: default_fore_aft_damping(),
             pelvis_held_until_s: 0.0,
+            self_paced_gain_per_s: 0.0,
         }
     }
 
@@ -411,6 +424,13 @@ impl TreadmillSettings {
             60.0,
             "must be 0..=60 s",
         )?;
+        within(
+            "treadmill.self_paced_gain_per_s",
+            self.self_paced_gain_per_s,
+            0.0,
+            5.0,
+            "must be 0..=5 per second (0: a belt at constant speed)",
+        )?;
         self.contact.validate()?;
         self.ankle.validate()
     }
@@ -456,6 +476,8 @@ pub struct GroundReaction {
     pub support_n: f64,
     /// The harness's fore-aft force on the pelvis (N, forward positive).
     pub harness_fore_aft_n: f64,
+    /// The belt's speed (m/s): a self-paced belt's changes.
+    pub belt_speed_m_s: f64,
 }
 
 impl Default for GroundReaction {
@@ -465,6 +487,7 @@ impl Default for GroundReaction {
             contralateral_n: 0.0,
             support_n: 0.0,
             harness_fore_aft_n: 0.0,
+            belt_speed_m_s: 0.0,
         }
     }
 }
@@ -835,10 +858,15 @@ pub struct Ground {
     belt_ramp_s: f64,
     feet: Vec<FootState>,
     /// This period's sums over substeps: the other leg's and the harness's vertical
-    /// forces, the harness's fore-aft force (N).
-    sum: [f64; 3],
+    /// forces, the harness's fore-aft force (N), the belt's speed (m/s).
+    sum: [f64; 4],
     substeps: u32,
     last: GroundReaction,
+    /// The pelvis's low-passed fore-aft offset from its start a self-paced belt follows
+    /// (m).
+    pelvis_offset_m: f64,
+    /// How far the belt's surface has moved backwards since the start (m).
+    belt_travel_m: f64,
 }
 
 impl Ground {
@@ -854,9 +882,11 @@ impl Ground {
             clock_s: 0.0,
             belt_ramp_s: 0.0,
             feet,
-            sum: [0.0; 3],
+            sum: [0.0; 4],
             substeps: 0,
             last: GroundReaction::default(),
+            pelvis_offset_m: 0.0,
+            belt_travel_m: 0.0,
         }
     }
 
@@ -876,10 +906,30 @@ impl Ground {
     pub fn belt_speed_now_m_s(&self) -> f64 {
         let v = self.setup.settings.belt_speed_m_s();
         if self.belt_ramp_s <= 0.0 || self.clock_s >= self.belt_ramp_s {
-            return v;
+            return v + self.self_paced_trim_m_s();
         }
         let s = (self.clock_s / self.belt_ramp_s).max(0.0);
         v * s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+    }
+
+    /// How far the belt's surface has moved backwards since the start (m).
+    pub fn belt_travel_m(&self) -> f64 {
+        self.belt_travel_m
+    }
+
+    /// A self-paced belt's change of speed (m/s; 0 for a belt at constant speed): the
+    /// pelvis ahead of its start speeds the belt up.
+    fn self_paced_trim_m_s(&self) -> f64 {
+        self.setup.settings.self_paced_gain_per_s * self.pelvis_offset_m
+    }
+
+    /// Whether a self-paced belt follows the pelvis now: after the belt's start-up and the
+    /// harness's start-up hold.
+    fn self_paced_now(&self) -> bool {
+        let s = &self.setup.settings;
+        s.self_paced_gain_per_s > 0.0
+            && self.clock_s >= self.belt_ramp_s
+            && self.clock_s >= s.pelvis_held_until_s
     }
 
     /// Puts the virtual other leg under the pelvis.
@@ -1005,12 +1055,18 @@ impl Ground {
                 }
                 None => 0.0,
             };
+            if let (true, Some(x0)) = (self.self_paced_now(), self.setup.fore_aft_at_m) {
+                let offset = f64::from(rb.translation().x) - x0;
+                self.pelvis_offset_m += (offset - self.pelvis_offset_m) * h_s / SELF_PACED_FILTER_S;
+            }
             self.sum[0] += other;
             self.sum[1] += up;
             self.sum[2] += held;
             rb.add_force(Vector::new(held as Real, 0.0, (up + other) as Real), true);
         }
         let belt = self.belt_speed_now_m_s();
+        self.sum[3] += belt;
+        self.belt_travel_m += belt * h_s;
         let params = self.setup.settings.contact;
         for (state, foot) in self.feet.iter_mut().zip(&self.setup.feet) {
             state.apply(foot, &params, belt, bodies, h_s);
@@ -1030,8 +1086,9 @@ impl Ground {
             contralateral_n: self.sum[0] / n,
             support_n: self.sum[1] / n,
             harness_fore_aft_n: self.sum[2] / n,
+            belt_speed_m_s: self.sum[3] / n,
         };
-        self.sum = [0.0; 3];
+        self.sum = [0.0; 4];
         self.substeps = 0;
     }
 
@@ -1164,6 +1221,13 @@ mod tests {
                     ..ok
                 },
                 "bws_spring_n_per_m",
+            ),
+            (
+                TreadmillSettings {
+                    self_paced_gain_per_s: -0.3,
+                    ..ok
+                },
+                "self_paced_gain_per_s",
             ),
         ] {
             let e = bad.validate().unwrap_err().to_string();

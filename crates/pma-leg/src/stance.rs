@@ -137,7 +137,7 @@ pub struct FootReport {
 /// The treadmill's figures of a run: the belt, the harness, the pelvis and every foot.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct TreadmillReport {
-    /// Belt speed (m/s).
+    /// Belt speed (m/s): its mean after the first stride (a self-paced belt's changes).
     pub belt_speed_m_s: f64,
     /// Fraction of the system's weight the harness carries.
     pub bws_fraction: f64,
@@ -534,6 +534,8 @@ pub struct TrainerGroundMetrics {
     system_weight_n: f64,
     legs: usize,
     time_s: f64,
+    /// How far the belt moved after the first stride (m).
+    belt_travel_m: f64,
     belt_impulse_n_s: f64,
     other_impulse_n_s: f64,
     pelvis_z_m: [f64; 2],
@@ -574,6 +576,7 @@ impl TrainerGroundMetrics {
             system_weight_n: system,
             legs: exo.leg_count(),
             time_s: 0.0,
+            belt_travel_m: 0.0,
             belt_impulse_n_s: 0.0,
             other_impulse_n_s: 0.0,
             pelvis_z_m: [f64::INFINITY, f64::NEG_INFINITY],
@@ -600,7 +603,11 @@ impl TrainerGroundMetrics {
         };
         let range = |r: [f64; 2]| if r[1] >= r[0] { r[1] - r[0] } else { f64::NAN };
         Some(TreadmillReport {
-            belt_speed_m_s: self.belt_speed_m_s,
+            belt_speed_m_s: if self.time_s > 0.0 {
+                self.belt_travel_m / self.time_s
+            } else {
+                self.belt_speed_m_s
+            },
             bws_fraction: self.bws_fraction,
             body_weight_n: bw,
             system_weight_bw: self.system_weight_n / bw,
@@ -644,6 +651,7 @@ impl TrainerGroundMetrics {
             return;
         }
         self.time_s += dt;
+        self.belt_travel_m += g.belt_speed_m_s * dt;
         self.belt_impulse_n_s += g.belt_load_n() * dt;
         self.other_impulse_n_s += g.contralateral_n * dt;
         if let Some([lo, hi]) = self.stops_m {

@@ -358,6 +358,39 @@ fn over_whole_strides_the_belt_carries_the_unsupported_weight() {
     );
 }
 
+/// Regression (issue 27): the shipped trainer's pelvis drifts back onto its fore-aft stop,
+/// which then holds the trainer against the belt with a force no output measures. Held
+/// through the start-up and then free, it still drifts (a belt at constant speed cannot
+/// match the stance's speed exactly); a self-paced belt keeps it in place, with the
+/// impulse balance and the slip intact.
+#[test]
+fn a_self_paced_belt_keeps_the_free_pelvis_off_its_stop() {
+    let run = |gain: f64, strides: usize| {
+        let mut loaded = Scenario::load("gait_treadmill").unwrap();
+        let t = loaded.scenario.treadmill.as_mut().unwrap();
+        t.pelvis_held_until_s = loaded.scenario.gait.stride_period_s;
+        t.self_paced_gain_per_s = gain;
+        stride_demand(&loaded, strides).unwrap().treadmill.unwrap()
+    };
+    // How far the pelvis went fore-aft after the first stride, over 10 and 20 strides: a
+    // drift keeps adding, a pelvis kept in place does not.
+    let excursion_mm = |gain: f64| [10, 20].map(|n| 1e3 * run(gain, n).pelvis_fore_aft_excursion_m);
+    let (drifting, paced) = (excursion_mm(0.0), excursion_mm(0.3));
+    let p = run(0.3, 20);
+    eprintln!(
+        "after a held start-up, the pelvis's fore-aft excursion over 10 / 20 strides: belt at constant speed {:.1} / {:.1} mm, self-paced (0.3/s) {:.1} / {:.1} mm at {:.4} m/s on average, at a stop {:.2} of the time",
+        drifting[0], drifting[1], paced[0], paced[1], p.belt_speed_m_s, p.pelvis_at_fore_aft_stop
+    );
+    assert!(drifting[1] > drifting[0] + 20.0, "{drifting:?}");
+    assert!(paced[1] < paced[0] + 1.0, "{paced:?}");
+    assert_eq!(p.pelvis_at_fore_aft_stop, 0.0, "{p:?}");
+    let err = (p.mean_belt_load_bw - p.expected_belt_load_bw) / p.expected_belt_load_bw;
+    assert!(err.abs() < 0.005, "{p:?}");
+    for f in p.feet.values() {
+        assert!(f.slip_per_stride_m.mean < 0.02, "{p:?}");
+    }
+}
+
 /// The error of building a trainer from `urdf` with `t`.
 fn treadmill_error(urdf: &str, t: &TreadmillSettings) -> String {
     let j = JointSettings {
