@@ -4,7 +4,7 @@ use crate::config::{MuscleGeometry, Scenario};
 use crate::error::{invalid, LegError};
 use crate::exoskeleton::LegInertia;
 use crate::gait::{GaitReference, GaitSample, JointSample};
-use crate::impedance::{ControlMode, ImpedanceLaw};
+use crate::impedance::{ControlMode, ImpedanceLaw, StanceLoad};
 use crate::legs::PerLeg;
 use crate::plant::MuscleActuator;
 use pma_control::{
@@ -100,6 +100,8 @@ pub struct LegControllers {
     commands: [f64; 4],
     /// Impedance mode's law (none: position mode, the muscles' controllers in charge).
     impedance: Option<ImpedanceLaw>,
+    /// The weight the leg carries in stance on a treadmill, which impedance mode holds.
+    stance_load: Option<StanceLoad>,
 }
 
 fn joint(g: &GaitSample, joint: usize) -> &JointSample {
@@ -183,7 +185,33 @@ impl LegControllers {
             hold: None,
             commands: [0.0; 4],
             impedance,
+            stance_load: None,
         })
+    }
+
+    /// Impedance mode holds `load` in stance (a leg on a treadmill); other modes ignore it.
+    pub fn set_stance_load(&mut self, load: StanceLoad) {
+        if self
+            .impedance
+            .as_ref()
+            .is_some_and(|law| law.mode() == ControlMode::Impedance)
+        {
+            self.stance_load = Some(load);
+        }
+    }
+
+    /// The torques that hold this leg's share of the weight at `t_s` (zero without a
+    /// stance load): half while the start-up stands, then by the reference's phase.
+    fn stance_load_nm(&self, t_s: f64, angles: &[f64; 2]) -> [f64; 2] {
+        let Some(load) = &self.stance_load else {
+            return [0.0; 2];
+        };
+        let share = if self.hold.is_some() || t_s < self.gait.ramp_s() {
+            0.5
+        } else {
+            load.share(self.gait.phase(t_s))
+        };
+        load.torques_nm(*angles, share)
     }
 
     /// Impedance mode's law, if the leg runs in it.
@@ -257,8 +285,9 @@ impl LegControllers {
 
     fn update(&mut self, t_s: f64, angles: &[f64; 2], dt_s: f64) -> LegOutput {
         let g = self.reference(t_s);
+        let load = self.stance_load_nm(t_s, angles);
         if let Some(law) = &mut self.impedance {
-            let pressure_cmd_pa = law.update(&g, *angles, dt_s);
+            let pressure_cmd_pa = law.update(&g, *angles, load, dt_s);
             self.commands = pressure_cmd_pa;
             return LegOutput {
                 reference_rad: [g.hip.angle_rad, g.knee.angle_rad],

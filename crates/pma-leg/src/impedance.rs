@@ -263,6 +263,16 @@ pub struct ImpedanceSettings {
     /// Time constant of the filter on the encoder's differentiated angle (s).
     #[serde(default = "default_velocity_filter")]
     pub velocity_filter_s: f64,
+    /// On a treadmill, add the body weight a stance leg carries (the belt's share, passed
+    /// from the trailing to the leading leg over double support) to the torque the pairs
+    /// hold ([`StanceLoad`]). Default on: without it the stance knees buckle under the
+    /// weight the support leaves them.
+    #[serde(default = "stance_load_on")]
+    pub stance_load: bool,
+}
+
+fn stance_load_on() -> bool {
+    true
 }
 
 impl Default for JointImpedance {
@@ -284,6 +294,7 @@ impl Default for ImpedanceSettings {
             hip: JointImpedance::default(),
             knee: JointImpedance::default(),
             velocity_filter_s: default_velocity_filter(),
+            stance_load: true,
         }
     }
 }
@@ -580,6 +591,60 @@ impl MusclePair {
 /// near its softest at rest, with room for the torques.
 const SOFT_SHARE: f64 = 0.15;
 
+/// The weight a stance leg carries on a treadmill, as the joint torques that hold it: the
+/// belt's share of the system's weight, `(1 - bws) m g`, pushing up at the ankle, all of it
+/// on a leg in single support and passed linearly from the trailing to the leading leg over
+/// double support (the two legs' shares always sum to one; while the start-up stands, half
+/// each). A feedforward from the reference's timing: the trainer measures no ground
+/// reaction.
+#[derive(Debug, Clone)]
+pub struct StanceLoad {
+    chain: crate::ground::SagittalChain,
+    load_n: f64,
+    toe_off: f64,
+}
+
+/// Step of the joint angles for the ankle's Jacobian (rad).
+const JACOBIAN_STEP_RAD: f64 = 1e-6;
+
+impl StanceLoad {
+    /// `load_n` (N) carried by legs of `chain`'s geometry whose stance ends at `toe_off`
+    /// (phase, 0.5-1).
+    pub fn new(chain: crate::ground::SagittalChain, load_n: f64, toe_off: f64) -> Self {
+        Self {
+            chain,
+            load_n,
+            toe_off,
+        }
+    }
+
+    /// The share of the load on a leg at `phase` of its cycle (0-1).
+    pub fn share(&self, phase: f64) -> f64 {
+        let double = (self.toe_off - 0.5).max(1e-9);
+        match phase {
+            p if p < double => p / double,
+            p if p < 0.5 => 1.0,
+            p if p < self.toe_off => 1.0 - (p - 0.5) / double,
+            _ => 0.0,
+        }
+    }
+
+    /// Hip and knee torques (N m, flexion positive) that hold `share` of the load up at the
+    /// ankle at hip and knee angles `q` (rad): `-J^T F` with `J` the ankle's height per
+    /// joint angle.
+    pub fn torques_nm(&self, q: [f64; 2], share: f64) -> [f64; 2] {
+        let f = share * self.load_n;
+        if f == 0.0 {
+            return [0.0; 2];
+        }
+        let height = |dh: f64, dk: f64| self.chain.ankle_centre([q[0] + dh, q[1] + dk, 0.0])[1];
+        let h = JACOBIAN_STEP_RAD;
+        let dz_dhip = (height(h, 0.0) - height(-h, 0.0)) / (2.0 * h);
+        let dz_dknee = (height(0.0, h) - height(0.0, -h)) / (2.0 * h);
+        [-dz_dhip * f, -dz_dknee * f]
+    }
+}
+
 /// One leg's law in every mode that sets the pairs' pressures (impedance, path,
 /// transparent): two pairs, their set points and the leg's rigid model.
 #[derive(Debug, Clone)]
@@ -649,6 +714,11 @@ impl ImpedanceLaw {
         })
     }
 
+    /// The mode the law runs.
+    pub fn mode(&self) -> ControlMode {
+        self.mode
+    }
+
     /// The joints' pairs (hip, knee).
     pub fn pairs(&self) -> &[MusclePair; 2] {
         &self.pairs
@@ -684,7 +754,15 @@ impl ImpedanceLaw {
 
     /// The four pressure commands (Pa, within the valve's range) for reference `g` at
     /// measured angles `q` (rad).
-    pub fn update(&mut self, g: &GaitSample, q: [f64; 2], dt_s: f64) -> [f64; 4] {
+    /// `load_nm` is what the leg carries besides its own dynamics (a stance leg's share of
+    /// the weight, [`StanceLoad`]; impedance mode only).
+    pub fn update(
+        &mut self,
+        g: &GaitSample,
+        q: [f64; 2],
+        load_nm: [f64; 2],
+        dt_s: f64,
+    ) -> [f64; 4] {
         self.estimate_velocity(q, dt_s);
         if self.mode != ControlMode::Impedance {
             return self.update_soft(q);
@@ -692,7 +770,8 @@ impl ImpedanceLaw {
         let q_ref = [g.hip.angle_rad, g.knee.angle_rad];
         let qd_ref = [g.hip.velocity_rad_s, g.knee.velocity_rad_s];
         let qdd_ref = [g.hip.acceleration_rad_s2, g.knee.acceleration_rad_s2];
-        let feedforward = self.carried.inverse_dynamics(q, qd_ref, qdd_ref);
+        let dynamics = self.carried.inverse_dynamics(q, qd_ref, qdd_ref);
+        let feedforward = [dynamics[0] + load_nm[0], dynamics[1] + load_nm[1]];
         let mut out = self.commands_pa;
         for pair in &self.pairs {
             let j = pair.joint;
@@ -847,6 +926,56 @@ pub fn probe_stiffness(
 mod tests {
     use super::*;
     use pma_model::MuscleParams;
+
+    /// The trainer's stance load: 500 N on legs whose stance ends at 0.675.
+    fn stance_load() -> StanceLoad {
+        let loaded = crate::Scenario::load("gait_treadmill").expect("embedded");
+        let exo =
+            crate::sim::build_exo(&loaded, crate::exoskeleton::Mount::default()).expect("trainer");
+        let chain = exo.ground().expect("a treadmill").chain().clone();
+        StanceLoad::new(chain, 500.0, 0.675)
+    }
+
+    #[test]
+    fn the_two_legs_carry_the_whole_load_between_them_at_every_phase() {
+        let s = stance_load();
+        for k in 0..1000 {
+            let phase = k as f64 / 1000.0;
+            let (a, b) = (s.share(phase), s.share((phase + 0.5) % 1.0));
+            assert!((0.0..=1.0).contains(&a), "{phase}: {a}");
+            assert!((a + b - 1.0).abs() < 1e-12, "{phase}: {a} + {b}");
+        }
+        assert_eq!(s.share(0.3), 1.0);
+        assert_eq!(s.share(0.8), 0.0);
+    }
+
+    #[test]
+    fn a_stance_load_is_the_vertical_force_times_its_horizontal_lever() {
+        // Each joint turns the chain below it about its centre: the vertical force's moment
+        // about a joint is the force times the ankle's fore-aft distance from it.
+        let s = stance_load();
+        let c = &s.chain;
+        let f = 0.8 * 500.0;
+        for q in [[0.1, 0.1], [0.4, 0.2], [-0.05, 0.6]] {
+            let tau = s.torques_nm(q, 0.8);
+            let ankle = c.ankle_centre([q[0], q[1], 0.0]);
+            let hip = c.origins_m[0];
+            let (sin, cos) = (c.pitch_rad[0] + c.flexion_sign[0] * q[0]).sin_cos();
+            let o = c.origins_m[1];
+            let knee_x = hip[0] + o[0] * cos - o[1] * sin;
+            let expected = [
+                -c.flexion_sign[0] * (ankle[0] - hip[0]) * f,
+                -c.flexion_sign[1] * (ankle[0] - knee_x) * f,
+            ];
+            for j in 0..2 {
+                assert!(
+                    (tau[j] - expected[j]).abs() < 1e-5,
+                    "{q:?}: {tau:?} vs {expected:?}"
+                );
+            }
+        }
+        assert_eq!(s.torques_nm([0.3, 0.3], 0.0), [0.0; 2]);
+    }
 
     /// A pair of Table I muscles on pulleys of 15 mm, 30 mm contracted at zero angle.
     fn table_i_pair() -> MusclePair {

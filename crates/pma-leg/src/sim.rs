@@ -490,7 +490,11 @@ impl LegSim {
         let mut per_leg = Vec::with_capacity(legs);
         for leg in 0..legs {
             let own = &muscles[leg * MUSCLES_PER_LEG..(leg + 1) * MUSCLES_PER_LEG];
-            per_leg.push(LegControllers::new(&sc, own, exo.inertia(), config, leg)?);
+            let mut controllers = LegControllers::new(&sc, own, exo.inertia(), config, leg)?;
+            if let Some(load) = stance_load(&sc, &exo)? {
+                controllers.set_stance_load(load);
+            }
+            per_leg.push(controllers);
         }
         let limits = supervisor_limits(&sc, &exo);
         let mut plant = LegPlant::new(exo, muscles, &sc)?;
@@ -787,6 +791,24 @@ impl LegSim {
         report.cooperation = cooperation.iter().map(|c| c.inner.report()).collect();
         Ok((report, fault))
     }
+}
+
+/// The weight a stance leg carries on `exo`'s treadmill, when the scenario's impedance
+/// settings hold it (`None` in the air or with `stance_load = false`).
+fn stance_load(
+    sc: &Scenario,
+    exo: &Exoskeleton,
+) -> Result<Option<crate::impedance::StanceLoad>, LegError> {
+    let Some(ground) = exo.ground().filter(|_| sc.control.impedance.stance_load) else {
+        return Ok(None);
+    };
+    let load_n = ground.unsupported_weight_n();
+    let toe_off = sc.gait.reference()?.toe_off_phase();
+    Ok(Some(crate::impedance::StanceLoad::new(
+        ground.chain().clone(),
+        load_n,
+        toe_off,
+    )))
 }
 
 /// Each leg's patient (empty: the passive limb). The second leg's spasms are drawn from
