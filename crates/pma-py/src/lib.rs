@@ -31,6 +31,7 @@ fn pma_exo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(runs::size, m)?)?;
     m.add_function(wrap_pyfunction!(runs::identify, m)?)?;
     m.add_function(wrap_pyfunction!(runs::fit_gait, m)?)?;
+    m.add_function(wrap_pyfunction!(runs::sweep, m)?)?;
     m.add_class::<bench::Bench>()?;
     m.add_class::<leg::Leg>()?;
     m.add(

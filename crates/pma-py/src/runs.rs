@@ -277,23 +277,10 @@ pub fn identify<'py>(
         .collect::<anyhow::Result<Vec<_>>>()
         .map_err(to_py)?;
     let load = load_kg.or(read[0].weighed_kg);
-    let stop = AtomicBool::new(false);
-    let outcome = std::thread::scope(|s| -> PyResult<_> {
-        let worker = s.spawn(|| pma_studies::identify::identify_logs(&read, load, seed, &stop));
-        while !worker.is_finished() {
-            if let Err(e) = py.check_signals() {
-                stop.store(true, std::sync::atomic::Ordering::Relaxed);
-                let _ = worker.join();
-                return Err(e);
-            }
-            // Other Python threads run meanwhile.
-            py.detach(|| std::thread::sleep(SIGNAL_POLL));
-        }
-        worker
-            .join()
-            .map_err(|_| crate::PmaError::new_err("the identification panicked"))
-    })?;
-    let id = outcome.map_err(py_err)?;
+    let id = interruptible(py, "the identification", |stop| {
+        pma_studies::identify::identify_logs(&read, load, seed, stop)
+    })?
+    .map_err(py_err)?;
     let plant = id.plant_config(&read[0]);
     let mut figures = serde_json::to_value(&id).map_err(py_err)?;
     if let Some(o) = figures.as_object_mut() {
@@ -303,6 +290,90 @@ pub fn identify<'py>(
         );
     }
     json_to_py(py, &figures)
+}
+
+/// Runs `work` on a worker thread while this one polls Python's signals: Ctrl-C raises
+/// `stop` (which `work` polls between its steps), waits for the worker and raises
+/// KeyboardInterrupt. Other Python threads run meanwhile. `what` names the work in the
+/// message of a panic.
+fn interruptible<T: Send>(
+    py: Python<'_>,
+    what: &str,
+    work: impl FnOnce(&AtomicBool) -> T + Send,
+) -> PyResult<T> {
+    let stop = AtomicBool::new(false);
+    std::thread::scope(|s| {
+        let worker = s.spawn(|| work(&stop));
+        while !worker.is_finished() {
+            if let Err(e) = py.check_signals() {
+                stop.store(true, std::sync::atomic::Ordering::Relaxed);
+                let _ = worker.join();
+                return Err(e);
+            }
+            py.detach(|| std::thread::sleep(SIGNAL_POLL));
+        }
+        worker
+            .join()
+            .map_err(|_| crate::PmaError::new_err(format!("{what} panicked")))
+    })
+}
+
+/// A sweep's runs, in memory: `pma-exo sweep FILE --shard I/N --threads T` without its
+/// directory.
+///
+/// `file` is a shipped sweep (`shocks`, `fig9`, `monte_carlo`, `leg_patients`) or a
+/// sweep .toml file; `shard` `"I/N"` runs part I of N, as on a cluster. Returns a list of
+/// dicts in run order, one per run, each a line of the CLI's `runs.jsonl` (a bench run's,
+/// a leg run's, or a failed run's with `failed`), which `pandas.DataFrame` takes directly.
+/// The runs do not depend on `threads` (default one per core). Ctrl-C raises
+/// KeyboardInterrupt once the runs under way end.
+#[pyfunction]
+#[pyo3(signature = (file, shard = "1/1", threads = None))]
+pub fn sweep<'py>(
+    py: Python<'py>,
+    file: PathBuf,
+    shard: &str,
+    threads: Option<usize>,
+) -> PyResult<Bound<'py, PyAny>> {
+    use pma_studies::sweep::{Record, Shard};
+    let file = file.to_str().ok_or_else(|| {
+        crate::PmaError::new_err(format!("file: `{}` is not UTF-8", file.display()))
+    })?;
+    let shard: Shard = shard
+        .parse()
+        .map_err(|e: String| crate::PmaError::new_err(format!("shard: {e}")))?;
+    if threads == Some(0) {
+        return Err(crate::PmaError::new_err("threads must be at least 1"));
+    }
+    let sweep = pma_studies::sweep::load(file).map_err(py_err)?;
+    let jobs: Vec<&pma_studies::sweep::Job> = sweep
+        .jobs
+        .iter()
+        .filter(|j| shard.contains(j.index()))
+        .collect();
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.unwrap_or(cores).min(cores))
+        .build()
+        .map_err(py_err)?;
+    let records = std::sync::Mutex::new(Vec::with_capacity(jobs.len()));
+    let Ok(_ran) = interruptible(py, "the sweep", |stop| {
+        pool.install(|| {
+            pma_studies::sweep::run_jobs(&sweep, &jobs, stop, &|r: &Record| {
+                records
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner)
+                    .push(r.clone());
+                Ok::<(), std::convert::Infallible>(())
+            })
+        })
+    })?;
+    let mut records = records
+        .into_inner()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    records.sort_by_key(Record::run);
+    let list = serde_json::to_value(&records).map_err(py_err)?;
+    json_to_py(py, &list)
 }
 
 /// A treadmill scenario's hip made consistent with its belt: `pma-exo fit-gait --json`.

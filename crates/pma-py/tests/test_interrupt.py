@@ -15,8 +15,13 @@ import pma_exo
 
 @pytest.mark.parametrize(
     "run",
-    [lambda: pma_exo.single(duration=36000.0), lambda: pma_exo.simulate(duration=3600.0)],
-    ids=["single", "simulate"],
+    [
+        lambda: pma_exo.single(duration=36000.0),
+        lambda: pma_exo.simulate(duration=3600.0),
+        lambda: pma_exo.sweep("monte_carlo"),
+        lambda: pma_exo.fit_gait(iterations=100),
+    ],
+    ids=["single", "simulate", "sweep", "fit_gait"],
 )
 def test_sigint_raises_keyboard_interrupt(run):
     # Python raises KeyboardInterrupt only if SIGINT was not ignored when it started, and a

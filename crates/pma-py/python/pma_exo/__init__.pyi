@@ -116,6 +116,16 @@ def fit_gait(
     ``sin_deg``: the scenario's ``[gait.hip_correction]``). Ctrl-C between runs stops it.
     """
 
+def sweep(file: _Path, shard: str = "1/1", threads: Optional[int] = None) -> List[Dict[str, Any]]:
+    """A sweep's runs in memory (``pma-exo sweep FILE --shard I/N`` without its directory).
+
+    ``file``: a shipped sweep (``shocks``, ``fig9``, ``monte_carlo``, ``leg_patients``) or a
+    sweep .toml file; ``shard`` ``"I/N"`` runs part I of N. One dict per run, in run order,
+    as the lines of the CLI's ``runs.jsonl`` (a failed run's has ``failed``):
+    ``pandas.DataFrame(pma_exo.sweep(...))`` takes them directly. The runs do not depend on
+    ``threads`` (default one per core). Ctrl-C stops it once the runs under way end.
+    """
+
 class Bench:
     """One muscle lifting a load, stepped by a controller written in Python.
 
