@@ -912,6 +912,70 @@ fn simulate_any_controller_on_a_patient_reports_spasms_and_safety() {
     );
 }
 
+/// Issue 28: compare-leg's mode axis: the controllers in position mode, then a row per
+/// pressure-set mode, each a run of that mode (the same figures as `simulate --mode`).
+#[test]
+fn compare_leg_adds_a_row_per_pressure_set_mode() {
+    let dir = temp("compare-leg-modes");
+    pma_exo_ok(&[
+        "compare-leg",
+        "--out",
+        dir.to_str().unwrap(),
+        "--scenarios",
+        "gait_spasms",
+        "--modes",
+        "position,impedance,transparent",
+        "--duration",
+        "4",
+    ]);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("compare-leg.json")).unwrap())
+            .unwrap();
+    let rows = json["rows"].as_array().unwrap();
+    let labels: Vec<&str> = rows
+        .iter()
+        .map(|r| r["controller"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        labels,
+        [
+            "aprc-ndo",
+            "psmc",
+            "ndo-smc",
+            "sta",
+            "pid",
+            "impedance mode",
+            "transparent mode"
+        ]
+    );
+    let out = pma_exo_ok(&[
+        "simulate",
+        "gait_spasms",
+        "--mode",
+        "impedance",
+        "--duration",
+        "4",
+        "--json",
+    ]);
+    let simulated: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        rows[5]["hip_rms_deg"].as_f64().unwrap(),
+        simulated["joints"]["hip"]["rms_deg"].as_f64().unwrap()
+    );
+    let md = std::fs::read_to_string(dir.join("compare-leg.md")).unwrap();
+    assert!(md.contains("| transparent mode |"), "{md}");
+    assert_one_line_error(
+        &[
+            "compare-leg",
+            "--modes",
+            "impedance,impedance",
+            "--out",
+            "unused",
+        ],
+        "`impedance` is given twice",
+    );
+}
+
 #[test]
 fn compare_leg_writes_one_row_per_controller_and_scenario() {
     let dir = temp("compare-leg");

@@ -35,6 +35,16 @@ pub struct Args {
     /// Scenarios, comma-separated (embedded names or .toml files).
     #[arg(long, value_delimiter = ',', default_values_t = SCENARIOS.map(String::from))]
     scenarios: Vec<String>,
+    /// Control modes, comma-separated: `position` runs every controller; `impedance`,
+    /// `path` and `transparent` add one row each (the pairs set by pressure, no muscle
+    /// controller).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "position",
+        value_name = "position,impedance,path,transparent"
+    )]
+    modes: Vec<pma_exo::setup::Mode>,
     /// Simulated seconds per run; at least two strides.
     #[arg(long, default_value_t = 60.0, allow_negative_numbers = true)]
     duration: f64,
@@ -49,6 +59,11 @@ pub struct Args {
 /// Runs `compare-leg`.
 pub fn run(a: Args) -> Result<i32> {
     super::check_duration(a.duration)?;
+    for (i, m) in a.modes.iter().enumerate() {
+        if a.modes[..i].contains(m) {
+            anyhow::bail!("--modes: `{}` is given twice", m.control_mode());
+        }
+    }
     let scenarios = a
         .scenarios
         .iter()
@@ -57,20 +72,12 @@ pub fn run(a: Args) -> Result<i32> {
     for s in &scenarios {
         s.scenario.check_run_duration(a.duration)?;
     }
-    let controllers: Vec<Vec<ControllerConfig>> = scenarios
+    let cases = cases(&a.scenarios, &scenarios, &a.modes)?;
+    let runs: usize = cases.iter().map(|c| c.configs.len()).sum();
+    let periods = cases
         .iter()
-        .map(|s| {
-            COMPARED
-                .iter()
-                .map(|k| pma_leg::gains::scenario_gains(s, *k))
-                .collect::<Result<Vec<ControllerConfig>, _>>()
-        })
-        .collect::<Result<_, _>>()?;
-    let periods = scenarios
-        .iter()
-        .map(|s| a.duration / s.scenario.period_s)
-        .sum::<f64>()
-        * COMPARED.len() as f64;
+        .map(|c| c.configs.len() as f64 * a.duration / c.loaded.scenario.period_s)
+        .sum::<f64>();
     crate::output::check_wall_time(
         "this comparison",
         periods,
@@ -93,20 +100,22 @@ pub fn run(a: Args) -> Result<i32> {
     let json_file = OutFile::create(&a.out.join("compare-leg.json"))?;
     let md_file = OutFile::create(&a.out.join("compare-leg.md"))?;
     static DONE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let bar =
-        crate::output::follow_progress(&DONE, (scenarios.len() * COMPARED.len()) as u64, "runs");
+    let bar = crate::output::follow_progress(&DONE, runs as u64, "runs");
+    let loaded: Vec<pma_leg::LoadedScenario> = cases.iter().map(|c| c.loaded.clone()).collect();
+    let configs: Vec<Vec<ControllerConfig>> = cases.iter().map(|c| c.configs.clone()).collect();
     let mut rows = super::with_threads(a.threads, || {
-        compare(&scenarios, &controllers, a.duration, Some(&DONE))
+        compare(&loaded, &configs, a.duration, Some(&DONE))
     })??;
     drop(bar);
-    // Each scenario as the command line names it: two files may carry one inner name.
-    // The rows come scenario by scenario, a row per controller.
-    for (row, label) in rows.iter_mut().zip(
-        a.scenarios
-            .iter()
-            .flat_map(|s| std::iter::repeat_n(s, COMPARED.len())),
-    ) {
-        row.scenario.clone_from(label);
+    // Each scenario as the command line names it (two files may carry one inner name),
+    // each row by its controller or its mode. The rows come case by case, a row per
+    // configuration.
+    let labels = cases
+        .iter()
+        .flat_map(|c| c.labels.iter().map(move |l| (c.scenario, l)));
+    for (row, (scenario, label)) in rows.iter_mut().zip(labels) {
+        row.scenario.clone_from(scenario);
+        row.controller.clone_from(label);
     }
     let provenance = crate::provenance::Provenance {
         scenario: Some(
@@ -117,13 +126,7 @@ pub fn run(a: Args) -> Result<i32> {
                 .collect::<Vec<_>>()
                 .join(", "),
         ),
-        controller: Some(
-            COMPARED
-                .iter()
-                .map(|k| k.as_str())
-                .collect::<Vec<_>>()
-                .join(","),
-        ),
+        controller: Some(compared(&a.modes)),
         gains: Some(gain_sets(&a.scenarios, &scenarios)),
         patient: Some("each scenario's".into()),
         ..crate::provenance::Provenance::of_this_run()
@@ -222,6 +225,68 @@ fn draw_bars(dir: &std::path::Path, rows: &[CompareRow], command: &str) -> Resul
 }
 
 /// Which shipped gain set each scenario's controllers took (APRC-NDO: the scenario's own).
+/// A scenario under one mode: the runs it takes and their rows' labels.
+struct Case<'a> {
+    /// The scenario as the command line names it.
+    scenario: &'a String,
+    /// The scenario, its mode set.
+    loaded: pma_leg::LoadedScenario,
+    /// One run per configuration (a pressure-set mode's one runs no muscle controller).
+    configs: Vec<ControllerConfig>,
+    /// Each run's row label: the controller, or the mode.
+    labels: Vec<String>,
+}
+
+/// Every scenario under every mode, in that order.
+fn cases<'a>(
+    args: &'a [String],
+    scenarios: &[pma_leg::LoadedScenario],
+    modes: &[pma_exo::setup::Mode],
+) -> Result<Vec<Case<'a>>> {
+    let mut out = Vec::new();
+    for (arg, s) in args.iter().zip(scenarios) {
+        for &mode in modes {
+            let mut loaded = s.clone();
+            loaded.scenario.control.mode = mode.control_mode();
+            let kinds: &[ControllerKind] = if mode == pma_exo::setup::Mode::Position {
+                &COMPARED
+            } else {
+                &[ControllerKind::AprcNdo]
+            };
+            let configs = kinds
+                .iter()
+                .map(|k| pma_leg::gains::scenario_gains(&loaded, *k))
+                .collect::<Result<Vec<_>, _>>()?;
+            let labels = match mode {
+                pma_exo::setup::Mode::Position => kinds.iter().map(|k| k.to_string()).collect(),
+                _ => vec![format!("{} mode", mode.control_mode())],
+            };
+            out.push(Case {
+                scenario: arg,
+                loaded,
+                configs,
+                labels,
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// What ran, for the provenance: the controllers in position mode, and the other modes.
+fn compared(modes: &[pma_exo::setup::Mode]) -> String {
+    let mut what = Vec::new();
+    if modes.contains(&pma_exo::setup::Mode::Position) {
+        what.extend(COMPARED.iter().map(|k| k.as_str().to_owned()));
+    }
+    what.extend(
+        modes
+            .iter()
+            .filter(|m| **m != pma_exo::setup::Mode::Position)
+            .map(|m| format!("{} mode", m.control_mode())),
+    );
+    what.join(",")
+}
+
 fn gain_sets(args: &[String], scenarios: &[pma_leg::LoadedScenario]) -> String {
     let each: Vec<String> = args
         .iter()

@@ -144,7 +144,7 @@ pub fn run(a: Args) -> Result<i32> {
         s.scenario.check_run_duration(a.duration)?;
         if s.scenario.treadmill.is_some() {
             anyhow::bail!(
-                "--scenarios {}: compare-modes runs the leg in the air (on the treadmill the pressure-set modes carry no stance load yet: docs/cooperative.md)",
+                "--scenarios {}: compare-modes runs the leg in the air (on the treadmill the pressure-set modes do not walk a patient below 85 % support: docs/cooperative.md)",
                 s.scenario.name
             );
         }
