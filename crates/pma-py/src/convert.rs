@@ -3,7 +3,6 @@ use numpy::PyArray1;
 use pma_loop::{Period, Recorder, Signals};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
-use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Rows reserved before a run: 100 s of the bench or the leg at 1 kHz.
 const RESERVED_ROWS_MAX: u64 = 100_000;
@@ -55,51 +54,6 @@ where
         sample.values(&mut self.row[1..]);
         for (column, v) in self.columns.iter_mut().zip(&self.row) {
             column.push(*v);
-        }
-    }
-}
-
-/// Periods between two looks at Python's signal handlers (Ctrl-C): 1000 periods are about
-/// 1 ms of the bench and 20 ms of the leg.
-const SIGNAL_CHECK_PERIODS: u64 = 1000;
-
-/// Looks at Python's signal handlers every [`SIGNAL_CHECK_PERIODS`]; a handler's
-/// exception (`KeyboardInterrupt`) raises the stop flag, which ends the run at its next
-/// period, and is kept to be raised.
-pub struct SignalCheck<'a, 'py> {
-    py: Python<'py>,
-    stop: &'a AtomicBool,
-    /// The exception a signal handler raised.
-    pub raised: Option<PyErr>,
-}
-
-impl<'a, 'py> SignalCheck<'a, 'py> {
-    /// Watches for `py`'s signals, raising `stop`.
-    pub fn new(py: Python<'py>, stop: &'a AtomicBool) -> Self {
-        Self {
-            py,
-            stop,
-            raised: None,
-        }
-    }
-
-    /// The handler's exception if one was raised during the run or is pending now (a
-    /// signal after the last look), else `ok`.
-    pub fn or<T>(self, ok: T) -> PyResult<T> {
-        match self.raised {
-            Some(e) => Err(e),
-            None => self.py.check_signals().map(|()| ok),
-        }
-    }
-}
-
-impl<B: pma_loop::Backend, O> Recorder<B, O> for SignalCheck<'_, '_> {
-    fn record(&mut self, p: &Period<'_, B, O>) {
-        if self.raised.is_none() && p.index.is_multiple_of(SIGNAL_CHECK_PERIODS) {
-            if let Err(e) = self.py.check_signals() {
-                self.raised = Some(e);
-                self.stop.store(true, Ordering::Relaxed);
-            }
         }
     }
 }

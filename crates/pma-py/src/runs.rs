@@ -1,6 +1,6 @@
 //! The CLI's runs from Python: `single`, `simulate`, `pendulum`, each assembled by
 //! `pma_exo::setup` exactly as the CLI assembles it.
-use crate::convert::{json_to_py, Columns, SignalCheck};
+use crate::convert::{json_to_py, Columns};
 use crate::errors::{leg_err, py_err, to_py};
 use pma_bench::{run_single_until, Sample};
 use pma_control::ControllerKind;
@@ -80,22 +80,19 @@ pub fn single<'py>(
     })
     .map_err(to_py)?;
     let periods = r.spec.periods().map_err(py_err)?;
-    let stop = AtomicBool::new(false);
-    let mut recorders = (
-        Columns::new(&Sample::schema(), Sample::of, periods),
-        SignalCheck::new(py, &stop),
-    );
-    let res = run_single_until(
-        &r.config,
-        &r.plant,
-        r.reference.as_ref(),
-        &r.spec,
-        &stop,
-        &mut recorders,
-    )
-    .map_err(py_err)?;
-    let (columns, signals) = recorders;
-    signals.or(())?;
+    let (columns, res) = interruptible(py, "the run", |stop| {
+        let mut columns = Columns::new(&Sample::schema(), Sample::of, periods);
+        let res = run_single_until(
+            &r.config,
+            &r.plant,
+            r.reference.as_ref(),
+            &r.spec,
+            stop,
+            &mut columns,
+        );
+        (columns, res)
+    })?;
+    let res = res.map_err(py_err)?;
     r.check_finite(&res).map_err(to_py)?;
     result(py, columns, &r.metrics(&res))
 }
@@ -132,15 +129,12 @@ pub fn simulate<'py>(
     .map_err(to_py)?;
     let names = sim.plant().muscle_names();
     let schema = TrainerSample::schema(&names, sim.leg_count(), sim.exo().ground().is_some());
-    let stop = AtomicBool::new(false);
-    let settings = settings.with_stop_flag(&stop);
-    let mut recorders = (
-        Columns::new(&schema, TrainerSample::of, periods),
-        SignalCheck::new(py, &stop),
-    );
-    let report = sim.run_with(&settings, &mut recorders);
-    let (columns, signals) = recorders;
-    signals.or(())?;
+    let (columns, report) = interruptible(py, "the run", |stop| {
+        let settings = settings.with_stop_flag(stop);
+        let mut columns = Columns::new(&schema, TrainerSample::of, periods);
+        let report = sim.run_with(&settings, &mut columns);
+        (columns, report)
+    })?;
     let report = report.map_err(leg_err)?;
     if !report.finite {
         return Err(crate::PmaError::new_err(format!(
@@ -181,19 +175,17 @@ pub fn pendulum<'py>(
     let (sim, settings) = run.seated().map_err(to_py)?;
     let damping = run.knee_damping_nm_s_per_rad();
     let periods = (duration / run.loaded.scenario.period_s) as u64;
-    let stop = AtomicBool::new(false);
-    let settings = settings.with_stop_flag(&stop);
-    let mut recorders = (
-        Columns::new(
+    let setup = run.setup;
+    let (columns, report) = interruptible(py, "the pendulum test", |stop| {
+        let settings = settings.with_stop_flag(stop);
+        let mut columns = Columns::new(
             &PendulumSample::schema(),
             move |p: &Period<'_, _, _>| PendulumSample::of(p, damping),
             periods,
-        ),
-        SignalCheck::new(py, &stop),
-    );
-    let report = pma_studies::pendulum::run(sim, run.setup, &settings, &mut recorders);
-    let (columns, signals) = recorders;
-    signals.or(())?;
+        );
+        let report = pma_studies::pendulum::run(sim, setup, &settings, &mut columns);
+        (columns, report)
+    })?;
     let report = report.map_err(leg_err)?;
     if !report.finite {
         return Err(crate::PmaError::new_err(format!(
@@ -227,7 +219,9 @@ pub fn size<'py>(
     };
     args.check().map_err(to_py)?;
     let loaded = pma_leg::Scenario::load(scenario).map_err(py_err)?;
-    let run = SizeRun::of(&loaded, &args).map_err(to_py)?;
+    // On a worker thread, the GIL released; the sizing polls no stop flag, so a Ctrl-C is
+    // raised when it ends.
+    let run = interruptible(py, "the sizing", |_| SizeRun::of(&loaded, &args))?.map_err(to_py)?;
     json_to_py(py, &serde_json::Value::Object(run.figures()))
 }
 
