@@ -3,6 +3,7 @@ the same parameters."""
 import ast
 import inspect
 import pathlib
+import sys
 
 import pma_exo
 
@@ -27,7 +28,10 @@ def test_every_function_and_class_of_the_stubs_exists_with_its_parameters():
             for item in node.body:
                 if isinstance(item, ast.FunctionDef):
                     if item.name == "__init__":
-                        assert list(inspect.signature(cls).parameters) == params(item), cls
+                        # An abi3 class on Python 3.9 carries no constructor signature
+                        # (the limited API gained it in 3.10): checked from 3.10 on.
+                        if sys.version_info >= (3, 10):
+                            assert list(inspect.signature(cls).parameters) == params(item), cls
                     else:
                         assert hasattr(cls, item.name), f"{node.name}.{item.name}"
                         member = getattr(cls, item.name)
