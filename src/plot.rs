@@ -1137,24 +1137,22 @@ pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawRe
     ];
     // The torques on the limb: the device's always, the patient's unless passive (zero
     // throughout, no lines of nothing).
+    let active = tr.patient_nm.iter().flatten().any(|v| *v != 0.0);
     let mut torques: Vec<(String, &[f64], RGBColor, bool)> = Vec::new();
-    if tr.patient_nm.iter().flatten().any(|v| *v != 0.0) {
-        for (j, name) in ["hip", "knee"].iter().enumerate() {
-            torques.push((
-                format!("patient, {name}"),
-                tail(&tr.patient_nm[j], first),
-                colour(j),
-                false,
-            ));
+    for (who, series, dashed, shown) in [
+        ("patient", &tr.patient_nm, false, active),
+        ("device on the limb", &tr.interaction_nm, true, true),
+    ] {
+        if shown {
+            for (j, name) in ["hip", "knee"].iter().enumerate() {
+                torques.push((
+                    format!("{who}, {name}"),
+                    tail(&series[j], first),
+                    colour(j),
+                    dashed,
+                ));
+            }
         }
-    }
-    for (j, name) in ["hip", "knee"].iter().enumerate() {
-        torques.push((
-            format!("device on the limb, {name}"),
-            tail(&tr.interaction_nm[j], first),
-            colour(j),
-            true,
-        ));
     }
     panels.push(LinePanel {
         y_desc: "torque on the limb (N m, flexion +)",

@@ -114,8 +114,6 @@ pub struct GaitFit {
 
 /// Phase bins over a cycle in which the contact's speed is averaged.
 const BINS: usize = 200;
-/// Step of the hip angle for the lever `dx/d(hip)` (rad).
-const LEVER_STEP_RAD: f64 = 1e-6;
 
 /// The hip correction that makes `loaded`'s treadmill stance move with its belt, from the
 /// data's hip as measured (a correction the scenario already has is ignored; the belt runs
@@ -264,7 +262,7 @@ fn normative_body_speed(loaded: &LoadedScenario, period_s: f64) -> Result<Vec<f6
     let mut speeds: Vec<f64> = force
         .iter()
         .map(|f| {
-            v += (f - net) * G_M_S2 * load * dt;
+            v += (f - net) * pma_model::GRAVITY_M_S2 * load * dt;
             v
         })
         .collect();
@@ -274,9 +272,6 @@ fn normative_body_speed(loaded: &LoadedScenario, period_s: f64) -> Result<Vec<f6
     }
     Ok(speeds)
 }
-
-/// Standard gravity (m/s^2).
-const G_M_S2: f64 = 9.80665;
 
 /// The stance contact's speed relative to the hip over the cycle, averaged over strides
 /// and legs in phase bins.
@@ -416,8 +411,7 @@ impl HipLever {
         let period = reference.stride_period_s();
         let t = ((reference.ramp_s() / period).ceil() + 1.0 + phase) * period;
         let q = reference.sample(t).angles_rad();
-        let x = |dh: f64| self.chain.sphere_centre(0, [q[0] + dh, q[1], q[2]])[0];
-        (x(LEVER_STEP_RAD) - x(-LEVER_STEP_RAD)) / (2.0 * LEVER_STEP_RAD)
+        self.chain.sphere_jacobian(0, q)[0][0]
     }
 }
 

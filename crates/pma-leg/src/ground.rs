@@ -436,6 +436,9 @@ impl TreadmillSettings {
     }
 }
 
+/// Step of the joint angles of [`SagittalChain`]'s Jacobians (rad).
+const JACOBIAN_STEP_RAD: f64 = 1e-6;
+
 /// One contact sphere on a foot, in the foot's frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FootSphere {
@@ -609,6 +612,30 @@ impl SagittalChain {
     /// The ankle's centre in the pelvis frame (m, `[x, z]`) at `q`.
     pub fn ankle_centre(&self, q: [f64; 3]) -> [f64; 2] {
         self.in_pelvis([0.0, 0.0], q)
+    }
+
+    /// How sphere `i`'s centre moves in the pelvis frame per radian of hip and of knee
+    /// flexion at `q` (m/rad): `[d/d(hip), d/d(knee)]`, each `[x, z]`.
+    pub fn sphere_jacobian(&self, i: usize, q: [f64; 3]) -> [[f64; 2]; 2] {
+        let c = self.spheres[i].center_m;
+        self.jacobian([c[0], c[2]], q)
+    }
+
+    /// As [`Self::sphere_jacobian`] for the ankle's centre.
+    pub fn ankle_jacobian(&self, q: [f64; 3]) -> [[f64; 2]; 2] {
+        self.jacobian([0.0, 0.0], q)
+    }
+
+    /// Central differences of a foot point `p`'s position over hip and knee flexion.
+    fn jacobian(&self, p: [f64; 2], q: [f64; 3]) -> [[f64; 2]; 2] {
+        let h = JACOBIAN_STEP_RAD;
+        let at = |dh: f64, dk: f64| self.in_pelvis(p, [q[0] + dh, q[1] + dk, q[2]]);
+        let slope =
+            |a: [f64; 2], b: [f64; 2]| [(a[0] - b[0]) / (2.0 * h), (a[1] - b[1]) / (2.0 * h)];
+        [
+            slope(at(h, 0.0), at(-h, 0.0)),
+            slope(at(0.0, h), at(0.0, -h)),
+        ]
     }
 
     /// The foot's rotation about -Y relative to the pelvis at `q` (rad).

@@ -604,9 +604,6 @@ pub struct StanceLoad {
     toe_off: f64,
 }
 
-/// Step of the joint angles for the ankle's Jacobian (rad).
-const JACOBIAN_STEP_RAD: f64 = 1e-6;
-
 impl StanceLoad {
     /// `load_n` (N) carried by legs of `chain`'s geometry whose stance ends at `toe_off`
     /// (phase, 0.5-1).
@@ -637,11 +634,8 @@ impl StanceLoad {
         if f == 0.0 {
             return [0.0; 2];
         }
-        let height = |dh: f64, dk: f64| self.chain.ankle_centre([q[0] + dh, q[1] + dk, 0.0])[1];
-        let h = JACOBIAN_STEP_RAD;
-        let dz_dhip = (height(h, 0.0) - height(-h, 0.0)) / (2.0 * h);
-        let dz_dknee = (height(0.0, h) - height(0.0, -h)) / (2.0 * h);
-        [-dz_dhip * f, -dz_dknee * f]
+        let [d_hip, d_knee] = self.chain.ankle_jacobian([q[0], q[1], 0.0]);
+        [-d_hip[1] * f, -d_knee[1] * f]
     }
 }
 

@@ -407,18 +407,12 @@ pub fn fit_gait<'py>(
         .validate()
         .map_err(|e| crate::PmaError::new_err(format!("--{e}")))?;
     let loaded = pma_leg::Scenario::load(scenario).map_err(py_err)?;
-    let interrupt = std::cell::RefCell::new(None);
-    let fit = pma_leg::fit_gait(&loaded, &settings, || match py.check_signals() {
-        Ok(()) => false,
-        Err(e) => {
-            interrupt.replace(Some(e));
-            true
-        }
-    })
+    let fit = interruptible(py, "the fit", |stop| {
+        pma_leg::fit_gait(&loaded, &settings, || {
+            stop.load(std::sync::atomic::Ordering::Relaxed)
+        })
+    })?
     .map_err(py_err)?;
-    if let Some(e) = interrupt.into_inner() {
-        return Err(e);
-    }
     let figures = serde_json::Value::Object(pma_exo::setup::fit_figures(&fit));
     json_to_py(py, &figures)
 }
