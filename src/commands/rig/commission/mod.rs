@@ -61,6 +61,10 @@ pub struct Args {
     /// Generations of the tuning.
     #[arg(long, default_value_t = 40)]
     generations: usize,
+    /// The lowest held-out fit (%) of the identified model the tuning starts from, as
+    /// `identify --min-fit`.
+    #[arg(long, default_value_t = MIN_FIT_PERCENT, allow_negative_numbers = true)]
+    min_fit: f64,
     /// Seed of the tuning and the bootstrap.
     #[arg(long, default_value_t = 2019)]
     seed: u64,
@@ -81,7 +85,7 @@ const TUNING_RUN_S: f64 = 20.0;
 /// the added mass's two; at most 0.37 ms a period).
 const IDENTIFY_PERIOD_S: f64 = 4e-4;
 
-/// The lowest held-out fit the tuning starts from (%), as `identify --min-fit`'s default.
+/// The lowest held-out fit the tuning starts from by default (%), as `identify --min-fit`'s.
 const MIN_FIT_PERCENT: f64 = 90.0;
 
 /// The operator stopped the commissioning (SIGINT/SIGTERM) during `stage`.
@@ -132,6 +136,9 @@ impl Plan {
                 "--max-variation must be a finite number of bar/s > 0 (got {})",
                 a.max_variation
             );
+        }
+        if !(a.min_fit.is_finite() && (0.0..=100.0).contains(&a.min_fit)) {
+            bail!("--min-fit {} must be 0..=100 (%)", a.min_fit);
         }
         check_robust(a.robust)?;
         pma_studies::tune::check_spread(a.spread).map_err(|e| pma_model::Invalid {
@@ -514,7 +521,7 @@ fn complete(r: RunResult) -> Result<()> {
     }
 }
 
-/// Stage 3: the identification, refused below [`MIN_FIT_PERCENT`].
+/// Stage 3: the identification, refused below `--min-fit`.
 fn identify(
     logs: &[IdLog],
     plan: &Plan,
@@ -530,7 +537,7 @@ fn identify(
         Err(pma_studies::StudyError::Interrupted) => return Err(Interrupted { stage: 3 }.into()),
         r => r?,
     };
-    if id.fit_percent < MIN_FIT_PERCENT {
+    if id.fit_percent < a.min_fit {
         bail!(
             "the identified model fits the held-out quarter at {:.1} % only: stopping before tuning (see {})",
             id.fit_percent,
