@@ -462,6 +462,12 @@ impl GaitReference {
         self.ramp_s
     }
 
+    /// How much of the cycle's motion the start-up ramp lets through at `t_s` (0 standing,
+    /// 1 after the ramp).
+    pub fn ramp_share(&self, t_s: f64) -> f64 {
+        self.ramp(t_s).0
+    }
+
     /// The same reference for leg `leg` of a trainer: the second leg half a stride later,
     /// started by the same ramp (both legs leave standing together).
     pub fn for_leg(&self, leg: usize) -> Self {

@@ -822,18 +822,56 @@ pub(crate) fn build_patients(sc: &Scenario, exo: &Exoskeleton) -> Result<Vec<Pat
         sc.joints.hip.damping_nm_s_per_rad,
         sc.joints.knee.damping_nm_s_per_rad,
     ];
+    let walking = walking_moments(sc, &gait)?;
     (0..exo.leg_count())
         .map(|leg| {
             let settings = sc.patient.for_leg(leg);
-            Patient::new(
+            let mut p = Patient::new(
                 &settings,
                 exo.substep_s(),
                 gait.for_leg(leg),
                 *exo.inertia(),
                 damping,
-            )
+            )?;
+            if let Some(m) = &walking {
+                p.walk_with_moments(m.clone());
+            }
+            Ok(p)
         })
         .collect()
+}
+
+/// The joint moments an active patient who walks on the belt produces
+/// ([`crate::patient::OwnTorque::Walking`]): the adults' mean moments at the reference's
+/// speed, flexion positive, times the body mass and the share the legs carry; `None` for
+/// a patient on their limb's inverse dynamics.
+fn walking_moments(
+    sc: &Scenario,
+    gait: &crate::gait::GaitReference,
+) -> Result<Option<[Vec<f64>; 2]>, LegError> {
+    let Some(active) = &sc.patient.active else {
+        return Ok(None);
+    };
+    if active.own_torque != crate::patient::OwnTorque::Walking {
+        return Ok(None);
+    }
+    // Walking's moments carry a stance, which needs a belt, a body and the adult data.
+    let treadmill = sc.treadmill.as_ref().ok_or_else(|| LegError::Missing {
+        name: "[treadmill]".into(),
+        hint:
+            "patient.active.own_torque = \"walking\" needs a treadmill (its body mass and support)",
+    })?;
+    let speed = gait.data_speed_m_s().ok_or_else(|| LegError::Missing {
+        name: "gait.data = \"fukuchi2018\"".into(),
+        hint: "patient.active.own_torque = \"walking\" produces the adult data's moments",
+    })?;
+    let norms = crate::gait::AdultNorms::at(speed)?;
+    let scale = treadmill.body_mass_kg * (1.0 - treadmill.bws_fraction);
+    let torque = |ext: &[f64]| ext.iter().map(|m| -m * scale).collect::<Vec<f64>>();
+    Ok(Some([
+        torque(&norms.curves.hip_moment_nm_kg),
+        torque(&norms.curves.knee_moment_nm_kg),
+    ]))
 }
 
 /// The scenario's exoskeleton: a fixed pelvis (as `mount` says), or its treadmill, the

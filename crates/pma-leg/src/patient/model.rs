@@ -206,6 +206,10 @@ struct Walker {
     next_stride_s: f64,
     reference_stride_s: f64,
     ramp_s: f64,
+    /// Walking's joint moments they produce instead of their limb's inverse dynamics
+    /// (N m, flexion positive, at 0, 1, ..., 100 % of their cycle; see
+    /// [`crate::patient::OwnTorque::Walking`]).
+    walking_nm: Option<[Vec<f64>; 2]>,
 }
 
 impl Walker {
@@ -220,6 +224,7 @@ impl Walker {
             next_stride_s: 0.0,
             reference_stride_s: gait.stride_period_s(),
             ramp_s: gait.ramp_s(),
+            walking_nm: None,
         };
         w.reset();
         w
@@ -281,7 +286,13 @@ impl Walker {
             a * r * r * g.hip.acceleration_rad_s2,
             a * r * r * g.knee.acceleration_rad_s2,
         ];
-        let own = self.limb.inverse_dynamics(aim, aim_v, aim_a);
+        let own = match &self.walking_nm {
+            Some(curves) => {
+                let (phase, share) = (gait.phase(self.clock_s), gait.ramp_share(self.clock_s));
+                curves.each_ref().map(|c| share * sample_cycle(c, phase))
+            }
+            None => self.limb.inverse_dynamics(aim, aim_v, aim_a),
+        };
         let s = &self.settings;
         std::array::from_fn(|j| {
             s.strength
@@ -290,6 +301,18 @@ impl Walker {
                     + s.damping_nm_s_per_rad[j] * (aim_v[j] - qd[j]))
         })
     }
+}
+
+/// `curve` (samples at 0, 1/(n-1), ..., 1 of a cycle) at `phase`, linearly interpolated.
+fn sample_cycle(curve: &[f64], phase: f64) -> f64 {
+    let last = curve.len().saturating_sub(1);
+    if last == 0 {
+        return curve.first().copied().unwrap_or(0.0);
+    }
+    let x = phase.rem_euclid(1.0) * last as f64;
+    let i = (x.floor() as usize).min(last - 1);
+    let f = x - i as f64;
+    curve[i] + f * (curve[i + 1] - curve[i])
 }
 
 /// The patient of a run: the resolved model, its delay lines and its spasm plan.
@@ -369,6 +392,20 @@ impl Patient {
             damping_nm_s_per_rad,
             last: PatientTorques::default(),
         })
+    }
+
+    /// Makes an active patient produce walking's joint moments, `moments_nm` (N m, flexion
+    /// positive, hip and knee at 0, 1, ..., 100 % of the cycle from initial contact), on
+    /// their own clock instead of their limb's inverse dynamics; `false` (and nothing
+    /// changed) for a patient who is not active.
+    pub fn walk_with_moments(&mut self, moments_nm: [Vec<f64>; 2]) -> bool {
+        match &mut self.walker {
+            Some(w) => {
+                w.walking_nm = Some(moments_nm);
+                true
+            }
+            None => false,
+        }
     }
 
     /// Draws the random spasms starting before `until_s` (allocates: call it before a run
@@ -533,6 +570,58 @@ mod tests {
             );
             t += 1e-4;
         }
+    }
+
+    /// A walking patient's effort with no impedance of their own: their moments alone.
+    #[test]
+    fn a_walking_patient_produces_the_moments_at_their_phase_times_their_strength() {
+        let settings: crate::patient::PatientSettings = toml::from_str(
+            "[active]\nstride_cv = 0.0\nstrength = 0.5\nstiffness_nm_per_rad = [0.0, 0.0]\ndamping_nm_s_per_rad = [0.0, 0.0]\nown_torque = \"walking\"\n",
+        )
+        .unwrap();
+        let gait = GaitReference::adult(0.5, 2.0, 1.0).unwrap();
+        let bar = crate::exoskeleton::LinkInertia {
+            mass_kg: 5.0,
+            com_below_joint_m: 0.2,
+            inertia_kg_m2: 0.05,
+        };
+        let inertia = LegInertia {
+            thigh: bar,
+            shank: bar,
+            thigh_length_m: 0.4,
+            pelvis_pitch_rad: 0.0,
+        };
+        let mut p = Patient::new(&settings, 1e-3, gait, inertia, [0.0; 2]).unwrap();
+        // Hip: 0..100 N m over the cycle; knee: its negative.
+        let ramp: Vec<f64> = (0..=100).map(f64::from).collect();
+        let minus: Vec<f64> = ramp.iter().map(|v| -v).collect();
+        assert!(p.walk_with_moments([ramp, minus]));
+        let mut t = 0.0;
+        while t < 1.0 + 2.0 * 1.25 {
+            p.torques(t, [0.0; 2], [0.0; 2]);
+            t += 1e-3;
+        }
+        // At 3.5 s of 2 s strides, three quarters into the cycle: 75 N m, halved.
+        let e = p.torques(t, [0.0; 2], [0.0; 2]).effort_nm;
+        let want = 0.5 * 100.0 * gait.phase(t);
+        assert!(
+            (e[0] - want).abs() < 0.01 && (e[1] + want).abs() < 0.01,
+            "{e:?} vs {want}"
+        );
+        assert!((want - 37.5).abs() < 0.1, "{want}");
+        // A patient who is not active takes no moments.
+        let passive = crate::patient::PatientSettings::default();
+        let mut q = Patient::new(&passive, 1e-3, gait, inertia, [0.0; 2]).unwrap();
+        assert!(!q.walk_with_moments([vec![1.0; 101], vec![1.0; 101]]));
+    }
+
+    #[test]
+    fn sampling_a_cycle_interpolates_and_wraps() {
+        let c = [0.0, 10.0, 20.0];
+        assert_eq!(sample_cycle(&c, 0.25), 5.0);
+        assert_eq!(sample_cycle(&c, 1.0), 0.0);
+        assert_eq!(sample_cycle(&c, -0.25), 15.0);
+        assert_eq!(sample_cycle(&[4.0], 0.3), 4.0);
     }
 
     #[test]

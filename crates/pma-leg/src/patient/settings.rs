@@ -273,8 +273,9 @@ pub struct PatientSettings {
 /// `[patient.active]`: a patient who produces their own joint torques to walk with their
 /// own timing and amplitude. They aim at the reference's shape on their own clock, whose
 /// stride period is drawn afresh every stride (seeded), scaled by `amplitude`, and track
-/// it with their own joint impedance on top of their limb's inverse dynamics, all times
-/// `strength`. The torque goes into the patient's effort (`effort_nm`).
+/// it with their own joint impedance on top of their own torque ([`OwnTorque`]: their
+/// limb's inverse dynamics, or walking's joint moments), all times `strength`. The torque
+/// goes into the patient's effort (`effort_nm`).
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ActiveSettings {
@@ -307,6 +308,25 @@ pub struct ActiveSettings {
     /// Seed of their stride-to-stride variation (each leg adds its index).
     #[serde(default)]
     pub seed: u64,
+    /// What their own torque, under the impedance, is made of (default `limb`).
+    #[serde(default)]
+    pub own_torque: OwnTorque,
+}
+
+/// The torque an active patient produces along their aim, before their impedance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum OwnTorque {
+    /// Their limb's inverse dynamics in the air along the aim: what swinging it takes,
+    /// with nothing of a stance's load (the in-air leg's patient).
+    #[default]
+    Limb,
+    /// The adults' mean joint moments in walking (Fukuchi et al. 2018, at the reference's
+    /// speed) at their own phase, times their body mass and the share of their weight the
+    /// legs carry (`1 - bws_fraction`, as `pma-exo size` scales the moments it compares
+    /// with): a patient who carries their stance on a treadmill. Needs a `[treadmill]` and
+    /// the adult gait (`gait.data = "fukuchi2018"`).
+    Walking,
 }
 
 fn default_stride_cv() -> f64 {
