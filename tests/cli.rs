@@ -641,6 +641,52 @@ fn regression_6_degenerate_runs_are_refused() {
 }
 
 #[test]
+fn tune_leg_refuses_scenarios_whose_controllers_differ_before_writing() {
+    let dir = temp("tune-also");
+    let out = dir.join("gains.toml");
+    let out_arg = out.to_str().unwrap();
+    // The trainer's controller settings (gain set, co-contraction) are not the in-air leg's.
+    assert_one_line_error(
+        &[
+            "tune-leg",
+            "gait_treadmill",
+            "--also",
+            "gait_training",
+            "--out",
+            out_arg,
+        ],
+        "`gait_training` gives the controller other settings than `gait_treadmill`",
+    );
+    assert_one_line_error(
+        &[
+            "tune-leg",
+            "gait_training",
+            "--also",
+            "nope",
+            "--out",
+            out_arg,
+        ],
+        "`nope`: unknown scenario",
+    );
+    assert!(!out.exists(), "a refused tuning wrote {out_arg}");
+}
+
+#[test]
+fn a_patient_walking_with_the_adults_moments_needs_a_treadmill_in_one_line() {
+    let dir = temp("walking");
+    let sc = dir.join("walk.toml");
+    // gait_active ends in its [patient.active] section.
+    let text = include_str!("../crates/pma-leg/models/scenarios/gait_active.toml");
+    std::fs::write(&sc, format!("{text}own_torque = \"walking\"\n")).unwrap();
+    assert_one_line_error(
+        &["simulate", sc.to_str().unwrap(), "--duration", "3.2"],
+        "[treadmill] is missing: patient.active.own_torque",
+    );
+    std::fs::write(&sc, format!("{text}own_torque = \"running\"\n")).unwrap();
+    assert_one_line_error(&["simulate", sc.to_str().unwrap()], "own_torque");
+}
+
+#[test]
 fn regression_7_runs_of_centuries_are_refused_without_yes() {
     assert_one_line_error(&["single", "--duration", "1e12"], "--yes");
     assert_one_line_error(&["simulate", "--duration", "1e9"], "--yes");

@@ -59,9 +59,14 @@ fn assert_refused(path: &std::path::Path, needle: &str) {
 fn simulate_two_legs_reports_each_foot_the_pelvis_and_both_legs_safety() {
     let dir = temp_dir("simulate");
     let csv = dir.join("run.csv");
+    // PID, which tracks best here: APRC-NDO's gains hold both patients by chattering
+    // (460 bar/s), and in its first 6.4 s the right foot's first heel strike goes
+    // undetected and the ankle presses 0.23 deg into its stop (docs/treadmill.md).
     let v = json_of(&[
         "simulate",
         "gait_treadmill",
+        "--controller",
+        "pid",
         "--duration",
         "6.4",
         "--json",
@@ -172,7 +177,7 @@ fn bad_trainer_input_is_a_one_line_error_naming_the_field() {
             "treadmill.body_mass_kg",
         ),
         (
-            "speed_m_per_s = 0.4976",
+            "speed_m_per_s = 0.4900",
             "speed_m_per_s = 12.0",
             "treadmill.speed_m_per_s",
         ),
@@ -208,12 +213,12 @@ fn bad_trainer_input_is_a_one_line_error_naming_the_field() {
         ),
         ("legs = 2", "legs = 2\nwalking_aid = true", "walking_aid"),
         (
-            "cos_deg = [0.92409,",
+            "cos_deg = [0.97925,",
             "cos_deg = [11.0,",
             "gait.hip_correction",
         ),
         (
-            "cos_deg = [0.92409,",
+            "cos_deg = [0.97925,",
             "cos_deg = [nan,",
             "gait.hip_correction",
         ),
@@ -290,7 +295,7 @@ fn fit_gait_writes_the_lines_the_scenario_takes() {
     let start = base.find("[gait.hip_correction]").unwrap();
     let end = start + base[start..].find("\n\n").unwrap();
     let edited = format!("{}{}{}", &base[..start], correction, &base[end..])
-        .replace("speed_m_per_s = 0.4976", speed);
+        .replace("speed_m_per_s = 0.4900", speed);
     let path = dir.join("fitted.toml");
     std::fs::write(&path, edited).unwrap();
     let v = json_of(&[

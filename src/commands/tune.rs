@@ -274,6 +274,10 @@ pub struct LegArgs {
     /// Simulated seconds per evaluation; at least two strides.
     #[arg(long, default_value_t = 6.4, allow_negative_numbers = true)]
     duration: f64,
+    /// More scenarios (comma-separated) each gain set also runs on; the objective is the
+    /// worst of them all (a robust tuning, e.g. a passive and a spastic patient).
+    #[arg(long, value_delimiter = ',')]
+    also: Vec<String>,
     /// Optimiser seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -288,24 +292,35 @@ pub struct LegArgs {
     yes: bool,
 }
 
+/// The scenario and the `--also` ones, each checked for the run's duration.
+fn tuning_scenarios(a: &LegArgs) -> Result<Vec<pma_leg::LoadedScenario>> {
+    let mut loaded = Vec::with_capacity(1 + a.also.len());
+    for name in std::iter::once(&a.scenario).chain(&a.also) {
+        let l = pma_leg::Scenario::load(name)?;
+        l.scenario.check_run_duration(a.duration)?;
+        loaded.push(l);
+    }
+    pma_studies::leg_tune::common_base(&loaded, a.controller)?;
+    Ok(loaded)
+}
+
 /// Runs `tune-leg`.
 pub fn run_leg(a: LegArgs) -> Result<i32> {
     check_duration(a.duration)?;
     let evaluations = evaluations(a.population, a.generations)?;
-    let loaded = pma_leg::Scenario::load(&a.scenario)?;
-    let sc = &loaded.scenario;
-    sc.check_run_duration(a.duration)?;
-    output::check_wall_time(
-        "this tuning",
-        a.duration / sc.period_s * evaluations,
-        LEG_PERIOD_S,
-        a.yes,
-    )?;
+    let scenarios = tuning_scenarios(&a)?;
+    let periods: f64 = scenarios
+        .iter()
+        .map(|l| a.duration / l.scenario.period_s * evaluations)
+        .sum();
+    output::check_wall_time("this tuning", periods, LEG_PERIOD_S, a.yes)?;
     if let Some(out) = &a.out {
-        output::refuse_input_as_output(
-            &super::scenario_inputs(&a.scenario, &loaded, None),
-            &[("--out", out)],
-        )?;
+        let inputs: Vec<_> = std::iter::once(&a.scenario)
+            .chain(&a.also)
+            .zip(&scenarios)
+            .flat_map(|(name, l)| super::scenario_inputs(name, l, None))
+            .collect();
+        output::refuse_input_as_output(&inputs, &[("--out", out)])?;
     }
     let out = a.out.as_deref().map(OutFile::create).transpose()?;
     let opts = pma_studies::tune::FireflyOptions {
@@ -318,8 +333,8 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
     let _bar = output::follow_progress(&EVALUATED, evaluations as u64, "runs");
     let stop = output::stop_flag()?;
     let found = super::with_threads(a.threads, || {
-        pma_studies::leg_tune::tune(&loaded, a.controller, &opts, a.duration, &stop)
-    })?;
+        pma_studies::leg_tune::tune(&scenarios, a.controller, &opts, a.duration, &stop)
+    })??;
     if interrupted(&stop, a.out.as_deref()) {
         return Ok(output::INTERRUPTED);
     }
@@ -342,8 +357,13 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
             1.0 + (t.objective - pma_studies::leg_tune::OVER_RATING) / 100.0
         );
     }
+    let also = if a.also.is_empty() {
+        String::new()
+    } else {
+        format!(" --also {}", a.also.join(","))
+    };
     let text = format!(
-        "# Tuned by `pma-exo tune-leg {} --controller {} --population {} --generations {} --duration {} --seed {}`\n# ({} runs, objective {:.4}: hip RMS + knee RMS in deg + 0.01 x bar/s, every muscle within its rating)\n{}",
+        "# Tuned by `pma-exo tune-leg {}{also} --controller {} --population {} --generations {} --duration {} --seed {}`\n# ({} runs, objective {:.4}: hip RMS + knee RMS in deg + 0.01 x bar/s, the worst of the scenarios, every muscle within its rating)\n{}",
         a.scenario,
         a.controller,
         a.population,

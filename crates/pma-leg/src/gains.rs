@@ -1,7 +1,9 @@
 //! Gains tuned for the leg, one file per controller and place: in the air
 //! (`crates/pma-leg/models/gains/`, each found by `pma-exo tune-leg gait_training
 //! --controller NAME`) and on the two-leg treadmill (`crates/pma-leg/models/gains/treadmill/`,
-//! `pma-exo tune-leg gait_treadmill --controller NAME --duration 8.9`), with the same budget.
+//! `pma-exo tune-leg gait_treadmill --also gait_treadmill_spastic --controller NAME
+//! --duration 17.5`, or the previous gains where they did better over 60 s:
+//! docs/treadmill.md), with the same budget.
 //! A scenario's `control.gain_set` says which set its controllers take; its own APRC-NDO
 //! gains (`control.gains`) stay the APRC-NDO's.
 use crate::config::LoadedScenario;

@@ -3,7 +3,20 @@
 //! lets them move with it, and what the joints must supply falls accordingly
 //! (docs/treadmill.md).
 use pma_leg::demand::{stride_demand, Demand};
-use pma_leg::{fit_gait, GaitFitSettings, Scenario};
+use pma_leg::ground::TreadmillSettings;
+use pma_leg::{fit_gait, GaitFitSettings, LoadedScenario, Scenario};
+
+/// `gait_treadmill` with the pelvis nearly free fore-aft (the default hold), as the
+/// trainer ran when the rigid replay's drag was found; the shipped one holds it stiffly.
+fn with_the_pelvis_nearly_free() -> LoadedScenario {
+    let mut loaded = Scenario::load("gait_treadmill").expect("embedded");
+    if let Some(t) = &mut loaded.scenario.treadmill {
+        let free = TreadmillSettings::new(t.bws_fraction, t.body_mass_kg);
+        t.pelvis_fore_aft_n_per_m = free.pelvis_fore_aft_n_per_m;
+        t.pelvis_fore_aft_damping_n_s_per_m = free.pelvis_fore_aft_damping_n_s_per_m;
+    }
+    loaded
+}
 
 /// RMS over the measured stance periods of the contact's speed relative to the hip plus
 /// the belt's (m/s), and the feet's worst mean slip per stride (m).
@@ -29,7 +42,7 @@ fn a_rigid_replay_of_the_adults_hip_drags_the_stance_feet_along_the_belt() {
     // The bug this pins: the data's hip, measured against a pelvis that rocked and
     // rotated, moves a stance foot back at 0.18-0.70 m/s on a trainer whose pelvis does
     // not; the feet slipped 51-53 mm per stride and the hip's servo needed 3.8 N m/kg.
-    let mut loaded = Scenario::load("gait_treadmill").expect("embedded");
+    let mut loaded = with_the_pelvis_nearly_free();
     loaded.scenario.gait.hip_correction = None;
     if let Some(t) = &mut loaded.scenario.treadmill {
         t.speed_m_per_s = None;
@@ -45,8 +58,10 @@ fn a_rigid_replay_of_the_adults_hip_drags_the_stance_feet_along_the_belt() {
 
 #[test]
 fn the_fit_makes_the_stance_contact_move_at_the_belts_speed() {
-    // Three learning runs from the data already take out most of the speed error.
-    let loaded = Scenario::load("gait_treadmill").expect("embedded");
+    // Three learning runs from the data already take out most of the speed error (with
+    // the pelvis held, the shipped case, the fit starts nearer and converges more slowly:
+    // docs/treadmill.md).
+    let loaded = with_the_pelvis_nearly_free();
     let settings = GaitFitSettings {
         iterations: 3,
         strides: 2,
@@ -71,7 +86,7 @@ fn the_fit_makes_the_stance_contact_move_at_the_belts_speed() {
 #[test]
 fn on_the_shipped_fit_the_stance_feet_move_with_the_belt() {
     // The shipped scenario's correction (`pma-exo fit-gait gait_treadmill --iterations
-    // 20`): the issue's bands for slip (under 20 mm per stride), loading peak (1.0-1.25
+    // 60`, the pelvis held fore-aft): the issue's bands for slip (under 20 mm per stride), loading peak (1.0-1.25
     // times the belt's mean load) and stance (within 3 % of the cycle of the reference).
     let loaded = Scenario::load("gait_treadmill").expect("embedded");
     let d = stride_demand(&loaded, 3).expect("runs");
@@ -96,7 +111,7 @@ fn on_the_shipped_fit_the_stance_feet_move_with_the_belt() {
     assert!(error < 0.03, "{error}");
     assert!(slip < 0.02, "{slip}");
     for (side, f) in &t.feet {
-        // The left foot's peak is 0.99 times the belt's load, just under the issue's 1.0:
+        // The left foot's mean peak is 0.98 times the belt's load, just under the issue's 1.0:
         // walking without support peaks at 1.0-1.2 BW, support lowers the peak.
         let ratio = f.peak_grf_bw.max / t.expected_belt_load_bw;
         assert!((0.95..=1.25).contains(&ratio), "{side}: {ratio}");
@@ -106,9 +121,14 @@ fn on_the_shipped_fit_the_stance_feet_move_with_the_belt() {
         );
     }
     // The knee within the issue's 1.0 N m/kg; the hip above its 1.2 (docs/treadmill.md
-    // says where it comes from), pinned here so that it cannot grow unnoticed.
-    assert!(peak_kg(1) < 1.0, "{}", peak_kg(1));
-    assert!(peak_kg(0) < 1.9, "{}", peak_kg(0));
+    // says where it comes from), pinned here so that it cannot grow unnoticed (1.47 / 0.77
+    // here; with the pelvis nearly free it was 1.85 / 0.97).
+    assert!(peak_kg(1) < 0.85, "{}", peak_kg(1));
+    assert!(peak_kg(0) < 1.55, "{}", peak_kg(0));
+    // Regression (issue 27): the pelvis, nearly free, rested on its rear stop 62 % of the
+    // time, which then held the trainer with a force no output measured; held, it never
+    // reaches it.
+    assert_eq!(t.pelvis_at_fore_aft_stop, 0.0, "{t:?}");
 }
 
 #[test]

@@ -55,20 +55,65 @@ pub struct LegTuning {
     pub evaluations: usize,
 }
 
-/// Tunes `kind`'s gains, shared by the four muscles, on the scenario; `None` if `kind`
-/// has no search space.
+/// The worst of [`objective`] over `scenarios` (a robust tuning: gains that hold one
+/// patient and lose another score as losing; one scenario: its own objective).
+pub fn worst_objective(
+    scenarios: &[LoadedScenario],
+    config: &ControllerConfig,
+    duration_s: f64,
+) -> f64 {
+    scenarios
+        .iter()
+        .map(|s| objective(s, config, duration_s))
+        .fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// Why `tune` cannot tune on these scenarios together.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum TuneError {
+    /// No scenario given.
+    #[error("no scenario to tune on")]
+    NoScenario,
+    /// A scenario gives the controller other settings than the first (a gain set, a
+    /// nominal model), so one gain set would mean different controllers.
+    #[error(
+        "scenario `{0}` gives the controller other settings than `{1}` (its [control] or muscles differ): one gain set cannot be tuned on both"
+    )]
+    DifferentBase(String, String),
+}
+
+/// The controller settings the scenarios share, before any gain is searched; an error if
+/// there is no scenario or they differ.
+pub fn common_base(
+    scenarios: &[LoadedScenario],
+    kind: ControllerKind,
+) -> Result<ControllerConfig, TuneError> {
+    let first = scenarios.first().ok_or(TuneError::NoScenario)?;
+    let base = base_config(first, kind);
+    match scenarios.iter().find(|s| base_config(s, kind) != base) {
+        Some(other) => Err(TuneError::DifferentBase(
+            other.scenario.name.clone(),
+            first.scenario.name.clone(),
+        )),
+        None => Ok(base),
+    }
+}
+
+/// Tunes `kind`'s gains, shared by every muscle, on the scenarios together (the worst of
+/// their objectives, [`worst_objective`]); `Ok(None)` if `kind` has no search space. The
+/// scenarios must give the controller the same base settings.
 pub fn tune(
-    loaded: &LoadedScenario,
+    scenarios: &[LoadedScenario],
     kind: ControllerKind,
     opts: &FireflyOptions,
     duration_s: f64,
     stop: &std::sync::atomic::AtomicBool,
-) -> Option<LegTuning> {
+) -> Result<Option<LegTuning>, TuneError> {
+    let base = common_base(scenarios, kind)?;
     let space = kind.search_space();
     if space.is_empty() {
-        return None;
+        return Ok(None);
     }
-    let base = base_config(loaded, kind);
     let at = |u: &[f64]| -> Option<ControllerConfig> {
         let mut c = base;
         for (spec, &x) in space.iter().zip(u) {
@@ -78,11 +123,49 @@ pub fn tune(
         Some(c)
     };
     let (u, best, evaluations) = firefly(space.len(), opts, stop, |u| {
-        at(u).map_or(FAILED_RUN, |c| objective(loaded, &c, duration_s))
+        at(u).map_or(FAILED_RUN, |c| worst_objective(scenarios, &c, duration_s))
     });
-    Some(LegTuning {
+    Ok(Some(LegTuning {
         config: at(&u).unwrap_or(base),
         objective: best,
         evaluations,
-    })
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pma_leg::Scenario;
+
+    fn loaded(name: &str) -> LoadedScenario {
+        Scenario::load(name).expect("an embedded scenario")
+    }
+
+    #[test]
+    fn a_robust_objective_is_the_worst_of_its_scenarios() {
+        let both = [loaded("gait_training"), loaded("gait_spastic")];
+        let config = common_base(&both, ControllerKind::AprcNdo).expect("one base");
+        let each: Vec<f64> = both.iter().map(|s| objective(s, &config, 3.2)).collect();
+        assert!(
+            each.iter().all(|v| v.is_finite() && *v < OVER_RATING),
+            "{each:?}"
+        );
+        // The spastic leg is harder to track: the worst is not simply the first.
+        assert!(each[1] > each[0], "{each:?}");
+        assert_eq!(worst_objective(&both, &config, 3.2), each[1]);
+        assert_eq!(worst_objective(&both[..1], &config, 3.2), each[0]);
+    }
+
+    #[test]
+    fn tuning_on_no_scenario_is_an_error() {
+        let stop = std::sync::atomic::AtomicBool::new(false);
+        let r = tune(
+            &[],
+            ControllerKind::Pid,
+            &FireflyOptions::default(),
+            3.2,
+            &stop,
+        );
+        assert_eq!(r, Err(TuneError::NoScenario));
+    }
 }
