@@ -615,6 +615,59 @@ mod tests {
         assert!(!q.walk_with_moments([vec![1.0; 101], vec![1.0; 101]]));
     }
 
+    /// Regression (issue 28): each leg drew its own stride periods, so a person's legs
+    /// drifted out of step on a two-leg trainer (the patient's hip work over 60 s, 328 J
+    /// right against 120 J left at equal strength). Seen through the walking moments (a
+    /// ramp over the cycle), the legs stay half a cycle apart however their strides vary.
+    #[test]
+    fn regression_a_walkers_two_legs_keep_half_a_stride_apart() {
+        let settings: crate::patient::PatientSettings = toml::from_str(
+            "[active]\nstride_cv = 0.1\nseed = 7\nstiffness_nm_per_rad = [0.0, 0.0]\ndamping_nm_s_per_rad = [0.0, 0.0]\n",
+        )
+        .unwrap();
+        let gait = GaitReference::adult(0.5, 1.0, 1.0).unwrap();
+        let bar = crate::exoskeleton::LinkInertia {
+            mass_kg: 5.0,
+            com_below_joint_m: 0.2,
+            inertia_kg_m2: 0.05,
+        };
+        let inertia = LegInertia {
+            thigh: bar,
+            shank: bar,
+            thigh_length_m: 0.4,
+            pelvis_pitch_rad: 0.0,
+        };
+        let ramp: Vec<f64> = (0..=100).map(f64::from).collect();
+        let mut legs: Vec<Patient> = (0..2)
+            .map(|leg| {
+                let mut p = Patient::new(
+                    &settings.for_leg(leg),
+                    1e-3,
+                    gait.for_leg(leg),
+                    inertia,
+                    [0.0; 2],
+                )
+                .unwrap();
+                assert!(p.walk_with_moments([ramp.clone(), ramp.clone()]));
+                p
+            })
+            .collect();
+        let mut worst: f64 = 0.0;
+        for k in 0..30_000 {
+            let t = f64::from(k) * 1e-3;
+            let [a, b] = [0, 1].map(|l| legs[l].torques(t, [0.0; 2], [0.0; 2]).effort_nm[0]);
+            // Their phases (effort / 100) half a cycle apart, away from the ramp's wrap.
+            let gap = (b - a).rem_euclid(100.0);
+            if t > 1.0 && (2.0..98.0).contains(&a) && (2.0..98.0).contains(&b) {
+                worst = worst.max((gap - 50.0).abs());
+            }
+        }
+        assert!(
+            worst < 0.5,
+            "the legs' phases drifted {worst} % of a cycle from half"
+        );
+    }
+
     #[test]
     fn sampling_a_cycle_interpolates_and_wraps() {
         let c = [0.0, 10.0, 20.0];

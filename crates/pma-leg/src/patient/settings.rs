@@ -305,7 +305,7 @@ pub struct ActiveSettings {
     /// patient weaker on one side (after a stroke, say).
     #[serde(default)]
     pub strength_by_leg: Option<[f64; 2]>,
-    /// Seed of their stride-to-stride variation (each leg adds its index).
+    /// Seed of their stride-to-stride variation (both legs walk on the one clock it draws).
     #[serde(default)]
     pub seed: u64,
     /// What their own torque, under the impedance, is made of (default `limb`).
@@ -679,7 +679,9 @@ impl EffortSettings {
 
 impl PatientSettings {
     /// The settings of leg `leg` of a trainer: the same patient, its random spasms drawn
-    /// from each seed plus `leg` (so that two legs do not jerk together).
+    /// from each seed plus `leg` (so that two legs do not jerk together), its walking on
+    /// one clock (the same stride draws for both legs: a person's legs keep their half
+    /// stride apart, where independent draws let them drift out of step).
     pub fn for_leg(&self, leg: usize) -> Self {
         let mut out = self.clone();
         for j in [&mut out.hip, &mut out.knee] {
@@ -688,7 +690,6 @@ impl PatientSettings {
             }
         }
         if let Some(a) = &mut out.active {
-            a.seed = a.seed.wrapping_add(leg as u64);
             if let Some(by_leg) = a.strength_by_leg {
                 a.strength = by_leg[leg.min(1)];
             }
@@ -759,7 +760,9 @@ pub(super) mod tests {
         p.validate().unwrap();
         let [right, left] = [0, 1].map(|leg| p.for_leg(leg).active.unwrap());
         assert_eq!((right.strength, left.strength), (1.0, 0.4));
-        assert_eq!((right.seed, left.seed), (3, 4));
+        // Regression (issue 28): each leg drew its own strides (seed plus its index), so a
+        // person's two legs drifted out of step; they share one clock.
+        assert_eq!((right.seed, left.seed), (3, 3));
         let bad: PatientSettings =
             toml::from_str("[active]\nstrength_by_leg = [1.0, -0.5]\n").unwrap();
         let e = bad.validate().unwrap_err().to_string();
