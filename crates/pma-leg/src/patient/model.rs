@@ -572,6 +572,21 @@ mod tests {
         }
     }
 
+    /// A limb of two uniform 5 kg bars (the walking tests do not use its dynamics).
+    fn two_bars() -> LegInertia {
+        let bar = crate::exoskeleton::LinkInertia {
+            mass_kg: 5.0,
+            com_below_joint_m: 0.2,
+            inertia_kg_m2: 0.05,
+        };
+        LegInertia {
+            thigh: bar,
+            shank: bar,
+            thigh_length_m: 0.4,
+            pelvis_pitch_rad: 0.0,
+        }
+    }
+
     /// A walking patient's effort with no impedance of their own: their moments alone.
     #[test]
     fn a_walking_patient_produces_the_moments_at_their_phase_times_their_strength() {
@@ -580,17 +595,7 @@ mod tests {
         )
         .unwrap();
         let gait = GaitReference::adult(0.5, 2.0, 1.0).unwrap();
-        let bar = crate::exoskeleton::LinkInertia {
-            mass_kg: 5.0,
-            com_below_joint_m: 0.2,
-            inertia_kg_m2: 0.05,
-        };
-        let inertia = LegInertia {
-            thigh: bar,
-            shank: bar,
-            thigh_length_m: 0.4,
-            pelvis_pitch_rad: 0.0,
-        };
+        let inertia = two_bars();
         let mut p = Patient::new(&settings, 1e-3, gait, inertia, [0.0; 2]).unwrap();
         // Hip: 0..100 N m over the cycle; knee: its negative.
         let ramp: Vec<f64> = (0..=100).map(f64::from).collect();
@@ -626,17 +631,7 @@ mod tests {
         )
         .unwrap();
         let gait = GaitReference::adult(0.5, 1.0, 1.0).unwrap();
-        let bar = crate::exoskeleton::LinkInertia {
-            mass_kg: 5.0,
-            com_below_joint_m: 0.2,
-            inertia_kg_m2: 0.05,
-        };
-        let inertia = LegInertia {
-            thigh: bar,
-            shank: bar,
-            thigh_length_m: 0.4,
-            pelvis_pitch_rad: 0.0,
-        };
+        let inertia = two_bars();
         let ramp: Vec<f64> = (0..=100).map(f64::from).collect();
         let mut legs: Vec<Patient> = (0..2)
             .map(|leg| {
