@@ -958,25 +958,30 @@ fn simulate_any_controller_on_a_patient_reports_spasms_and_safety() {
     );
 }
 
+/// Runs `compare-leg --out DIR` with `args` and reads the JSON it wrote there.
+fn compare_leg_json(dir: &std::path::Path, args: &[&str]) -> serde_json::Value {
+    let mut all = vec!["compare-leg", "--out", dir.to_str().unwrap()];
+    all.extend_from_slice(args);
+    pma_exo_ok(&all);
+    serde_json::from_str(&std::fs::read_to_string(dir.join("compare-leg.json")).unwrap()).unwrap()
+}
+
 /// Issue 28: compare-leg's mode axis: the controllers in position mode, then a row per
 /// pressure-set mode, each a run of that mode (the same figures as `simulate --mode`).
 #[test]
 fn compare_leg_adds_a_row_per_pressure_set_mode() {
     let dir = temp("compare-leg-modes");
-    pma_exo_ok(&[
-        "compare-leg",
-        "--out",
-        dir.to_str().unwrap(),
-        "--scenarios",
-        "gait_spasms",
-        "--modes",
-        "position,impedance,transparent",
-        "--duration",
-        "4",
-    ]);
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("compare-leg.json")).unwrap())
-            .unwrap();
+    let json = compare_leg_json(
+        &dir,
+        &[
+            "--scenarios",
+            "gait_spasms",
+            "--modes",
+            "position,impedance,transparent",
+            "--duration",
+            "4",
+        ],
+    );
     let rows = json["rows"].as_array().unwrap();
     let labels: Vec<&str> = rows
         .iter()
@@ -1025,18 +1030,15 @@ fn compare_leg_adds_a_row_per_pressure_set_mode() {
 #[test]
 fn compare_leg_writes_one_row_per_controller_and_scenario() {
     let dir = temp("compare-leg");
-    pma_exo_ok(&[
-        "compare-leg",
-        "--out",
-        dir.to_str().unwrap(),
-        "--scenarios",
-        "gait_spasms,gait_resistive",
-        "--duration",
-        "8",
-    ]);
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("compare-leg.json")).unwrap())
-            .unwrap();
+    let json = compare_leg_json(
+        &dir,
+        &[
+            "--scenarios",
+            "gait_spasms,gait_resistive",
+            "--duration",
+            "8",
+        ],
+    );
     // It says what ran (issue 18).
     assert!(json["provenance"]["command"]
         .as_str()

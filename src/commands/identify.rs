@@ -21,7 +21,7 @@ pub struct Args {
     #[arg(long, allow_negative_numbers = true)]
     load_kg: Option<f64>,
     /// Lowest held-out fit (%) for which the plant file is written.
-    #[arg(long, default_value_t = 90.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = MIN_FIT_PERCENT, allow_negative_numbers = true)]
     min_fit: f64,
     /// Write the plant file even if the held-out fit is below `--min-fit`, and read logs
     /// that fail the checks `rig replay` makes (no digest line: cut short; edited rows;
@@ -36,14 +36,24 @@ pub struct Args {
     json: bool,
 }
 
+/// The lowest held-out fit (%) an identified model must reach by default (`identify` and
+/// `rig commission`'s `--min-fit`).
+pub const MIN_FIT_PERCENT: f64 = 90.0;
+
+/// A `--min-fit` that is a percentage.
+pub fn check_min_fit(percent: f64) -> Result<()> {
+    if !(percent.is_finite() && (0.0..=100.0).contains(&percent)) {
+        bail!("--min-fit {percent} must be 0..=100 (%)");
+    }
+    Ok(())
+}
+
 /// Runs `identify`.
 pub fn run(a: Args) -> Result<i32> {
     let inputs: Vec<(&str, &std::path::Path)> =
         a.logs.iter().map(|l| ("log", l.as_path())).collect();
     output::refuse_input_as_output(&inputs, &[("--out", &a.out)])?;
-    if !(a.min_fit.is_finite() && (0.0..=100.0).contains(&a.min_fit)) {
-        bail!("--min-fit {} must be 0..=100 (%)", a.min_fit);
-    }
+    check_min_fit(a.min_fit)?;
     // Every log checked before any is fitted.
     let logs = a
         .logs

@@ -274,14 +274,11 @@ pub fn against_norms(
     bws_fraction: f64,
 ) -> Vec<NormComparison> {
     let n = crate::gait::CURVE_SAMPLES;
-    let normative = [
-        &norms.curves.hip_moment_nm_kg,
-        &norms.curves.knee_moment_nm_kg,
-    ];
     ["hip", "knee"]
-        .iter()
+        .into_iter()
+        .zip(norms.flexion_torques_nm_kg())
         .enumerate()
-        .map(|(j, name)| {
+        .map(|(j, (name, norm))| {
             let mut sum = vec![0.0; n];
             let mut count = vec![0usize; n];
             for s in &demand.samples {
@@ -294,7 +291,6 @@ pub fn against_norms(
                 .zip(&count)
                 .map(|(s, c)| if *c > 0 { s / *c as f64 } else { f64::NAN })
                 .collect();
-            let norm: Vec<f64> = normative[j].iter().map(|m| -m).collect();
             let rms = |scale: f64| {
                 let (sq, k) = demand_nm_kg
                     .iter()
@@ -311,7 +307,7 @@ pub fn against_norms(
                     .fold(0.0f64, |p, x| p.max(x.abs()))
             };
             NormComparison {
-                joint: (*name).to_owned(),
+                joint: name.to_owned(),
                 peak_demand_nm_kg: peak(&demand_nm_kg),
                 peak_normative_nm_kg: peak(&norm),
                 rms_difference_nm_kg: rms(1.0),

@@ -113,6 +113,16 @@ impl AdultNorms {
             })
     }
 
+    /// The mean hip and knee moments turned into the torques the joints need, flexion
+    /// positive (minus the extensor moments), N m/kg over the cycle.
+    pub fn flexion_torques_nm_kg(&self) -> [Vec<f64>; 2] {
+        [
+            &self.curves.hip_moment_nm_kg,
+            &self.curves.knee_moment_nm_kg,
+        ]
+        .map(|m| m.iter().map(|v| -v).collect())
+    }
+
     /// Every condition of the adult data, slowest first.
     pub fn all() -> Result<Vec<Self>, LegError> {
         let file: std::collections::BTreeMap<String, toml::Value> = toml::from_str(ADULT_TOML)

@@ -867,11 +867,11 @@ fn walking_moments(
     })?;
     let norms = crate::gait::AdultNorms::at(speed)?;
     let scale = treadmill.body_mass_kg * (1.0 - treadmill.bws_fraction);
-    let torque = |ext: &[f64]| ext.iter().map(|m| -m * scale).collect::<Vec<f64>>();
-    Ok(Some([
-        torque(&norms.curves.hip_moment_nm_kg),
-        torque(&norms.curves.knee_moment_nm_kg),
-    ]))
+    Ok(Some(
+        norms
+            .flexion_torques_nm_kg()
+            .map(|c| c.iter().map(|t| t * scale).collect()),
+    ))
 }
 
 /// The scenario's exoskeleton: a fixed pelvis (as `mount` says), or its treadmill, the

@@ -63,7 +63,7 @@ pub struct Args {
     generations: usize,
     /// The lowest held-out fit (%) of the identified model the tuning starts from, as
     /// `identify --min-fit`.
-    #[arg(long, default_value_t = MIN_FIT_PERCENT, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = crate::commands::identify::MIN_FIT_PERCENT, allow_negative_numbers = true)]
     min_fit: f64,
     /// Seed of the tuning and the bootstrap.
     #[arg(long, default_value_t = 2019)]
@@ -84,9 +84,6 @@ const TUNING_RUN_S: f64 = 20.0;
 /// docs/commissioning.md measured (7-16 s for a 60 s log with a weighed load, 36-44 s for
 /// the added mass's two; at most 0.37 ms a period).
 const IDENTIFY_PERIOD_S: f64 = 4e-4;
-
-/// The lowest held-out fit the tuning starts from by default (%), as `identify --min-fit`'s.
-const MIN_FIT_PERCENT: f64 = 90.0;
 
 /// The operator stopped the commissioning (SIGINT/SIGTERM) during `stage`.
 #[derive(Debug, thiserror::Error)]
@@ -137,9 +134,7 @@ impl Plan {
                 a.max_variation
             );
         }
-        if !(a.min_fit.is_finite() && (0.0..=100.0).contains(&a.min_fit)) {
-            bail!("--min-fit {} must be 0..=100 (%)", a.min_fit);
-        }
+        crate::commands::identify::check_min_fit(a.min_fit)?;
         check_robust(a.robust)?;
         pma_studies::tune::check_spread(a.spread).map_err(|e| pma_model::Invalid {
             name: "--spread".into(),
