@@ -575,6 +575,7 @@ pub fn fit_figures(fit: &pma_leg::GaitFit) -> serde_json::Map<String, serde_json
     let mut out = serde_json::Map::new();
     out.insert("steps".into(), serde_json::json!(fit.steps));
     out.insert("best".into(), serde_json::json!(fit.best));
+    out.insert("belt_steps".into(), serde_json::json!(fit.belt_steps));
     out.insert(
         "belt_speed_m_s".into(),
         serde_json::json!(fit.belt_speed_m_s),

@@ -81,12 +81,8 @@ fn work_dir(m: &Manifest, name: &str) -> PathBuf {
     dir
 }
 
-/// The value at a dotted path (`a.b.0.c`), times an optional `*factor`.
-fn value(json: &serde_json::Value, expr: &str) -> f64 {
-    let (path, factor) = match expr.split_once('*') {
-        Some((p, f)) => (p, f.parse::<f64>().expect("factor")),
-        None => (expr, 1.0),
-    };
+/// The JSON at a dotted path (`a.b.0.c`).
+fn at<'a>(json: &'a serde_json::Value, path: &str) -> &'a serde_json::Value {
     let mut v = json;
     for key in path.split('.') {
         v = match key.parse::<usize>() {
@@ -94,7 +90,17 @@ fn value(json: &serde_json::Value, expr: &str) -> f64 {
             Err(_) => &v[key],
         };
     }
-    v.as_f64()
+    v
+}
+
+/// The value at a dotted path (`a.b.0.c`), times an optional `*factor`.
+fn value(json: &serde_json::Value, expr: &str) -> f64 {
+    let (path, factor) = match expr.split_once('*') {
+        Some((p, f)) => (p, f.parse::<f64>().expect("factor")),
+        None => (expr, 1.0),
+    };
+    at(json, path)
+        .as_f64()
         .unwrap_or_else(|| panic!("`{path}` is not a number in {json}"))
         * factor
 }
@@ -107,9 +113,18 @@ fn expand(template: &str, json: &serde_json::Value) -> String {
         out.push_str(&rest[..open]);
         let close = rest[open..].find('}').expect("unclosed {") + open;
         let field = &rest[open + 1..close];
-        let (expr, digits) = field.split_once(":.").expect("{expr:.N}");
-        let digits: usize = digits.parse().expect("digits");
-        out.push_str(&format!("{:.*}", digits, value(json, expr)));
+        match field.split_once(":.") {
+            Some((expr, digits)) => {
+                let digits: usize = digits.parse().expect("digits");
+                out.push_str(&format!("{:.*}", digits, value(json, expr)));
+            }
+            // A string, as the command gave it (`{path}`).
+            None => out.push_str(
+                at(json, field)
+                    .as_str()
+                    .unwrap_or_else(|| panic!("`{field}` is not a string in {json}")),
+            ),
+        }
         rest = &rest[close + 1..];
     }
     out.push_str(rest);
@@ -222,6 +237,8 @@ fn a_template_takes_paths_factors_and_decimals() {
         expand("| {a.b.1*1e3:.2} mm | {c:.0} |", &json),
         "| 12.35 mm | 2 |"
     );
+    let named: serde_json::Value = serde_json::from_str(r#"{"s": ["DMSP-20"]}"#).expect("json");
+    assert_eq!(expand("{s.0}, 1 m", &named), "DMSP-20, 1 m");
     assert_eq!(
         table_rows("| a | b |\n|---|---|\n| 1 | 2 |\ntext\n| 3 | 4 |\n"),
         ["| 1 | 2 |", "| 3 | 4 |"]

@@ -325,7 +325,7 @@ pub fn report(rows: &[CompareRow], duration_s: f64) -> String {
         if of_it.iter().any(|r| r.treadmill.is_some()) {
             let _ = write!(
                 md,
-                "\nOn the treadmill:\n\n| controller | hip RMS stance / swing (deg) | knee RMS stance / swing (deg) | GRF loading peak (BW) | loading rate (BW/s) | stance (reference) | slip per stride (mm) | heel-strike deviation hip / knee, max (deg) | recovery hip / knee, max (s) | not recovered hip / knee |\n|---|---|---|---|---|---|---|---|---|---|\n"
+                "\nOn the treadmill:\n\n| controller | hip RMS stance / swing (deg) | knee RMS stance / swing (deg) | GRF loading peak (BW) | loading rate (BW/s) | stance (reference) | slip per stride (mm) | scuffs per stride | heel-strike deviation hip / knee, max (deg) | recovery hip / knee, max (s) | not recovered hip / knee |\n|---|---|---|---|---|---|---|---|---|---|---|\n"
             );
             for r in &of_it {
                 if let Some(t) = &r.treadmill {
@@ -369,7 +369,7 @@ fn patient_row(r: &CompareRow) -> String {
 fn treadmill_row(controller: &str, t: &pma_studies::compare::TreadmillRow) -> String {
     let pair = |v: [f64; 2], digits: usize| format!("{:.digits$} / {:.digits$}", v[0], v[1]);
     format!(
-        "| {controller} | {} | {} | {:.2} | {:.1} | {:.3} ({:.3}) | {:.1} | {} | {} | {} / {} |",
+        "| {controller} | {} | {} | {:.2} | {:.1} | {:.3} ({:.3}) | {:.1} | {:.2} | {} | {} | {} / {} |",
         pair(t.hip_stance_swing_rms_deg, 3),
         pair(t.knee_stance_swing_rms_deg, 3),
         t.peak_grf_bw,
@@ -377,6 +377,7 @@ fn treadmill_row(controller: &str, t: &pma_studies::compare::TreadmillRow) -> St
         t.stance_fraction[0],
         t.stance_fraction[1],
         1e3 * t.slip_per_stride_m,
+        t.scuffs_per_stride,
         pair(t.heel_strike_max_deviation_deg, 2),
         pair(t.heel_strike_max_recovery_s, 3),
         t.heel_strikes_unrecovered[0],

@@ -4,8 +4,8 @@ use crate::provenance::Provenance;
 use crate::say;
 use anyhow::Result;
 use pma_leg::gait::{FourierSeries, HARMONICS};
-use pma_leg::gait_fit::BodySpeed;
-use pma_leg::{fit_gait, GaitFit, GaitFitSettings, Scenario};
+use pma_leg::gait_fit::{BeltRule, BodySpeed};
+use pma_leg::{fit_gait, GaitFit, GaitFitSettings, GaitFitStep, Scenario};
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
 
@@ -16,6 +16,15 @@ enum BodySpeedArg {
     Constant,
     /// The pelvis swings as the adults' does.
     Normative,
+}
+
+/// The belt's rule on the command line.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum BeltArg {
+    /// Where the harness carries no mean fore-aft force.
+    NoDrag,
+    /// The stance contact's mean speed.
+    Stance,
 }
 
 /// `fit-gait`'s arguments.
@@ -39,6 +48,11 @@ pub struct Args {
     /// fore-aft ground reaction).
     #[arg(long, default_value = "constant", value_name = "constant|normative")]
     body_speed: BodySpeedArg,
+    /// How the belt's speed is set on the fitted hip: `no-drag` (secant runs to where the
+    /// harness carries no mean fore-aft force, as for a person walking steadily on the
+    /// belt) or `stance` (the stance contact's mean speed, the hip's own fit rule).
+    #[arg(long, default_value = "no-drag", value_name = "no-drag|stance")]
+    belt: BeltArg,
     /// Where to write the `[gait.hip_correction]` and the belt speed for the scenario
     /// (nothing is written without it).
     #[arg(long)]
@@ -57,6 +71,10 @@ pub fn run(a: Args) -> Result<i32> {
         body_speed: match a.body_speed {
             BodySpeedArg::Constant => BodySpeed::Constant,
             BodySpeedArg::Normative => BodySpeed::Normative,
+        },
+        belt: match a.belt {
+            BeltArg::NoDrag => BeltRule::NoHarnessDrag,
+            BeltArg::Stance => BeltRule::StanceMean,
         },
     };
     settings.validate().map_err(|e| anyhow::anyhow!("--{e}"))?;
@@ -96,22 +114,29 @@ pub fn run(a: Args) -> Result<i32> {
 }
 
 fn print_steps(fit: &GaitFit) -> Result<()> {
-    say!("run  belt (m/s)  contact speed error RMS (m/s)  peak demand hip / knee (N m/kg)  slip per stride (mm)  GRF peak / belt load");
-    for s in &fit.steps {
-        let mark = if s.iteration == fit.best {
-            "  <- kept"
-        } else {
-            ""
-        };
+    say!("the hip's fit:");
+    print_table(&fit.steps, |s| s.iteration == fit.best)?;
+    if !fit.belt_steps.is_empty() {
+        say!("the belt on the kept hip, to no mean harness force:");
+        print_table(&fit.belt_steps, |s| s.belt_speed_m_s == fit.belt_speed_m_s)?;
+    }
+    Ok(())
+}
+
+fn print_table(steps: &[GaitFitStep], kept: impl Fn(&GaitFitStep) -> bool) -> Result<()> {
+    say!("run  belt (m/s)  contact speed error RMS (m/s)  peak demand hip / knee (N m/kg)  slip per stride (mm)  GRF peak / belt load  harness mean (N)");
+    for s in steps {
+        let mark = if kept(s) { "  <- kept" } else { "" };
         say!(
-            "{:3}  {:10.4}  {:29.4}  {:14.2} / {:5.2}  {:19.1}  {:20.3}{mark}",
+            "{:3}  {:10.4}  {:29.4}  {:14.2} / {:5.2}  {:19.1}  {:20.3}  {:16.1}{mark}",
             s.iteration,
             s.belt_speed_m_s,
             s.contact_speed_error_rms_m_s,
             s.peak_demand_nm_kg[0],
             s.peak_demand_nm_kg[1],
             1000.0 * s.slip_per_stride_m,
-            s.grf_peak_over_belt_load
+            s.grf_peak_over_belt_load,
+            s.harness_fore_aft_mean_n
         );
     }
     Ok(())
@@ -126,8 +151,16 @@ fn scenario_snippet(fit: &GaitFit, command: &str) -> String {
             .join(", ")
     };
     let FourierSeries { cos_deg, sin_deg } = &fit.hip_correction;
+    let belt = if fit.belt_steps.is_empty() {
+        String::new()
+    } else {
+        format!(
+            ", the belt where the harness carries no mean fore-aft force ({} belt runs)",
+            fit.belt_steps.len()
+        )
+    };
     format!(
-        "# The hip's stance made consistent with the belt: `{command}` (run {} of {}).\n[gait.hip_correction]\ncos_deg = [{}]\nsin_deg = [{}]\n\n# and in [treadmill]:\nspeed_m_per_s = {:.4}\n",
+        "# The hip's stance made consistent with the belt: `{command}` (run {} of {}{belt}).\n[gait.hip_correction]\ncos_deg = [{}]\nsin_deg = [{}]\n\n# and in [treadmill]:\nspeed_m_per_s = {:.4}\n",
         fit.best,
         fit.steps.len() - 1,
         list(cos_deg),

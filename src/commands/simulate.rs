@@ -371,8 +371,9 @@ fn print_treadmill(t: &pma_leg::TreadmillReport) -> Result<()> {
     );
     for (side, f) in &t.feet {
         say!(
-            "    {side} foot: {} strides; vertical GRF loading peak {:.2} BW ({:.2}..{:.2}), loading rate {:.1} BW/s ({:.1}..{:.1}), mean {:.3} BW; stance {:.1} % ({:.1}..{:.1}) against the reference's {:.1} %; slip {:.1} mm per stride; deepest {:.1} mm; ankle {:.1}..{:.1} deg",
+            "    {side} foot: {} strides, {} scuffs in swing; vertical GRF loading peak {:.2} BW ({:.2}..{:.2}), loading rate {:.1} BW/s ({:.1}..{:.1}), mean {:.3} BW; stance {:.1} % ({:.1}..{:.1}) against the reference's {:.1} %; slip {:.1} mm per stride; deepest {:.1} mm; ankle {:.1}..{:.1} deg",
             f.strides,
+            f.scuffs,
             f.peak_grf_bw.mean,
             f.peak_grf_bw.min,
             f.peak_grf_bw.max,

@@ -109,7 +109,7 @@ pub fn stride_demand(loaded: &LoadedScenario, strides: usize) -> Result<Demand, 
     let gait = sc.gait.reference()?;
     let gaits: Vec<GaitReference> = (0..legs).map(|l| gait.for_leg(l)).collect();
     let stride_s = gait.stride_period_s();
-    let start_s = (gait.ramp_s() / stride_s).ceil() * stride_s + stride_s;
+    let start_s = crate::stance::measured_from_s(&gait);
     let end_s = start_s + strides as f64 * stride_s;
     let periods = (end_s / sc.period_s).round() as usize;
     for p in &mut patients {
@@ -120,7 +120,7 @@ pub fn stride_demand(loaded: &LoadedScenario, strides: usize) -> Result<Demand, 
         .iter()
         .filter_map(|g| FootMetrics::new(&exo, g, end_s, sc.period_s))
         .collect();
-    let mut ground = TrainerGroundMetrics::new(&exo, stride_s);
+    let mut ground = TrainerGroundMetrics::new(&exo, start_s);
     let h = exo.substep_s();
     let mut samples = Vec::with_capacity(legs * (((end_s - start_s) / sc.period_s) as usize + 2));
     let mut max_error = [0.0f64; 2];

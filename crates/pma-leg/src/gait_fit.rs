@@ -15,6 +15,14 @@
 //! hip's rate there by that speed over the lever `dx/d(hip)`, then runs the belt at the
 //! stance's mean speed. The knee keeps the data's curve; the swing phase is unchanged but
 //! for what the harmonics spread into it.
+//!
+//! The stance's mean contact speed is not quite the belt a stance foot agrees with: the
+//! contact point rolls over heel, sole and toe while the elastic contact sticks, and a belt
+//! 1 % faster than the feet shears them back all stance long, a drag the harness then
+//! holds (58 N on `gait_treadmill`, 0.5 N m/kg more at the hip; docs/treadmill.md). By
+//! default ([`BeltRule::NoHarnessDrag`]) the fit then sets the belt, by secant steps on
+//! the fitted stance, where the harness carries no mean fore-aft force: a person walking
+//! steadily exchanges no net fore-aft impulse with the belt over a stride.
 use crate::config::LoadedScenario;
 use crate::demand::{stride_demand, Demand};
 use crate::error::{invalid, LegError};
@@ -36,6 +44,18 @@ pub enum BodySpeed {
     Normative,
 }
 
+/// How the belt's speed is chosen for the fitted stance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BeltRule {
+    /// The stance contact's mean speed relative to the hip (the rule the hip's fit itself
+    /// runs with).
+    StanceMean,
+    /// Where the harness carries no mean fore-aft force over the measured strides: the
+    /// belt neither drags the patient back against the harness nor pushes them forward.
+    #[default]
+    NoHarnessDrag,
+}
+
 /// How a fit runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GaitFitSettings {
@@ -47,6 +67,8 @@ pub struct GaitFitSettings {
     pub strides: usize,
     /// The body's speed over the stride the stance is fitted to.
     pub body_speed: BodySpeed,
+    /// How the belt's speed is set once the hip is fitted.
+    pub belt: BeltRule,
 }
 
 impl Default for GaitFitSettings {
@@ -56,6 +78,7 @@ impl Default for GaitFitSettings {
             gain: 0.8,
             strides: 3,
             body_speed: BodySpeed::Constant,
+            belt: BeltRule::NoHarnessDrag,
         }
     }
 }
@@ -97,6 +120,9 @@ pub struct GaitFitStep {
     pub slip_per_stride_m: f64,
     /// Largest vertical loading peak of a foot over the belt's mean load.
     pub grf_peak_over_belt_load: f64,
+    /// The harness's mean fore-aft force on the pelvis over the measured strides (N,
+    /// forward positive: the belt drags the patient back).
+    pub harness_fore_aft_mean_n: f64,
 }
 
 /// A fitted hip correction and the belt speed it walks at.
@@ -110,7 +136,21 @@ pub struct GaitFit {
     pub steps: Vec<GaitFitStep>,
     /// Which run is the result: the least contact speed error.
     pub best: usize,
+    /// The runs that set the belt on the kept hip ([`BeltRule::NoHarnessDrag`]; empty
+    /// otherwise), numbered from 0; the belt is the one of least |harness force|.
+    pub belt_steps: Vec<GaitFitStep>,
 }
+
+/// Most secant runs of the belt's search.
+const BELT_RUNS: usize = 8;
+/// A mean harness force this small (N) ends the belt's search.
+const BELT_TOLERANCE_N: f64 = 0.5;
+/// The first step's slope of the harness's mean force over the belt's speed (N per m/s):
+/// the held pelvis of `gait_treadmill` measured 8,000 (docs/treadmill.md); the secant
+/// takes over from the second run.
+const DRAG_SLOPE_GUESS_N_S_PER_M: f64 = 8.0e3;
+/// Largest change of the belt per run of its search (m/s).
+const BELT_STEP_MAX_M_S: f64 = 0.02;
 
 /// Phase bins over a cycle in which the contact's speed is averaged.
 const BINS: usize = 200;
@@ -170,13 +210,80 @@ pub fn fit_gait(
             t.speed_m_per_s = Some(-speeds.mean_stance_m_s);
         }
     }
-    let (best, hip_correction, belt_speed_m_s, _) = kept;
-    Ok(GaitFit {
+    let (best, hip_correction, stance_belt_m_s, _) = kept;
+    let mut fit = GaitFit {
         hip_correction,
-        belt_speed_m_s,
+        belt_speed_m_s: stance_belt_m_s,
         steps,
         best,
-    })
+        belt_steps: Vec::new(),
+    };
+    if settings.belt == BeltRule::NoHarnessDrag && !should_stop() {
+        run.scenario.gait.hip_correction = Some(hip_correction);
+        let search = BeltSearch {
+            toe_off: data.toe_off_phase(),
+            body: &body,
+            strides: settings.strides,
+            body_mass_kg,
+        };
+        fit.belt_steps = search.run(&mut run, stance_belt_m_s, &should_stop)?;
+        if let Some(least) = fit.belt_steps.iter().min_by(|a, b| {
+            a.harness_fore_aft_mean_n
+                .abs()
+                .total_cmp(&b.harness_fore_aft_mean_n.abs())
+        }) {
+            fit.belt_speed_m_s = least.belt_speed_m_s;
+        }
+    }
+    Ok(fit)
+}
+
+/// The belt's search on a fitted hip: what its runs measure with.
+struct BeltSearch<'a> {
+    toe_off: f64,
+    body: &'a [f64],
+    strides: usize,
+    body_mass_kg: f64,
+}
+
+impl BeltSearch<'_> {
+    /// Secant steps on the harness's mean fore-aft force from `start_m_s`, until it is
+    /// within [`BELT_TOLERANCE_N`], [`BELT_RUNS`] ran, the force stops responding to the
+    /// belt, or `should_stop`.
+    fn run(
+        &self,
+        run: &mut LoadedScenario,
+        start_m_s: f64,
+        should_stop: &impl Fn() -> bool,
+    ) -> Result<Vec<GaitFitStep>, LegError> {
+        let mut steps: Vec<GaitFitStep> = Vec::with_capacity(BELT_RUNS);
+        let mut belt = start_m_s;
+        for k in 0..BELT_RUNS {
+            if let Some(t) = &mut run.scenario.treadmill {
+                t.speed_m_per_s = Some(belt);
+            }
+            let demand = stride_demand(run, self.strides)?;
+            let speeds = StanceSpeeds::of(&demand, self.toe_off, self.body);
+            let step = step_figures(k, &demand, &speeds, belt, self.body_mass_kg);
+            let force = step.harness_fore_aft_mean_n;
+            let slope = match steps.last() {
+                Some(last) => (force - last.harness_fore_aft_mean_n) / (belt - last.belt_speed_m_s),
+                None => DRAG_SLOPE_GUESS_N_S_PER_M,
+            };
+            steps.push(step);
+            // A faster belt drags harder; a force that does not grow with it (a pelvis
+            // free to follow the feet) has no root to step to.
+            if !force.is_finite()
+                || force.abs() < BELT_TOLERANCE_N
+                || !(slope.is_finite() && slope > 0.0)
+                || should_stop()
+            {
+                break;
+            }
+            belt -= (force / slope).clamp(-BELT_STEP_MAX_M_S, BELT_STEP_MAX_M_S);
+        }
+        Ok(steps)
+    }
 }
 
 fn no_treadmill(loaded: &LoadedScenario) -> LegError {
@@ -202,6 +309,10 @@ fn step_figures(
         let [lo, hi] = demand.torque_range_nm(j);
         lo.abs().max(hi.abs()) / body_mass_kg
     };
+    let harness = demand
+        .treadmill
+        .as_ref()
+        .map_or(f64::NAN, |t| t.harness_fore_aft_n.mean);
     let (slip, grf) = demand.treadmill.as_ref().map_or((f64::NAN, f64::NAN), |t| {
         let slip = t
             .feet
@@ -223,6 +334,7 @@ fn step_figures(
         peak_demand_nm_kg: [peak(0), peak(1)],
         slip_per_stride_m: slip,
         grf_peak_over_belt_load: grf,
+        harness_fore_aft_mean_n: harness,
     }
 }
 

@@ -25,6 +25,10 @@ pub const HEEL_STRIKE_FOLLOW_S: f64 = 0.3;
 /// Error growth within which a joint counts as recovered from a heel strike (deg), as
 /// [`crate::safety::RECOVERED_DEG`] for a spasm.
 pub const HEEL_STRIKE_RECOVERED_DEG: f64 = 1.0;
+/// A "stride" shorter than this share of the reference's is no stride: the swing foot
+/// touched the belt (a scuff) and lifted again before its heel strike. It is merged into
+/// the stride it interrupted and counted as a scuff.
+pub const SCUFF_MAX_STRIDE_SHARE: f64 = 0.5;
 
 /// Smallest, mean and largest of a figure over the strides.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
@@ -132,6 +136,10 @@ pub struct FootReport {
     pub heel_strikes: BTreeMap<String, HeelStrikeStats>,
     /// Every counted stride.
     pub per_stride: Vec<StrideReport>,
+    /// Times the swing foot touched the belt and lifted again before its heel strike
+    /// (a contact that would have made a stride shorter than [`SCUFF_MAX_STRIDE_SHARE`]
+    /// of the reference's); each is merged into the stride it interrupted.
+    pub scuffs: usize,
 }
 
 /// The treadmill's figures of a run: the belt, the harness, the pelvis and every foot.
@@ -231,6 +239,8 @@ pub struct FootMetrics {
     /// The stride under way: its sums, added to the run's when it completes.
     stride: StrideSums,
     strides: Vec<StrideReport>,
+    /// Contacts in swing merged into their stride (see [`SCUFF_MAX_STRIDE_SHARE`]).
+    scuffs: usize,
     strikes: Vec<Strike>,
     /// Sums over the counted strides.
     total: StrideSums,
@@ -269,6 +279,7 @@ impl FootMetrics {
             grf: Vec::with_capacity((3.0 * stride_s / period_s) as usize + 1),
             stride: StrideSums::default(),
             strides: Vec::with_capacity(strides),
+            scuffs: 0,
             strikes: Vec::with_capacity(strides),
             total: StrideSums::default(),
             deepest_m: 0.0,
@@ -281,6 +292,9 @@ impl FootMetrics {
     /// Closes the stride that began at `start_s` with the heel strike at `t_s`.
     fn close_stride(&mut self, start_s: f64, t_s: f64) {
         let duration = t_s - start_s;
+        if duration < SCUFF_MAX_STRIDE_SHARE * self.stride_s && self.merge_scuff(start_s, t_s) {
+            return;
+        }
         let stance = self.toe_off_s.map_or(duration, |t| t - start_s);
         let bw = self.body_weight_n;
         // The loading peak lies in the first half of stance.
@@ -304,6 +318,34 @@ impl FootMetrics {
             });
             self.total.add(&self.stride);
         }
+    }
+
+    /// Merges the contact at `start_s`, which the heel strike at `t_s` shows was a scuff,
+    /// into the stride it interrupted (the last counted one, which then ends at `t_s`; its
+    /// stance is the one before the scuff) and drops its heel strike. False when there is
+    /// no counted stride to merge into (before the first, the contact is not counted
+    /// either).
+    fn merge_scuff(&mut self, start_s: f64, t_s: f64) -> bool {
+        let Some(last) = self.strides.last_mut() else {
+            return false;
+        };
+        if (last.t_s + last.duration_s - start_s).abs() > 0.5 * self.period_s {
+            return false;
+        }
+        let stance_s = last.stance_fraction * last.duration_s;
+        last.duration_s = t_s - last.t_s;
+        last.stance_fraction = stance_s / last.duration_s;
+        last.slip_m += self.stride.slip_m;
+        self.total.add(&self.stride);
+        self.scuffs += 1;
+        if self
+            .strikes
+            .last()
+            .is_some_and(|s| (s.t_s - start_s).abs() < 0.5 * self.period_s)
+        {
+            self.strikes.pop();
+        }
+        true
     }
 
     fn heel_strike(&mut self, t_s: f64, error_deg: [f64; 2]) {
@@ -410,6 +452,7 @@ impl FootMetrics {
             tracking,
             heel_strikes,
             per_stride: s.clone(),
+            scuffs: self.scuffs,
         }
     }
 
@@ -524,10 +567,11 @@ impl LegRecorder for FootMetrics {
 const JOINT_OF: [usize; 4] = [0, 0, 1, 1];
 
 /// The treadmill's figures that belong to no one foot: the belt's load, the harness and
-/// the pelvis, after the first stride.
+/// the pelvis, after a given time (`size` and `fit-gait`: [`measured_from_s`]; `simulate`:
+/// the first stride).
 #[derive(Debug, Clone)]
 pub struct TrainerGroundMetrics {
-    stride_s: f64,
+    measured_from_s: f64,
     belt_speed_m_s: f64,
     bws_fraction: f64,
     body_weight_n: f64,
@@ -551,9 +595,18 @@ pub struct TrainerGroundMetrics {
 /// How close to a fore-aft stop the pelvis counts as held by it (m).
 const AT_STOP_M: f64 = 1e-3;
 
+/// When the servo-driven strides of `size` and `fit-gait` are measured: after the start-up
+/// ramp (whole strides) and one stride more, so that a start-up transient (the harness's
+/// 480 N as the belt comes up to speed) is not reported as the gait's.
+pub fn measured_from_s(gait: &crate::gait::GaitReference) -> f64 {
+    let stride_s = gait.stride_period_s();
+    (gait.ramp_s() / stride_s).ceil() * stride_s + stride_s
+}
+
 impl TrainerGroundMetrics {
-    /// For `exo`'s treadmill (nothing off one), strides of `stride_s`.
-    pub fn new(exo: &Exoskeleton, stride_s: f64) -> Self {
+    /// For `exo`'s treadmill (nothing off one), measured after `measured_from_s` (the
+    /// start-up ramp and the first stride: [`measured_from_s`]).
+    pub fn new(exo: &Exoskeleton, measured_from_s: f64) -> Self {
         let g = pma_model::GRAVITY_M_S2;
         let (active, speed, bws, body, system) = match exo.ground() {
             Some(ground) => {
@@ -569,7 +622,7 @@ impl TrainerGroundMetrics {
             None => (false, 0.0, 0.0, 1.0, 1.0),
         };
         Self {
-            stride_s,
+            measured_from_s,
             belt_speed_m_s: speed,
             bws_fraction: bws,
             body_weight_n: body,
@@ -647,7 +700,7 @@ impl TrainerGroundMetrics {
     /// One period of `dt` ending at `t_s`: the ground's reaction and the pelvis's position
     /// `[fore-aft, height]` (m).
     pub fn push(&mut self, t_s: f64, dt: f64, g: &GroundReaction, pelvis: [f64; 2]) {
-        if t_s <= self.stride_s {
+        if t_s <= self.measured_from_s {
             return;
         }
         self.time_s += dt;
@@ -673,5 +726,69 @@ impl TrainerGroundMetrics {
             self.harness.1.min(h),
             self.harness.2.max(h),
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::exoskeleton::Mount;
+
+    /// A foot whose contact follows `grf_at(phase)` over `strides` strides of the
+    /// scenario's gait, its report.
+    fn foot_report(strides: usize, grf_at: impl Fn(f64) -> f64) -> FootReport {
+        let loaded = crate::Scenario::load("gait_treadmill").expect("embedded");
+        let exo = crate::sim::build_exo(&loaded, Mount::default()).expect("builds");
+        let gait = loaded.scenario.gait.reference().expect("reference");
+        let period_s = loaded.scenario.period_s;
+        let duration_s = strides as f64 * gait.stride_period_s();
+        let mut m = FootMetrics::new(&exo, &gait, duration_s, period_s).expect("a treadmill");
+        for k in 1..=(duration_s / period_s).round() as usize {
+            let t_s = k as f64 * period_s;
+            let vertical_n = grf_at((t_s / gait.stride_period_s()).fract());
+            m.push(&GroundPeriod {
+                t_s,
+                dt_s: period_s,
+                foot: FootReaction {
+                    vertical_n,
+                    fore_aft_n: 0.0,
+                    penetration_m: 0.0,
+                    slip_m_s: 0.0,
+                    fore_aft_slip_m_s: 0.0,
+                    contacts: usize::from(vertical_n > 0.0),
+                },
+                error_deg: [0.0; 2],
+                pressure_pa: [f64::NAN; 4],
+                ankle_rad: f64::NAN,
+            });
+        }
+        m.report()
+    }
+
+    #[test]
+    fn regression_a_scuff_in_swing_is_no_stride() {
+        // Under gains that let the toes touch the belt at 83 % of the cycle for 15-19 ms,
+        // each scuff was counted as a heel strike: every stride split in two, the
+        // stance reported as 0.455 of the cycle against 0.675 and the loading peak
+        // halved. A stance to 67.5 % of the cycle and a 20 ms touch at 83 %:
+        let stance = |phase: f64| if phase < 0.675 { 600.0 } else { 0.0 };
+        let scuffing = |phase: f64| {
+            if (0.83..0.84).contains(&phase) {
+                50.0
+            } else {
+                stance(phase)
+            }
+        };
+        let [clean, scuffed] = [foot_report(6, stance), foot_report(6, scuffing)];
+        assert_eq!(clean.scuffs, 0);
+        assert_eq!(scuffed.strides, clean.strides, "{scuffed:?}");
+        assert!(scuffed.scuffs >= clean.strides, "{scuffed:?}");
+        let gap = (scuffed.stance_fraction.mean - clean.stance_fraction.mean).abs();
+        assert!(gap < 1e-9, "{gap}");
+        assert!(
+            (clean.stance_fraction.mean - 0.675).abs() < 0.01,
+            "{clean:?}"
+        );
+        assert_eq!(scuffed.peak_grf_bw, clean.peak_grf_bw);
     }
 }

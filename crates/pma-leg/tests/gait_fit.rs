@@ -3,6 +3,7 @@
 //! lets them move with it, and what the joints must supply falls accordingly
 //! (docs/treadmill.md).
 use pma_leg::demand::{stride_demand, Demand};
+use pma_leg::gait_fit::BeltRule;
 use pma_leg::ground::TreadmillSettings;
 use pma_leg::{fit_gait, GaitFitSettings, LoadedScenario, Scenario};
 
@@ -65,6 +66,7 @@ fn the_fit_makes_the_stance_contact_move_at_the_belts_speed() {
     let settings = GaitFitSettings {
         iterations: 3,
         strides: 2,
+        belt: BeltRule::StanceMean,
         ..Default::default()
     };
     let fit = fit_gait(&loaded, &settings, || false).expect("fits");
@@ -120,15 +122,55 @@ fn on_the_shipped_fit_the_stance_feet_move_with_the_belt() {
             "{side}: {f:?}"
         );
     }
-    // The knee within the issue's 1.0 N m/kg; the hip above its 1.2 (docs/treadmill.md
-    // says where it comes from), pinned here so that it cannot grow unnoticed (1.47 / 0.77
-    // here; with the pelvis nearly free it was 1.85 / 0.97).
-    assert!(peak_kg(1) < 0.85, "{}", peak_kg(1));
-    assert!(peak_kg(0) < 1.55, "{}", peak_kg(0));
+    // The issue's bands: at most 1.2 N m/kg at the hip and 1.0 at the knee. Regression
+    // (issue 27): with the belt at the stance contact's mean speed, 1 % faster than the
+    // feet, the belt dragged the patient against the harness (58 N) and the hip's peak
+    // was 1.40 N m/kg (1.80 with the pelvis nearly free).
+    assert!(peak_kg(0) <= 1.2, "{}", peak_kg(0));
+    assert!(peak_kg(1) <= 1.0, "{}", peak_kg(1));
+    // The shipped belt (4 decimals) within 1 N of no mean harness force (8 N per mm/s).
+    assert!(
+        t.harness_fore_aft_n.mean.abs() < 1.0,
+        "{:?}",
+        t.harness_fore_aft_n
+    );
+    // Regression: the harness's figures once began a stride before the measured ones and
+    // reported the start-up's 480 N, as the belt came up to speed, as the gait's (-43..53
+    // N over the measured strides).
+    let h = &t.harness_fore_aft_n;
+    assert!(h.max < 150.0 && h.min > -150.0, "{h:?}");
     // Regression (issue 27): the pelvis, nearly free, rested on its rear stop 62 % of the
     // time, which then held the trainer with a force no output measured; held, it never
     // reaches it.
     assert_eq!(t.pelvis_at_fore_aft_stop, 0.0, "{t:?}");
+}
+
+#[test]
+fn the_belt_search_ends_where_the_harness_carries_no_mean_force() {
+    // The held pelvis's harness force grows with the belt's speed (about 8 N per mm/s);
+    // the secant runs on the fitted hip end within the tolerance, and the belt kept is the
+    // run of least |force|.
+    let loaded = Scenario::load("gait_treadmill").expect("embedded");
+    let settings = GaitFitSettings {
+        iterations: 1,
+        strides: 1,
+        ..Default::default()
+    };
+    let fit = fit_gait(&loaded, &settings, || false).expect("fits");
+    let runs: Vec<(f64, f64)> = fit
+        .belt_steps
+        .iter()
+        .map(|s| (s.belt_speed_m_s, s.harness_fore_aft_mean_n))
+        .collect();
+    eprintln!("belt (m/s), harness mean (N) per run: {runs:.4?}");
+    let first = runs.first().expect("a belt run");
+    let last = runs.last().expect("a belt run");
+    // The hip's rule leaves a drag: the belt runs faster than the feet.
+    assert!(first.1 > 10.0, "{runs:?}");
+    assert!(last.1.abs() < 0.5, "{runs:?}");
+    assert!(last.0 < first.0, "{runs:?}");
+    assert!(runs.len() < 8, "{runs:?}");
+    assert_eq!(fit.belt_speed_m_s, last.0);
 }
 
 #[test]
@@ -146,6 +188,7 @@ fn regression_a_fitted_scenario_refits_to_the_correction_it_holds() {
     let settings = GaitFitSettings {
         iterations: 1,
         strides: 1,
+        belt: BeltRule::StanceMean,
         ..Default::default()
     };
     let [a, b] = [&fitted, &bare].map(|l| fit_gait(l, &settings, || false).expect("fits"));

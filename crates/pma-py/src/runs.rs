@@ -374,11 +374,13 @@ pub fn sweep<'py>(
 ///
 /// `iterations` servo-driven runs after the data's (each the start-up, a stride and
 /// `strides` measured), `gain` of each speed error corrected per run, `body_speed`
-/// `"constant"` or `"normative"`. Returns the dict `fit-gait --json` prints (without its
-/// provenance): `steps`, `best`, `belt_speed_m_s`, `hip_correction` (`cos_deg`,
-/// `sin_deg`). Ctrl-C between runs raises KeyboardInterrupt.
+/// `"constant"` or `"normative"`, `belt` `"no-drag"` (the belt where the harness carries
+/// no mean fore-aft force) or `"stance"` (the stance contact's mean speed). Returns the
+/// dict `fit-gait --json` prints (without its provenance): `steps`, `best`,
+/// `belt_steps`, `belt_speed_m_s`, `hip_correction` (`cos_deg`, `sin_deg`). Ctrl-C
+/// between runs raises KeyboardInterrupt.
 #[pyfunction]
-#[pyo3(signature = (scenario = "gait_treadmill", iterations = 15, gain = 0.8, strides = 3, body_speed = "constant"))]
+#[pyo3(signature = (scenario = "gait_treadmill", iterations = 15, gain = 0.8, strides = 3, body_speed = "constant", belt = "no-drag"))]
 pub fn fit_gait<'py>(
     py: Python<'py>,
     scenario: &str,
@@ -386,8 +388,9 @@ pub fn fit_gait<'py>(
     gain: f64,
     strides: usize,
     body_speed: &str,
+    belt: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    use pma_leg::gait_fit::{BodySpeed, GaitFitSettings};
+    use pma_leg::gait_fit::{BeltRule, BodySpeed, GaitFitSettings};
     let body_speed = match body_speed {
         "constant" => BodySpeed::Constant,
         "normative" => BodySpeed::Normative,
@@ -397,11 +400,21 @@ pub fn fit_gait<'py>(
             )))
         }
     };
+    let belt = match belt {
+        "no-drag" => BeltRule::NoHarnessDrag,
+        "stance" => BeltRule::StanceMean,
+        other => {
+            return Err(crate::PmaError::new_err(format!(
+                "unknown belt `{other}` (expected one of: no-drag, stance)"
+            )))
+        }
+    };
     let settings = GaitFitSettings {
         iterations,
         gain,
         strides,
         body_speed,
+        belt,
     };
     settings
         .validate()

@@ -73,6 +73,9 @@ pub struct TreadmillRow {
     pub stance_fraction: [f64; 2],
     /// Mean slip per stride (m).
     pub slip_per_stride_m: f64,
+    /// Scuffs (the swing foot touching the belt before its heel strike) per stride, the
+    /// feet's mean.
+    pub scuffs_per_stride: f64,
     /// Largest heel-strike deviation of hip and knee (deg).
     pub heel_strike_max_deviation_deg: [f64; 2],
     /// Largest recovery from a heel strike, hip and knee (s; NaN if none recovered).
@@ -115,6 +118,7 @@ impl TreadmillRow {
                 mean(&|r| r.reference_stance_fraction),
             ],
             slip_per_stride_m: mean(&|r| r.slip_per_stride_m.mean),
+            scuffs_per_stride: mean(&|r| r.scuffs as f64 / r.strides.max(1) as f64),
             heel_strike_max_deviation_deg: strikes(|h| h.deviation_deg.max),
             heel_strike_max_recovery_s: strikes(|h| h.recovery_s.max),
             heel_strikes_unrecovered: ["hip", "knee"].map(|j| {

@@ -107,12 +107,14 @@ def fit_gait(
     gain: float = 0.8,
     strides: int = 3,
     body_speed: str = "constant",
+    belt: str = "no-drag",
 ) -> Dict[str, Any]:
     """A treadmill scenario's hip made consistent with its belt (``pma-exo fit-gait --json``).
 
     ``iterations`` servo-driven runs after the data's, ``gain`` of each speed error corrected
-    per run, ``strides`` measured per run, ``body_speed`` ``"constant"`` or ``"normative"``.
-    Keys: ``steps``, ``best``, ``belt_speed_m_s``, ``hip_correction`` (``cos_deg``,
+    per run, ``strides`` measured per run, ``body_speed`` ``"constant"`` or ``"normative"``,
+    ``belt`` ``"no-drag"`` (where the harness carries no mean fore-aft force) or ``"stance"``.
+    Keys: ``steps``, ``best``, ``belt_steps``, ``belt_speed_m_s``, ``hip_correction`` (``cos_deg``,
     ``sin_deg``: the scenario's ``[gait.hip_correction]``). Ctrl-C between runs stops it.
     """
 
