@@ -19,7 +19,7 @@
 //! The stance's mean contact speed is not quite the belt a stance foot agrees with: the
 //! contact point rolls over heel, sole and toe while the elastic contact sticks, and a belt
 //! 1 % faster than the feet shears them back all stance long, a drag the harness then
-//! holds (58 N on `gait_treadmill`, 0.5 N m/kg more at the hip; docs/treadmill.md). By
+//! holds (58 N on `gait_treadmill`, 0.6 N m/kg more at the hip; docs/treadmill.md). By
 //! default ([`BeltRule::NoHarnessDrag`]) the fit then sets the belt, by secant steps on
 //! the fitted stance, where the harness carries no mean fore-aft force: a person walking
 //! steadily exchanges no net fore-aft impulse with the belt over a stride.
