@@ -261,6 +261,36 @@ fn fit_gait_refuses_bad_arguments_before_any_run_in_one_line() {
 }
 
 #[test]
+fn fit_gait_says_when_the_belt_without_drag_is_far_from_the_stance() {
+    // At 0 % support the stance slides: the belt without drag runs far below the stance's
+    // speed, and the fit says so instead of handing out that belt silently.
+    let dir = temp_dir("fit_gait_slides");
+    let path = scenario_with(
+        &dir,
+        "unsupported.toml",
+        &[("bws_fraction = 0.3", "bws_fraction = 0.0")],
+    );
+    let out = pma_exo(&[
+        "fit-gait",
+        path.to_str().unwrap(),
+        "--iterations",
+        "1",
+        "--strides",
+        "1",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("the stance does not move with the belt"),
+        "{err}"
+    );
+    // The shipped scenario's does not warn (its belt is 0.9 % below the stance's).
+    let shipped = pma_exo(&["fit-gait", "--iterations", "1", "--strides", "1"]);
+    let err = String::from_utf8_lossy(&shipped.stderr);
+    assert!(!err.contains("does not move"), "{err}");
+}
+
+#[test]
 fn fit_gait_writes_the_lines_the_scenario_takes() {
     // Its output pasted into a scenario is a scenario that loads, with that belt speed.
     let dir = temp_dir("fit_gait");

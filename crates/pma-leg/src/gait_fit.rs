@@ -141,6 +141,22 @@ pub struct GaitFit {
     pub belt_steps: Vec<GaitFitStep>,
 }
 
+impl GaitFit {
+    /// How far the belt without drag lies from the kept run's stance speed, as a share of
+    /// the latter (negative: slower); `None` without a belt search. More than a few
+    /// percent says the stance does not move with a belt at all: the harness's force then
+    /// comes from feet sliding, not from a belt slightly too fast.
+    pub fn belt_off_stance(&self) -> Option<f64> {
+        let stance = self.steps.get(self.best)?.belt_speed_m_s;
+        (!self.belt_steps.is_empty()).then(|| self.belt_speed_m_s / stance - 1.0)
+    }
+}
+
+/// A belt without drag further than this share from the stance's speed is reported as a
+/// stance that does not walk on the belt (`gait_treadmill`: -0.9 %; the same at 0 %
+/// support, which does not walk: -12.5 %).
+pub const BELT_OFF_STANCE_WARN: f64 = 0.03;
+
 /// Most secant runs of the belt's search.
 const BELT_RUNS: usize = 8;
 /// A mean harness force this small (N) ends the belt's search.
