@@ -569,6 +569,42 @@ pub fn load_id_log(path: &std::path::Path, force: bool) -> Result<pma_studies::i
     Ok(log)
 }
 
+/// `fit-gait --body-speed`: the body's fore-aft speed the stance is fitted to.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum BodySpeedArg {
+    /// The pelvis stands still over the belt.
+    Constant,
+    /// The pelvis swings as the adults' does.
+    Normative,
+}
+
+impl From<BodySpeedArg> for pma_leg::gait_fit::BodySpeed {
+    fn from(a: BodySpeedArg) -> Self {
+        match a {
+            BodySpeedArg::Constant => Self::Constant,
+            BodySpeedArg::Normative => Self::Normative,
+        }
+    }
+}
+
+/// `fit-gait --belt`: how the belt's speed is set on the fitted hip.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum BeltArg {
+    /// Where the harness carries no mean fore-aft force.
+    NoDrag,
+    /// The stance contact's mean speed.
+    Stance,
+}
+
+impl From<BeltArg> for pma_leg::gait_fit::BeltRule {
+    fn from(a: BeltArg) -> Self {
+        match a {
+            BeltArg::NoDrag => Self::NoHarnessDrag,
+            BeltArg::Stance => Self::StanceMean,
+        }
+    }
+}
+
 /// A gait fit's figures as `fit-gait --json` prints them (without the provenance):
 /// `steps`, `best`, `belt_speed_m_s`, `hip_correction` (`cos_deg`, `sin_deg`).
 pub fn fit_figures(fit: &pma_leg::GaitFit) -> serde_json::Map<String, serde_json::Value> {

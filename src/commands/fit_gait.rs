@@ -3,29 +3,11 @@ use crate::output::{self, OutFile, INTERRUPTED};
 use crate::provenance::Provenance;
 use crate::say;
 use anyhow::Result;
+use pma_exo::setup::{BeltArg, BodySpeedArg};
 use pma_leg::gait::{FourierSeries, HARMONICS};
-use pma_leg::gait_fit::{BeltRule, BodySpeed};
 use pma_leg::{fit_gait, GaitFit, GaitFitSettings, GaitFitStep, Scenario};
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
-
-/// The body's speed on the command line.
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum BodySpeedArg {
-    /// The pelvis stands still over the belt.
-    Constant,
-    /// The pelvis swings as the adults' does.
-    Normative,
-}
-
-/// The belt's rule on the command line.
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum BeltArg {
-    /// Where the harness carries no mean fore-aft force.
-    NoDrag,
-    /// The stance contact's mean speed.
-    Stance,
-}
 
 /// `fit-gait`'s arguments.
 #[derive(clap::Args)]
@@ -68,14 +50,8 @@ pub fn run(a: Args) -> Result<i32> {
         iterations: a.iterations,
         gain: a.gain,
         strides: a.strides,
-        body_speed: match a.body_speed {
-            BodySpeedArg::Constant => BodySpeed::Constant,
-            BodySpeedArg::Normative => BodySpeed::Normative,
-        },
-        belt: match a.belt {
-            BeltArg::NoDrag => BeltRule::NoHarnessDrag,
-            BeltArg::Stance => BeltRule::StanceMean,
-        },
+        body_speed: a.body_speed.into(),
+        belt: a.belt.into(),
     };
     settings.validate().map_err(|e| anyhow::anyhow!("--{e}"))?;
     let loaded = Scenario::load(&a.scenario)?;

@@ -109,7 +109,7 @@ pub fn stride_demand(loaded: &LoadedScenario, strides: usize) -> Result<Demand, 
     let gait = sc.gait.reference()?;
     let gaits: Vec<GaitReference> = (0..legs).map(|l| gait.for_leg(l)).collect();
     let stride_s = gait.stride_period_s();
-    let start_s = crate::stance::measured_from_s(&gait);
+    let start_s = gait.measured_from_s();
     let end_s = start_s + strides as f64 * stride_s;
     let periods = (end_s / sc.period_s).round() as usize;
     for p in &mut patients {

@@ -472,6 +472,14 @@ impl GaitReference {
         self.ramp_s
     }
 
+    /// When servo-driven strides are measured (`size`, `fit-gait`): after the start-up ramp
+    /// (whole strides) and one stride more, so that a start-up transient (the harness's
+    /// 480 N as the belt comes up to speed) is not reported as the gait's (s).
+    pub fn measured_from_s(&self) -> f64 {
+        let stride_s = self.stride_period_s();
+        (self.ramp_s / stride_s).ceil() * stride_s + stride_s
+    }
+
     /// How much of the cycle's motion the start-up ramp lets through at `t_s` (0 standing,
     /// 1 after the ramp).
     pub fn ramp_share(&self, t_s: f64) -> f64 {

@@ -536,8 +536,7 @@ impl HipLever {
     /// `dx/d(hip)` of the foot's first sphere at `phase` of `reference` (m/rad; the
     /// spheres of a rigid foot move alike).
     fn at(&self, reference: &GaitReference, phase: f64) -> f64 {
-        let period = reference.stride_period_s();
-        let t = ((reference.ramp_s() / period).ceil() + 1.0 + phase) * period;
+        let t = reference.measured_from_s() + phase * reference.stride_period_s();
         let q = reference.sample(t).angles_rad();
         self.chain.sphere_jacobian(0, q)[0][0]
     }

@@ -567,8 +567,9 @@ impl LegRecorder for FootMetrics {
 const JOINT_OF: [usize; 4] = [0, 0, 1, 1];
 
 /// The treadmill's figures that belong to no one foot: the belt's load, the harness and
-/// the pelvis, after a given time (`size` and `fit-gait`: [`measured_from_s`]; `simulate`:
-/// the first stride).
+/// the pelvis, after a given time (`size` and `fit-gait`:
+/// [`GaitReference::measured_from_s`](crate::gait::GaitReference::measured_from_s);
+/// `simulate`: the first stride).
 #[derive(Debug, Clone)]
 pub struct TrainerGroundMetrics {
     measured_from_s: f64,
@@ -595,17 +596,8 @@ pub struct TrainerGroundMetrics {
 /// How close to a fore-aft stop the pelvis counts as held by it (m).
 const AT_STOP_M: f64 = 1e-3;
 
-/// When the servo-driven strides of `size` and `fit-gait` are measured: after the start-up
-/// ramp (whole strides) and one stride more, so that a start-up transient (the harness's
-/// 480 N as the belt comes up to speed) is not reported as the gait's.
-pub fn measured_from_s(gait: &crate::gait::GaitReference) -> f64 {
-    let stride_s = gait.stride_period_s();
-    (gait.ramp_s() / stride_s).ceil() * stride_s + stride_s
-}
-
 impl TrainerGroundMetrics {
-    /// For `exo`'s treadmill (nothing off one), measured after `measured_from_s` (the
-    /// start-up ramp and the first stride: [`measured_from_s`]).
+    /// For `exo`'s treadmill (nothing off one), measured after `measured_from_s`.
     pub fn new(exo: &Exoskeleton, measured_from_s: f64) -> Self {
         let g = pma_model::GRAVITY_M_S2;
         let (active, speed, bws, body, system) = match exo.ground() {

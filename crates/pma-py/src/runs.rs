@@ -390,25 +390,10 @@ pub fn fit_gait<'py>(
     body_speed: &str,
     belt: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    use pma_leg::gait_fit::{BeltRule, BodySpeed, GaitFitSettings};
-    let body_speed = match body_speed {
-        "constant" => BodySpeed::Constant,
-        "normative" => BodySpeed::Normative,
-        other => {
-            return Err(crate::PmaError::new_err(format!(
-                "unknown body_speed `{other}` (expected one of: constant, normative)"
-            )))
-        }
-    };
-    let belt = match belt {
-        "no-drag" => BeltRule::NoHarnessDrag,
-        "stance" => BeltRule::StanceMean,
-        other => {
-            return Err(crate::PmaError::new_err(format!(
-                "unknown belt `{other}` (expected one of: no-drag, stance)"
-            )))
-        }
-    };
+    use pma_exo::setup::{BeltArg, BodySpeedArg};
+    use pma_leg::gait_fit::GaitFitSettings;
+    let body_speed = choice::<BodySpeedArg>("body_speed", body_speed)?.into();
+    let belt = choice::<BeltArg>("belt", belt)?.into();
     let settings = GaitFitSettings {
         iterations,
         gain,
