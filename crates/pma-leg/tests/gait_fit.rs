@@ -113,10 +113,11 @@ fn on_the_shipped_fit_the_stance_feet_move_with_the_belt() {
     assert!(error < 0.03, "{error}");
     assert!(slip < 0.02, "{slip}");
     for (side, f) in &t.feet {
-        // The left foot's mean peak is 0.98 times the belt's load, just under the 1.0:
-        // walking without support peaks at 1.0-1.2 BW, support lowers the peak.
+        // The band, 1.0-1.25 times the belt's load (walking without support peaks at
+        // 1.0-1.2 BW). It was loosened to 0.95 while the belt dragged the feet (the left
+        // foot's largest peak 0.98); without the drag it is 1.01 (left) and 1.11 (right).
         let ratio = f.peak_grf_bw.max / t.expected_belt_load_bw;
-        assert!((0.95..=1.25).contains(&ratio), "{side}: {ratio}");
+        assert!((1.0..=1.25).contains(&ratio), "{side}: {ratio}");
         assert!(
             (f.stance_fraction.mean - f.reference_stance_fraction).abs() < 0.03,
             "{side}: {f:?}"
