@@ -18,7 +18,8 @@ pub const LEG_PERIOD_S: f64 = 20e-6;
 #[derive(clap::Args)]
 pub struct Args {
     /// An embedded scenario (gait_training, gait_realistic, gait_spastic, gait_spasms,
-    /// gait_resistive, gait_treadmill, gait_treadmill_spastic) or a scenario .toml file.
+    /// gait_resistive, gait_active, gait_treadmill, gait_treadmill_spastic,
+    /// gait_treadmill_unsupported, gait_treadmill_one_leg) or a scenario .toml file.
     #[arg(default_value = "gait_training")]
     scenario: String,
     /// Controller on every muscle (default: APRC-NDO with the scenario's gains).

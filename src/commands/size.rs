@@ -11,8 +11,9 @@ use std::path::PathBuf;
 /// `size`'s arguments.
 #[derive(clap::Args)]
 pub struct Args {
-    /// An embedded scenario (gait_treadmill, gait_treadmill_spastic, or an in-air one) or a
-    /// scenario .toml file: its gait, patient, body-weight support and valve.
+    /// An embedded scenario (gait_treadmill, gait_treadmill_spastic,
+    /// gait_treadmill_unsupported, or an in-air one) or a scenario .toml file: its gait,
+    /// patient, body-weight support and valve.
     #[arg(default_value = "gait_treadmill")]
     scenario: String,
     /// Strides measured (after the start-up ramp and one stride).

@@ -29,7 +29,7 @@ pub const EMBEDDED_GAIT_TRAINING: &str = include_str!("../models/scenarios/gait_
 pub const EMBEDDED_GAIT_REALISTIC: &str = include_str!("../models/scenarios/gait_realistic.toml");
 
 /// Every embedded scenario: name and text (`crates/pma-leg/models/scenarios/<name>.toml`).
-pub const EMBEDDED_SCENARIOS: [(&str, &str); 9] = [
+pub const EMBEDDED_SCENARIOS: [(&str, &str); 10] = [
     ("gait_training", EMBEDDED_GAIT_TRAINING),
     ("gait_realistic", EMBEDDED_GAIT_REALISTIC),
     (
@@ -57,13 +57,17 @@ pub const EMBEDDED_SCENARIOS: [(&str, &str); 9] = [
         include_str!("../models/scenarios/gait_treadmill_spastic.toml"),
     ),
     (
+        "gait_treadmill_unsupported",
+        include_str!("../models/scenarios/gait_treadmill_unsupported.toml"),
+    ),
+    (
         "gait_treadmill_one_leg",
         include_str!("../models/scenarios/gait_treadmill_one_leg.toml"),
     ),
 ];
 
 /// The embedded scenarios' names, for help texts and messages.
-pub const EMBEDDED_SCENARIO_NAMES: &str = "gait_training, gait_realistic, gait_spastic, gait_spasms, gait_resistive, gait_active, gait_treadmill, gait_treadmill_spastic, gait_treadmill_one_leg";
+pub const EMBEDDED_SCENARIO_NAMES: &str = "gait_training, gait_realistic, gait_spastic, gait_spasms, gait_resistive, gait_active, gait_treadmill, gait_treadmill_spastic, gait_treadmill_unsupported, gait_treadmill_one_leg";
 
 fn embedded_text(name: &str) -> Option<&'static str> {
     EMBEDDED_SCENARIOS

@@ -85,25 +85,31 @@ fn the_fit_makes_the_stance_contact_move_at_the_belts_speed() {
     );
 }
 
-#[test]
-fn on_the_shipped_fit_the_stance_feet_move_with_the_belt() {
-    // The shipped scenario's correction (`pma-exo fit-gait gait_treadmill --iterations
-    // 60`, the pelvis held fore-aft): the issue's bands for slip (under 20 mm per stride), loading peak (1.0-1.25
-    // times the belt's mean load) and stance (within 3 % of the cycle of the reference).
-    let loaded = Scenario::load("gait_treadmill").expect("embedded");
+/// The issue's bands every shipped two-leg fit meets, servo-driven as `pma-exo size` runs
+/// it: slip under 20 mm per stride, stance within 3 % of the cycle of the reference's, no
+/// scuff, at most 1.2 N m/kg at the hip and 1.0 at the knee, the belt within 1 N of no
+/// mean harness force (8 N per mm/s; the shipped belt has 4 decimals), and the pelvis off
+/// its stops. Returns each foot's largest loading peak over the belt's mean load.
+fn assert_the_stance_feet_move_with_the_belt(name: &str) -> Vec<f64> {
+    let loaded = Scenario::load(name).expect("embedded");
     let d = stride_demand(&loaded, 3).expect("runs");
-    let (error, slip) = stance_figures(&d);
-    let t = d.treadmill.as_ref().expect("a treadmill");
     let body_mass_kg = loaded
         .scenario
         .treadmill
         .map_or(f64::NAN, |t| t.body_mass_kg);
+    let (error, slip) = stance_figures(&d);
+    let t = d.treadmill.as_ref().expect("a treadmill");
     let peak_kg = |j: usize| {
         let [lo, hi] = d.torque_range_nm(j);
         lo.abs().max(hi.abs()) / body_mass_kg
     };
+    let ratios: Vec<f64> = t
+        .feet
+        .values()
+        .map(|f| f.peak_grf_bw.max / t.expected_belt_load_bw)
+        .collect();
     eprintln!(
-        "fitted hip: contact speed error {error:.4} m/s RMS, slip {:.1} mm per stride, peak demand {:.2} / {:.2} N m/kg, pelvis at its fore-aft stop {:.0} % of the time",
+        "{name}: contact speed error {error:.4} m/s RMS, slip {:.1} mm per stride, peak demand {:.2} / {:.2} N m/kg, loading peak / belt load {ratios:.3?}, pelvis at its fore-aft stop {:.0} % of the time",
         1e3 * slip,
         peak_kg(0),
         peak_kg(1),
@@ -113,23 +119,14 @@ fn on_the_shipped_fit_the_stance_feet_move_with_the_belt() {
     assert!(error < 0.03, "{error}");
     assert!(slip < 0.02, "{slip}");
     for (side, f) in &t.feet {
-        // The issue's band, 1.0-1.25 times the belt's load (walking without support peaks at
-        // 1.0-1.2 BW). It was loosened to 0.95 while the belt dragged the feet (the left
-        // foot's largest peak 0.98); without the drag it is 1.01 (left) and 1.11 (right).
-        let ratio = f.peak_grf_bw.max / t.expected_belt_load_bw;
-        assert!((1.0..=1.25).contains(&ratio), "{side}: {ratio}");
         assert!(
             (f.stance_fraction.mean - f.reference_stance_fraction).abs() < 0.03,
             "{side}: {f:?}"
         );
+        assert_eq!(f.scuffs, 0, "{side}: {f:?}");
     }
-    // The issue's bands: at most 1.2 N m/kg at the hip and 1.0 at the knee. Regression
-    // (issue 27): with the belt at the stance contact's mean speed, 1 % faster than the
-    // feet, the belt dragged the patient against the harness (58 N) and the hip's peak
-    // was 1.40 N m/kg (1.80 with the pelvis nearly free).
     assert!(peak_kg(0) <= 1.2, "{}", peak_kg(0));
     assert!(peak_kg(1) <= 1.0, "{}", peak_kg(1));
-    // The shipped belt (4 decimals) within 1 N of no mean harness force (8 N per mm/s).
     assert!(
         t.harness_fore_aft_n.mean.abs() < 1.0,
         "{:?}",
@@ -144,6 +141,37 @@ fn on_the_shipped_fit_the_stance_feet_move_with_the_belt() {
     // time, which then held the trainer with a force no output measured; held, it never
     // reaches it.
     assert_eq!(t.pelvis_at_fore_aft_stop, 0.0, "{t:?}");
+    ratios
+}
+
+#[test]
+fn on_the_shipped_fit_the_stance_feet_move_with_the_belt() {
+    // The shipped scenario's correction (`pma-exo fit-gait gait_treadmill --iterations
+    // 60`, the pelvis held fore-aft). Regression (issue 27): with the belt at the stance
+    // contact's mean speed, 1 % faster than the feet, the belt dragged the patient against
+    // the harness (58 N) and the hip's peak was 1.40 N m/kg (1.80 with the pelvis nearly
+    // free).
+    let ratios = assert_the_stance_feet_move_with_the_belt("gait_treadmill");
+    // The issue's band, 1.0-1.25 times the belt's load (walking without support peaks at
+    // 1.0-1.2 BW). It was loosened to 0.95 while the belt dragged the feet (the left
+    // foot's largest peak 0.98); without the drag it is 1.01 (left) and 1.11 (right).
+    for r in ratios {
+        assert!((1.0..=1.25).contains(&r), "{r}");
+    }
+}
+
+#[test]
+fn without_support_the_trainer_walks_once_the_foot_lifter_clears_the_swing_toe() {
+    // `gait_treadmill_unsupported`: 0 % support, the foot lifter at +6 deg, refitted
+    // (`pma-exo fit-gait gait_treadmill_unsupported --iterations 60`). The feet sink deeper
+    // than at 30 %, and at gait_treadmill's +5 deg the swing toe scuffed the belt in
+    // terminal swing (three scuffs per foot in four strides; 9.9 / 5.9 N m/kg).
+    let ratios = assert_the_stance_feet_move_with_the_belt("gait_treadmill_unsupported");
+    // Measured 0.988 (left) and 0.984 (right): just under the issue's 1.0-1.25, which this
+    // does not meet (docs/treadmill.md); pinned here so that it cannot fall unnoticed.
+    for r in ratios {
+        assert!((0.98..=1.25).contains(&r), "{r}");
+    }
 }
 
 #[test]
