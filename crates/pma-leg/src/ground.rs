@@ -252,6 +252,16 @@ pub struct TreadmillSettings {
     /// The patient's body mass (kg): everything above the hips (and a missing leg) rides
     /// on the pelvis.
     pub body_mass_kg: f64,
+    /// The support at the start (0-1, at least `bws_fraction`; default: `bws_fraction`):
+    /// the harness carries it until `bws_release_s[0]` and lowers it to `bws_fraction` by
+    /// `bws_release_s[1]` (the gait's quintic), as a therapist lowers the unloading once
+    /// the patient walks. The start-up drags the standing feet on the belt until the
+    /// stance matches it (docs/treadmill.md), which unsupported legs may not survive.
+    #[serde(default)]
+    pub bws_start_fraction: Option<f64>,
+    /// When the start's support is lowered, `[from, to]` (s from the start). Default [0, 0].
+    #[serde(default)]
+    pub bws_release_s: [f64; 2],
     /// Constant force (default) or spring.
     #[serde(default)]
     pub bws: BwsKind,
@@ -328,6 +338,8 @@ impl TreadmillSettings {
             speed_m_per_s: None,
             bws_fraction,
             body_mass_kg,
+            bws_start_fraction: None,
+            bws_release_s: [0.0, 0.0],
             bws: BwsKind::default(),
             bws_spring_n_per_m: 0.0,
             contact: ContactParams::default(),
@@ -386,6 +398,30 @@ impl TreadmillSettings {
             0.0,
             1.0,
             "a fraction of the body weight, 0 to 1",
+        )?;
+        if let Some(start) = self.bws_start_fraction {
+            within(
+                "treadmill.bws_start_fraction",
+                start,
+                self.bws_fraction,
+                1.0,
+                "the start's support, from bws_fraction to 1",
+            )?;
+        }
+        let [from, to] = self.bws_release_s;
+        within(
+            "treadmill.bws_release_s",
+            from,
+            0.0,
+            60.0,
+            "[from, to] with 0 <= from <= to <= 60 s",
+        )?;
+        within(
+            "treadmill.bws_release_s",
+            to,
+            from,
+            60.0,
+            "[from, to] with 0 <= from <= to <= 60 s",
         )?;
         within(
             "treadmill.body_mass_kg",
@@ -1037,10 +1073,28 @@ impl Ground {
         }
     }
 
+    /// The share of the body weight the harness carries now: `bws_fraction`, or more
+    /// while the start's support is lowered.
+    pub fn support_fraction_now(&self) -> f64 {
+        let s = &self.setup.settings;
+        let Some(start) = s.bws_start_fraction else {
+            return s.bws_fraction;
+        };
+        let [from, to] = s.bws_release_s;
+        let released = if self.clock_s >= to {
+            1.0
+        } else if self.clock_s <= from {
+            0.0
+        } else {
+            pma_control::quintic_blend((self.clock_s - from) / (to - from), to - from).0
+        };
+        start + (s.bws_fraction - start) * released
+    }
+
     /// The harness's upward force (N) with the pelvis at height `z_m`.
     pub fn support_force_n(&self, z_m: f64) -> f64 {
         let weight =
-            self.setup.settings.bws_fraction * self.setup.total_mass_kg * pma_model::GRAVITY_M_S2;
+            self.support_fraction_now() * self.setup.total_mass_kg * pma_model::GRAVITY_M_S2;
         match self.setup.settings.bws {
             BwsKind::ConstantForce => weight,
             BwsKind::Spring => (weight
@@ -1255,6 +1309,27 @@ mod tests {
                     ..ok
                 },
                 "self_paced_gain_per_s",
+            ),
+            (
+                TreadmillSettings {
+                    bws_start_fraction: Some(0.2),
+                    ..ok
+                },
+                "bws_start_fraction",
+            ),
+            (
+                TreadmillSettings {
+                    bws_release_s: [3.0, 1.0],
+                    ..ok
+                },
+                "bws_release_s",
+            ),
+            (
+                TreadmillSettings {
+                    bws_release_s: [-1.0, 1.0],
+                    ..ok
+                },
+                "bws_release_s",
             ),
         ] {
             let e = bad.validate().unwrap_err().to_string();

@@ -153,6 +153,48 @@ fn standing_on_both_feet_the_belt_carries_the_unsupported_weight_half_each() {
 }
 
 #[test]
+fn the_starts_support_is_lowered_smoothly_to_the_scenarios() {
+    // 60 % from the start, lowered to 30 % over 0.5..1.5 s by the gait's quintic; standing
+    // on a stopped belt, the feet then carry the 30 % case's weight as without the start.
+    let t = TreadmillSettings {
+        bws_start_fraction: Some(0.6),
+        bws_release_s: [0.5, 1.5],
+        ..settings(2, 0.0, 0.3)
+    };
+    t.validate().unwrap();
+    let mut e = stand_up(&t, 1);
+    let mut seen = Vec::new();
+    for k in 1..=3000 {
+        e.step(|e, _| hold(e, STANDING));
+        if k % 250 == 0 {
+            let g = e.ground().unwrap();
+            seen.push((g.clock_s(), g.support_fraction_now()));
+        }
+    }
+    eprintln!("(t, support): {seen:.4?}");
+    for (t_s, f) in &seen {
+        let expected = match *t_s {
+            t if t <= 0.5 + 1e-6 => 0.6,
+            t if t >= 1.5 - 1e-6 => 0.3,
+            // Half-way the quintic is half-way; elsewhere between the two, falling.
+            t if (t - 1.0).abs() < 1e-6 => 0.45,
+            _ => f64::NAN,
+        };
+        if expected.is_nan() {
+            assert!(*f < 0.6 && *f > 0.3, "{t_s}: {f}");
+        } else {
+            // (the clock sums rapier's f32 steps: 24 ns off at 0.5 s)
+            assert!((f - expected).abs() < 1e-6, "{t_s}: {f} vs {expected}");
+        }
+    }
+    assert!(seen.windows(2).all(|w| w[1].1 <= w[0].1), "{seen:?}");
+    let g = e.ground().unwrap();
+    let load = e.ground_reaction().unwrap().belt_load_n();
+    let expected = g.unsupported_weight_n();
+    assert!((load / expected - 1.0).abs() < 1e-3, "{load} vs {expected}");
+}
+
+#[test]
 fn the_orthosis_holds_a_hanging_foot_at_its_rest_less_the_feet_weight() {
     // The harness carrying the whole weight and the pelvis lifted off the belt, the legs
     // straight and vertical: each foot hangs on its orthosis alone. Statics: k (rest -
