@@ -29,13 +29,25 @@ fn temp_dir(name: &str) -> std::path::PathBuf {
 }
 
 const SCENARIO: &str = include_str!("../crates/pma-leg/models/scenarios/gait_treadmill.toml");
+const UNSUPPORTED: &str =
+    include_str!("../crates/pma-leg/models/scenarios/gait_treadmill_unsupported.toml");
 
-/// `gait_treadmill` in `dir` as `name`, with each `(from, to)` replaced once (every `from`
-/// must be in the file, so a renamed field fails here rather than testing nothing).
+/// `gait_treadmill` in `dir` as `name`, with each `(from, to)` replaced once.
 fn scenario_with(dir: &std::path::Path, name: &str, edits: &[(&str, &str)]) -> std::path::PathBuf {
-    let mut text = SCENARIO.to_owned();
+    edited(SCENARIO, dir, name, edits)
+}
+
+/// `base` in `dir` as `name`, with each `(from, to)` replaced once (every `from` must be in
+/// the file, so a renamed field fails here rather than testing nothing).
+fn edited(
+    base: &str,
+    dir: &std::path::Path,
+    name: &str,
+    edits: &[(&str, &str)],
+) -> std::path::PathBuf {
+    let mut text = base.to_owned();
     for (from, to) in edits {
-        assert!(text.contains(from), "{from} not in gait_treadmill.toml");
+        assert!(text.contains(from), "{from} not in the scenario");
         text = text.replacen(from, to, 1);
     }
     let path = dir.join(name);
@@ -414,12 +426,7 @@ fn the_controllers_walk_both_legs_finite_and_within_their_limits() {
         ]);
         assert!(v["finite"].as_bool().unwrap(), "{c}");
         let (rms, over) = worst_rms_and_force(&v);
-        let beyond = v["safety"]["joints"]
-            .as_object()
-            .unwrap()
-            .values()
-            .map(|j| j["max_beyond_deg"].as_f64().unwrap())
-            .fold(0.0, f64::max);
+        let beyond = worst(&v["safety"]["joints"], "max_beyond_deg");
         eprintln!("{c}: worst RMS {rms:.2} deg, peak force / rating {over:.2}, beyond the URDF limits {beyond:.2} deg");
         assert!(beyond < 1.0, "{c}: {beyond} deg beyond a limit");
         assert!(over <= 1.0, "{c}: {over} of the rating");
@@ -429,16 +436,18 @@ fn the_controllers_walk_both_legs_finite_and_within_their_limits() {
     }
 }
 
+/// The largest `key` over the entries of the JSON object `o` (joints or muscles).
+fn worst(o: &serde_json::Value, key: &str) -> f64 {
+    o.as_object()
+        .unwrap()
+        .values()
+        .map(|m| m[key].as_f64().unwrap())
+        .fold(0.0, f64::max)
+}
+
 /// The worst joint's RMS error (deg) and the worst muscle's peak force over its rating of
 /// `simulate SCENARIO --controller C --duration S --json`.
 fn worst_rms_and_force(v: &serde_json::Value) -> (f64, f64) {
-    let worst = |o: &serde_json::Value, key: &str| {
-        o.as_object()
-            .unwrap()
-            .values()
-            .map(|m| m[key].as_f64().unwrap())
-            .fold(0.0, f64::max)
-    };
     (
         worst(&v["joints"], "rms_deg"),
         worst(&v["safety"]["muscles"], "peak_over_rated"),
@@ -476,11 +485,12 @@ fn regression_unsupported_knees_buckled_in_the_start_up() {
     // reached 6 bar at 0.7 s and both legs sank into a crouch (knees 48-53 deg RMS behind
     // under every controller). The same scenario without the start's support still does.
     let dir = temp_dir("unsupported-start");
-    let text = include_str!("../crates/pma-leg/models/scenarios/gait_treadmill_unsupported.toml");
-    let from = "bws_start_fraction = 0.3\n";
-    assert!(text.contains(from));
-    let path = dir.join("unsupported-start.toml");
-    std::fs::write(&path, text.replacen(from, "", 1)).unwrap();
+    let path = edited(
+        UNSUPPORTED,
+        &dir,
+        "unsupported-start.toml",
+        &[("bws_start_fraction = 0.3\n", "")],
+    );
     let v = json_of(&[
         "simulate",
         path.to_str().unwrap(),

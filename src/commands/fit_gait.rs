@@ -13,7 +13,8 @@ use std::sync::atomic::Ordering;
 #[derive(clap::Args)]
 pub struct Args {
     /// An embedded treadmill scenario (gait_treadmill, gait_treadmill_spastic,
-    /// gait_treadmill_unsupported, gait_treadmill_one_leg) or a scenario .toml file with a [treadmill].
+    /// gait_treadmill_unsupported, gait_treadmill_one_leg) or a scenario .toml file with a
+    /// [treadmill].
     #[arg(default_value = "gait_treadmill")]
     scenario: String,
     /// Servo-driven runs after the first (each about 1 s here).
