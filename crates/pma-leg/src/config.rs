@@ -1,6 +1,6 @@
 //! Scenario and muscle-geometry files (TOML, `deny_unknown_fields`, units in the names).
 use crate::error::{invalid, LegError};
-use crate::gait::{FourierSeries, GaitData, GaitReference, GaitSpeed};
+use crate::gait::{FourierSeries, GaitData, GaitReference, GaitSpeed, StartUp};
 use crate::ground::TreadmillSettings;
 use crate::patient::PatientSettings;
 use pma_control::AprcGains;
@@ -239,6 +239,10 @@ pub struct GaitSettings {
     pub stride_period_s: f64,
     /// Smooth start from standing (s).
     pub ramp_s: f64,
+    /// How the legs leave standing over `ramp_s`: `standing` (default; straight legs, the
+    /// motion grown) or `in_step` (the gait's posture, its cadence grown with the belt).
+    #[serde(default)]
+    pub start_up: StartUp,
     /// Added to the hip's curve (deg over the cycle, a Fourier series like the data's):
     /// the stance made consistent with a trainer's belt, as `pma-exo fit-gait` finds it
     /// for this scenario's legs, feet and belt (absent: the data's hip as measured).
@@ -289,6 +293,7 @@ impl GaitSettings {
             }
         }
         .and_then(|g| self.corrected(g))
+        .and_then(|g| g.with_start_up(self.start_up))
     }
 
     /// `g` with the hip correction added, once it is checked.

@@ -206,7 +206,7 @@ impl LegControllers {
         let Some(load) = &self.stance_load else {
             return [0.0; 2];
         };
-        let share = if self.hold.is_some() || t_s < self.gait.ramp_s() {
+        let share = if self.hold.is_some() || self.gait.standing(t_s) {
             0.5
         } else {
             load.share(self.gait.phase(t_s))

@@ -8,7 +8,7 @@
 //! the air; [`Mount`]) or slides on a treadmill's harness ([`crate::ground`]).
 use crate::config::JointSettings;
 use crate::error::{one_line, LegError};
-use crate::gait::GaitReference;
+use crate::gait::{GaitReference, StartUp};
 use crate::ground::{
     AnkleSettings, FootSetup, FootSphere, Ground, GroundReaction, GroundSetup, OtherLeg,
     SagittalChain, TreadmillSettings,
@@ -1061,6 +1061,29 @@ impl Exoskeleton {
                 mb.generalized_velocity_mut()[dofs[k]] = velocities[k] as Real;
             }
         });
+    }
+
+    /// Puts every leg where an in-step `gait` (the first leg's reference) starts, at rest:
+    /// the gait's double-support posture, each turning ankle at the reference's angle
+    /// within its stops. A standing start leaves the legs straight, as built.
+    pub fn take_start_pose(&mut self, gait: &GaitReference) {
+        if gait.start_up() == StartUp::Standing {
+            return;
+        }
+        for leg in 0..self.legs.len() {
+            let start = gait.for_leg(leg).sample(0.0);
+            self.set_state(leg, [start.hip.angle_rad, start.knee.angle_rad], [0.0; 2]);
+            let Some(a) = self.legs[leg].ankle else {
+                continue;
+            };
+            let [lo, hi] = self.read_limits(a);
+            let to = start.ankle.angle_rad.clamp(lo, hi);
+            let from = self.coordinate(a);
+            self.edit_multibody(|mb, disp| {
+                disp[a.dof] = (to - from) as Real;
+                mb.generalized_velocity_mut()[a.dof] = 0.0;
+            });
+        }
     }
 
     /// Moves the multibody by the displacements `edit` writes (one per DOF; it may also set

@@ -9,6 +9,7 @@
 //! `tools/fit_adult_gait.py`; the treadmill's), the latter with the mean joint moments and
 //! ground reaction forces to compare a run with ([`AdultNorms`]).
 
+use crate::error::invalid;
 use crate::LegError;
 use pma_model::error::{non_negative, positive};
 use serde::Deserialize;
@@ -319,6 +320,29 @@ struct FourierFile {
     veryfast: JointCurves,
 }
 
+/// How a reference leaves standing over its start-up ramp.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StartUp {
+    /// The legs stand straight (all angles 0) and the cycle's motion grows from nothing
+    /// with a quintic over the ramp, at the gait's cadence from the first instant.
+    #[default]
+    Standing,
+    /// The legs start in the gait's own posture in double support and the cadence grows
+    /// from 0 with the same quintic as the belt's speed, so that a stance foot moves with
+    /// the belt from the start. Needs a ramp of whole strides (the start is then double
+    /// support: phase 0 for one leg and 0.5 for the other).
+    InStep,
+}
+
+/// How the cycles run in time: at the stride period, or at a cadence growing with an
+/// in-step start (cycles per second and its rate).
+#[derive(Debug, Clone, Copy)]
+enum Cadence {
+    Steady { period: f64 },
+    Growing { per_s: f64, per_s2: f64 },
+}
+
 /// A joint angle with its analytic derivatives.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct JointSample {
@@ -354,8 +378,10 @@ impl GaitSample {
 }
 
 /// Hip and knee flexion over time: the normative cycle of a speed class, stretched to
-/// `stride_period_s`, multiplied by a quintic ramp `s(t)` from standing (all angles 0) over
-/// `ramp_s`, so that angle, velocity and acceleration all start at zero.
+/// `stride_period_s`, started over `ramp_s` by its [`StartUp`]: by default multiplied by a
+/// quintic ramp `s(t)` from standing (all angles 0), so that angle, velocity and
+/// acceleration all start at zero; or from the gait's own posture with its cadence grown
+/// by the quintic.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GaitReference {
     hip: FourierSeries,
@@ -367,6 +393,7 @@ pub struct GaitReference {
     toe_off: f64,
     stride_period_s: f64,
     ramp_s: f64,
+    start_up: StartUp,
     /// Where in the cycle this leg is at `t = 0` (0, or 0.5 for the other leg).
     phase_offset: f64,
 }
@@ -408,6 +435,7 @@ impl GaitReference {
             toe_off: curves.toe_off,
             stride_period_s,
             ramp_s,
+            start_up: StartUp::Standing,
             phase_offset: 0.0,
         })
     }
@@ -426,6 +454,7 @@ impl GaitReference {
             toe_off: c.toe_off,
             stride_period_s,
             ramp_s,
+            start_up: StartUp::Standing,
             phase_offset: 0.0,
         })
     }
@@ -437,6 +466,29 @@ impl GaitReference {
             hip: self.hip.plus(correction),
             ..*self
         }
+    }
+
+    /// The same reference started by `start_up`. An in-step start needs a ramp of whole
+    /// strides (1e-6 s apart at most), so that it starts in double support.
+    pub fn with_start_up(&self, start_up: StartUp) -> Result<Self, LegError> {
+        if start_up == StartUp::InStep {
+            let strides = self.ramp_s / self.stride_period_s;
+            let whole = strides.round() >= 1.0
+                && ((strides - strides.round()) * self.stride_period_s).abs() <= 1e-6;
+            if !whole {
+                return Err(invalid(
+                    "gait.ramp_s",
+                    self.ramp_s,
+                    "must be a whole number (at least 1) of gait.stride_period_s with gait.start_up = \"in_step\" (it starts in double support)",
+                ));
+            }
+        }
+        Ok(Self { start_up, ..*self })
+    }
+
+    /// How the reference leaves standing.
+    pub fn start_up(&self) -> StartUp {
+        self.start_up
     }
 
     /// The hip's series (deg over the cycle, before the time scaling and the ramp).
@@ -458,13 +510,40 @@ impl GaitReference {
 
     /// Phase of the cycle at `t_s` (0-1, 0 at each initial contact of this leg).
     pub fn phase(&self, t_s: f64) -> f64 {
-        (t_s / self.stride_period_s + self.phase_offset).rem_euclid(1.0)
+        self.cycles(t_s).0.rem_euclid(1.0)
     }
 
-    /// Whether the reference's foot is in stance at `t_s` (after the start-up ramp: while
-    /// it lasts the leg stands).
+    /// Cycles walked at `t_s` (from this leg's phase offset) and how they run in time. An
+    /// in-step start's cadence grows with the ramp's quintic `r(t)`: the cycles are
+    /// `(integral of r + ramp / 2) / period`, which is `t / period` from the ramp's end on
+    /// (the quintic's integral over its ramp is half of it), so that every stride after
+    /// the start-up falls where a standing start's does.
+    fn cycles(&self, t_s: f64) -> (f64, Cadence) {
+        let period = self.stride_period_s;
+        if self.start_up == StartUp::Standing || t_s >= self.ramp_s {
+            return (t_s / period + self.phase_offset, Cadence::Steady { period });
+        }
+        let u = (t_s / self.ramp_s).max(0.0);
+        let walked_s = self.ramp_s * u.powi(4) * (2.5 - 3.0 * u + u * u);
+        let (rate, d_rate, _) = pma_control::quintic_blend(u, self.ramp_s);
+        (
+            (walked_s + 0.5 * self.ramp_s) / period + self.phase_offset,
+            Cadence::Growing {
+                per_s: rate / period,
+                per_s2: d_rate / period,
+            },
+        )
+    }
+
+    /// Whether the legs stand still at `t_s` (a standing start-up, while it lasts).
+    pub fn standing(&self, t_s: f64) -> bool {
+        self.start_up == StartUp::Standing && t_s < self.ramp_s
+    }
+
+    /// Whether the reference's foot is in stance at `t_s` (during a standing start-up the
+    /// leg stands).
     pub fn in_stance(&self, t_s: f64) -> bool {
-        t_s < self.ramp_s || self.phase(t_s) < self.toe_off
+        self.standing(t_s) || self.phase(t_s) < self.toe_off
     }
 
     /// Start-up ramp (s).
@@ -511,9 +590,10 @@ impl GaitReference {
         self.stride_period_s
     }
 
-    /// Quintic smoothstep and its first two time derivatives.
+    /// Quintic smoothstep of the motion's amplitude and its first two time derivatives
+    /// (1 throughout an in-step start, which grows the cadence instead).
     fn ramp(&self, t: f64) -> (f64, f64, f64) {
-        if self.ramp_s <= 0.0 || t >= self.ramp_s {
+        if self.start_up == StartUp::InStep || self.ramp_s <= 0.0 || t >= self.ramp_s {
             return (1.0, 0.0, 0.0);
         }
         if t <= 0.0 {
@@ -523,15 +603,19 @@ impl GaitReference {
     }
 
     fn joint(
-        &self,
         series: &FourierSeries,
         harmonics: &[(f64, f64); HARMONICS],
+        cadence: Cadence,
         ramp: (f64, f64, f64),
     ) -> JointSample {
-        let period = self.stride_period_s;
         let (y, dy, ddy) = series.eval(harmonics);
-        // Chain rule for the time scaling, then the product rule for the ramp.
-        let (g, dg, ddg) = (y, dy / period, ddy / (period * period));
+        // Chain rule for the cycles' time course, then the product rule for the ramp.
+        let (g, dg, ddg) = match cadence {
+            Cadence::Steady { period } => (y, dy / period, ddy / (period * period)),
+            Cadence::Growing { per_s, per_s2 } => {
+                (y, dy * per_s, ddy * per_s * per_s + dy * per_s2)
+            }
+        };
         let (s, ds, dds) = ramp;
         let deg = std::f64::consts::PI / 180.0;
         JointSample {
@@ -544,14 +628,15 @@ impl GaitReference {
     /// References at time `t_s` (before 0: standing).
     pub fn sample(&self, t_s: f64) -> GaitSample {
         let ramp = self.ramp(t_s);
+        let (cycles, cadence) = self.cycles(t_s);
         // Both joints at the same phase: one set of sines for the two.
-        let harmonics = FourierSeries::harmonics(t_s / self.stride_period_s + self.phase_offset);
+        let harmonics = FourierSeries::harmonics(cycles);
         GaitSample {
-            hip: self.joint(&self.hip, &harmonics, ramp),
-            knee: self.joint(&self.knee, &harmonics, ramp),
-            ankle: self
-                .ankle
-                .map_or_else(JointSample::default, |a| self.joint(&a, &harmonics, ramp)),
+            hip: Self::joint(&self.hip, &harmonics, cadence, ramp),
+            knee: Self::joint(&self.knee, &harmonics, cadence, ramp),
+            ankle: self.ankle.map_or_else(JointSample::default, |a| {
+                Self::joint(&a, &harmonics, cadence, ramp)
+            }),
         }
     }
 }
@@ -595,9 +680,9 @@ mod tests {
         }
     }
 
-    #[test]
-    fn derivatives_match_central_differences_through_the_ramp_and_after() {
-        let g = GaitReference::normative(GaitSpeed::Slow, 1.6, 2.0).unwrap();
+    /// `g`'s velocities and accelerations against central differences of its samples,
+    /// through the start-up ramp and after it.
+    fn assert_derivatives_match_central_differences(g: &GaitReference) {
         let h = 1e-5;
         let mut t = 0.013;
         while t < 8.0 {
@@ -605,18 +690,73 @@ mod tests {
             for (ja, jb, jc) in [(a.hip, b.hip, c.hip), (a.knee, b.knee, c.knee)] {
                 let v = (jc.angle_rad - ja.angle_rad) / (2.0 * h);
                 let acc = (jc.velocity_rad_s - ja.velocity_rad_s) / (2.0 * h);
-                assert!(
-                    (v - jb.velocity_rad_s).abs() < 1e-6,
-                    "t={t}: {v} vs {}",
-                    jb.velocity_rad_s
-                );
+                assert!((v - jb.velocity_rad_s).abs() < 1e-6, "t={t}: {v} vs {jb:?}");
                 assert!(
                     (acc - jb.acceleration_rad_s2).abs() < 1e-4,
-                    "t={t}: {acc} vs {}",
-                    jb.acceleration_rad_s2
+                    "t={t}: {acc} vs {jb:?}"
                 );
             }
             t += 0.097;
+        }
+    }
+
+    #[test]
+    fn derivatives_match_central_differences_through_the_ramp_and_after() {
+        assert_derivatives_match_central_differences(
+            &GaitReference::normative(GaitSpeed::Slow, 1.6, 2.0).unwrap(),
+        );
+    }
+
+    fn in_step(ramp_s: f64) -> GaitReference {
+        GaitReference::adult(0.5, 1.7, ramp_s)
+            .unwrap()
+            .with_start_up(StartUp::InStep)
+            .unwrap()
+    }
+
+    #[test]
+    fn an_in_step_start_has_the_derivatives_of_its_samples() {
+        assert_derivatives_match_central_differences(&in_step(3.4));
+    }
+
+    #[test]
+    fn an_in_step_start_stands_in_the_gaits_posture_and_joins_the_standing_starts_cycle() {
+        for (ramp_s, start_phase) in [(1.7, 0.5), (3.4, 0.0)] {
+            let g = in_step(ramp_s);
+            let standing = GaitReference::adult(0.5, 1.7, ramp_s).unwrap();
+            // At rest in the gait's posture, at a double-support phase of both legs.
+            let s0 = g.sample(0.0);
+            let posture = standing.sample(ramp_s + start_phase * 1.7);
+            for (j, p) in [(s0.hip, posture.hip), (s0.knee, posture.knee)] {
+                assert!((j.angle_rad - p.angle_rad).abs() < 1e-12, "{j:?} vs {p:?}");
+                assert_eq!((j.velocity_rad_s, j.acceleration_rad_s2), (0.0, 0.0));
+            }
+            assert!(g.in_stance(0.0) && g.for_leg(1).in_stance(0.0), "{ramp_s}");
+            assert!(!g.standing(0.0) && standing.standing(0.0));
+            // From the ramp's end on, the same cycle at the same time as a standing start,
+            // to the last bit.
+            for k in 0..40 {
+                let t = ramp_s + 0.05 * k as f64;
+                assert_eq!(g.sample(t), standing.sample(t), "{t}");
+                assert_eq!(g.phase(t), standing.phase(t), "{t}");
+            }
+            // The cadence grows monotonically: the phase never runs backwards.
+            let walked: Vec<f64> = (0..=100)
+                .map(|k| g.cycles(ramp_s * k as f64 / 100.0).0)
+                .collect();
+            assert!(walked.windows(2).all(|w| w[1] >= w[0]), "{walked:?}");
+        }
+    }
+
+    #[test]
+    fn an_in_step_start_needs_a_ramp_of_whole_strides() {
+        for ramp_s in [0.0, 1.0, 2.55] {
+            let e = GaitReference::adult(0.5, 1.7, ramp_s)
+                .unwrap()
+                .with_start_up(StartUp::InStep)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("gait.ramp_s") && !e.contains('\n'), "{e}");
         }
     }
 

@@ -304,6 +304,28 @@ pub struct TreadmillSettings {
     pub self_paced_gain_per_s: f64,
 }
 
+impl TreadmillSettings {
+    /// A release window without a start's support, or a start's support without a
+    /// window, would be ignored at run time: both are refused.
+    fn validate_release_pairing(&self) -> Result<(), LegError> {
+        let [_, to] = self.bws_release_s;
+        let has_window = to > 0.0;
+        match self.bws_start_fraction {
+            None if has_window => Err(invalid(
+                "treadmill.bws_release_s",
+                to,
+                "needs treadmill.bws_start_fraction (the support it lowers); without one, leave bws_release_s out",
+            )),
+            Some(start) if !has_window && start != self.bws_fraction => Err(invalid(
+                "treadmill.bws_start_fraction",
+                start,
+                "needs treadmill.bws_release_s = [from, to] with to > 0 s (when the start's support is lowered)",
+            )),
+            _ => Ok(()),
+        }
+    }
+}
+
 /// Low-pass of the pelvis position a self-paced belt follows (s): a stride or so, so that
 /// the belt does not follow the body's swing within a stride.
 pub const SELF_PACED_FILTER_S: f64 = 1.0;
@@ -423,6 +445,7 @@ impl TreadmillSettings {
             60.0,
             "[from, to] with 0 <= from <= to <= 60 s",
         )?;
+        self.validate_release_pairing()?;
         within(
             "treadmill.body_mass_kg",
             self.body_mass_kg,
@@ -1335,5 +1358,39 @@ mod tests {
             let e = bad.validate().unwrap_err().to_string();
             assert!(e.contains(field) && !e.contains('\n'), "{e}");
         }
+    }
+
+    #[test]
+    fn regression_a_release_window_without_a_start_support_was_ignored() {
+        let base = TreadmillSettings::new(0.0, 75.0);
+        let window_alone = TreadmillSettings {
+            bws_release_s: [1.0, 2.0],
+            ..base
+        };
+        let e = window_alone.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("treadmill.bws_release_s") && e.contains("bws_start_fraction"),
+            "{e}"
+        );
+        let start_alone = TreadmillSettings {
+            bws_start_fraction: Some(0.3),
+            ..base
+        };
+        let e = start_alone.validate().unwrap_err().to_string();
+        assert!(e.contains("treadmill.bws_start_fraction"), "{e}");
+        // A start equal to the walking support changes nothing and needs no window.
+        TreadmillSettings {
+            bws_start_fraction: Some(0.0),
+            ..base
+        }
+        .validate()
+        .unwrap();
+        TreadmillSettings {
+            bws_start_fraction: Some(0.3),
+            bws_release_s: [1.0, 2.0],
+            ..base
+        }
+        .validate()
+        .unwrap();
     }
 }

@@ -499,9 +499,11 @@ impl LegSim {
         let limits = supervisor_limits(&sc, &exo);
         let mut plant = LegPlant::new(exo, muscles, &sc)?;
         plant.set_patients(patients);
+        let gait = sc.gait.reference()?;
         for leg in 0..legs {
             let resting = resting_pressures(plant.leg_muscles(leg), sc.control.cocontraction_pa);
-            plant.set_state(leg, [0.0, 0.0], [0.0, 0.0]);
+            let start = gait.for_leg(leg).sample(0.0);
+            plant.set_state(leg, [start.hip.angle_rad, start.knee.angle_rad], [0.0; 2]);
             plant.set_pressures(leg, resting)?;
         }
         Ok(Self {
@@ -881,14 +883,16 @@ pub(crate) fn build_exo(loaded: &LoadedScenario, mount: Mount) -> Result<Exoskel
     let sc = &loaded.scenario;
     let joints = [sc.joints.hip, sc.joints.knee];
     let Some(treadmill) = &sc.treadmill else {
-        return Exoskeleton::mounted(
+        let mut exo = Exoskeleton::mounted(
             &loaded.urdf_text,
             &loaded.urdf_source,
             joints,
             sc.period_s,
             sc.physics_substeps,
             mount,
-        );
+        )?;
+        exo.take_start_pose(&sc.gait.reference()?);
+        return Ok(exo);
     };
     if mount != Mount::default() {
         return Err(LegError::Parse {
@@ -912,6 +916,7 @@ pub(crate) fn build_exo(loaded: &LoadedScenario, mount: Mount) -> Result<Exoskel
     if treadmill.other_leg() == Contralateral::Reference {
         exo.add_other_leg(gait);
     }
+    exo.take_start_pose(&gait);
     exo.rest_on_belt();
     Ok(exo)
 }

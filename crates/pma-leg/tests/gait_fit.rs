@@ -3,14 +3,17 @@
 //! lets them move with it, and what the joints must supply falls accordingly
 //! (docs/treadmill.md).
 use pma_leg::demand::{stride_demand, Demand};
+use pma_leg::gait::StartUp;
 use pma_leg::gait_fit::BeltRule;
 use pma_leg::ground::TreadmillSettings;
 use pma_leg::{fit_gait, GaitFitSettings, LoadedScenario, Scenario};
 
-/// `gait_treadmill` with the pelvis nearly free fore-aft (the default hold), as the
-/// trainer ran when the rigid replay's drag was found; the shipped one holds it stiffly.
+/// `gait_treadmill` with the pelvis nearly free fore-aft (the default hold) and the
+/// standing start, as the trainer ran when the rigid replay's drag was found; the shipped
+/// one holds the pelvis stiffly and starts in step.
 fn with_the_pelvis_nearly_free() -> LoadedScenario {
     let mut loaded = Scenario::load("gait_treadmill").expect("embedded");
+    loaded.scenario.gait.start_up = StartUp::Standing;
     if let Some(t) = &mut loaded.scenario.treadmill {
         let free = TreadmillSettings::new(t.bws_fraction, t.body_mass_kg);
         t.pelvis_fore_aft_n_per_m = free.pelvis_fore_aft_n_per_m;
