@@ -489,13 +489,10 @@ fn without_support_aprc_ndo_pid_psmc_and_sta_walk_from_an_in_step_start() {
 /// The largest fore-aft ground reaction of either foot (N) over `from_s..to_s` of a
 /// `simulate --csv` file.
 fn peak_fore_aft_n(csv_path: &std::path::Path, from_s: f64, to_s: f64) -> f64 {
-    let text = std::fs::read_to_string(csv_path).unwrap();
-    let body: String = text
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .map(|l| format!("{l}\n"))
-        .collect();
-    let mut r = csv::Reader::from_reader(body.as_bytes());
+    let mut r = csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .from_path(csv_path)
+        .expect("csv");
     let head = r.headers().unwrap().clone();
     let col = |name: &str| head.iter().position(|h| h == name).unwrap();
     let (t, feet) = (
