@@ -495,6 +495,8 @@ pub struct SizeRun {
     pub sizing: pma_leg::sizing::Sizing,
     /// The demand against the adults' moments (empty off the adults' data).
     pub norms: Vec<pma_leg::demand::NormComparison>,
+    /// The adults' loading response beside the feet's (a treadmill on the adults' data).
+    pub norm_loading: Option<pma_leg::demand::NormLoading>,
 }
 
 impl SizeRun {
@@ -505,10 +507,12 @@ impl SizeRun {
         let sizing =
             pma_leg::sizing::size_joints(&demand, p_max, args.max_length_m, args.force_margin);
         let norms = norm_comparison(loaded, &demand)?;
+        let norm_loading = norm_loading(loaded)?;
         Ok(Self {
             demand,
             sizing,
             norms,
+            norm_loading,
         })
     }
 
@@ -519,6 +523,7 @@ impl SizeRun {
             "servo_raw_torque_range_nm": self.demand.raw_torque_range_nm,
             "against_norms": self.norms,
             "treadmill": self.demand.treadmill,
+            "normative_loading": self.norm_loading,
             "sizing": self.sizing,
         });
         match json {
@@ -543,6 +548,23 @@ fn norm_comparison(
         .treadmill
         .map_or((75.0, 0.0), |t| (t.body_mass_kg, t.bws_fraction));
     Ok(pma_leg::demand::against_norms(demand, &norms, mass, bws))
+}
+
+/// The adults' loading response for a treadmill scenario on the adult reference.
+fn norm_loading(loaded: &LoadedScenario) -> Result<Option<pma_leg::demand::NormLoading>> {
+    let sc = &loaded.scenario;
+    let (Some(t), pma_leg::gait::GaitData::Fukuchi2018, Some(speed)) =
+        (&sc.treadmill, sc.gait.data, sc.gait.speed_m_per_s)
+    else {
+        return Ok(None);
+    };
+    let norms = pma_leg::gait::AdultNorms::at(speed)?;
+    Ok(Some(pma_leg::demand::norm_loading(
+        &norms,
+        sc.gait.stride_period_s,
+        sc.period_s,
+        t.bws_fraction,
+    )))
 }
 
 /// A rig log for identification: refused if `rig replay` would refuse it (cut short,

@@ -118,7 +118,7 @@ pub fn run(a: Args) -> Result<i32> {
         say!("{}", serde_json::to_string(&json)?);
     } else {
         print_summary(sizing, demand, &sc.name)?;
-        print_norms(norms)?;
+        print_norms(norms, run.norm_loading.as_ref())?;
         say!("{}", provenance.line());
     }
     match (geometry, written) {
@@ -171,7 +171,10 @@ fn write_csv(path: &std::path::Path, demand: &pma_leg::demand::Demand) -> Result
     Ok(())
 }
 
-fn print_norms(norms: &[pma_leg::demand::NormComparison]) -> Result<()> {
+fn print_norms(
+    norms: &[pma_leg::demand::NormComparison],
+    loading: Option<&pma_leg::demand::NormLoading>,
+) -> Result<()> {
     for c in norms {
         say!(
             "  {:5} over the cycle: peak demand {:.2} N m/kg against the adults' {:.2} N m/kg (Fukuchi et al. 2018); RMS difference {:.2} N m/kg, {:.2} against the moments scaled by the support",
@@ -180,6 +183,16 @@ fn print_norms(norms: &[pma_leg::demand::NormComparison]) -> Result<()> {
             c.peak_normative_nm_kg,
             c.rms_difference_nm_kg,
             c.rms_difference_supported_nm_kg
+        );
+    }
+    if let Some(l) = loading {
+        say!(
+            "  the adults' mean ground reaction (Fukuchi et al. 2018) x the legs' share, over the reference's {:.3} s stride: loading peak {:.2} BW, {:.3} of their belt's load; loading rate {:.1} BW/s; stance {:.1} %",
+            l.stride_s,
+            l.peak_bw,
+            l.peak_over_load,
+            l.loading_rate_bw_s,
+            100.0 * l.stance_fraction
         );
     }
     Ok(())
@@ -194,10 +207,12 @@ fn print_summary(s: &Sizing, demand: &pma_leg::demand::Demand, scenario: &str) -
     if let Some(t) = &demand.treadmill {
         for (side, f) in &t.feet {
             say!(
-                "  on the belt at {:.3} m/s with {:.0} % support, {side} foot: GRF loading peak {:.2} BW, stance {:.1} % (reference {:.1} %), slip {:.1} mm per stride",
+                "  on the belt at {:.3} m/s with {:.0} % support, {side} foot: GRF loading peak {:.2} BW, {:.3} of the belt's load; loading rate {:.1} BW/s; stance {:.1} % (reference {:.1} %), slip {:.1} mm per stride",
                 t.belt_speed_m_s,
                 100.0 * t.bws_fraction,
                 f.peak_grf_bw.mean,
+                f.peak_grf_bw.mean / t.expected_belt_load_bw,
+                f.loading_rate_bw_s.mean,
                 100.0 * f.stance_fraction.mean,
                 100.0 * f.reference_stance_fraction,
                 1e3 * f.slip_per_stride_m.mean

@@ -211,7 +211,7 @@ impl LegControllers {
         } else {
             load.share(self.gait.phase(t_s))
         };
-        load.torques_nm(*angles, share)
+        load.torques_nm(*angles, share, t_s)
     }
 
     /// Impedance mode's law, if the leg runs in it.
@@ -286,8 +286,10 @@ impl LegControllers {
     fn update(&mut self, t_s: f64, angles: &[f64; 2], dt_s: f64) -> LegOutput {
         let g = self.reference(t_s);
         let load = self.stance_load_nm(t_s, angles);
+        let walking = self.hold.is_none() && !self.gait.standing(t_s);
+        let phase = walking.then(|| self.gait.phase(t_s));
         if let Some(law) = &mut self.impedance {
-            let pressure_cmd_pa = law.update(&g, *angles, load, dt_s);
+            let pressure_cmd_pa = law.update(&g, *angles, load, phase, dt_s);
             self.commands = pressure_cmd_pa;
             return LegOutput {
                 reference_rad: [g.hip.angle_rad, g.knee.angle_rad],

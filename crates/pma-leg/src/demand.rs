@@ -265,6 +265,44 @@ pub struct NormComparison {
     pub rms_difference_supported_nm_kg: f64,
 }
 
+/// The adults' loading response beside the trainer's feet: the mean vertical ground
+/// reaction of the adult data at the reference's speed, scaled by `1 - bws_fraction` as
+/// the moments are, measured as the feet are ([`crate::stance::loading`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct NormLoading {
+    /// The mean curve's loading peak times `1 - bws_fraction` (body weights).
+    pub peak_bw: f64,
+    /// That peak over the mean load the belt carries, `1 - bws_fraction` body weights: the
+    /// figure a foot's `peak_grf_bw / expected_belt_load_bw` compares with.
+    pub peak_over_load: f64,
+    /// The mean curve's loading rate over the reference's stride, times `1 -
+    /// bws_fraction` (body weights per second).
+    pub loading_rate_bw_s: f64,
+    /// The adults' mean stance fraction (toe-off).
+    pub stance_fraction: f64,
+    /// The stride the curve is timed over: the reference's (s).
+    pub stride_s: f64,
+}
+
+/// The adults' loading response (`norms`) over the reference's stride of `stride_s`,
+/// sampled every `dt_s`, on `bws_fraction` support.
+pub fn norm_loading(
+    norms: &crate::gait::AdultNorms,
+    stride_s: f64,
+    dt_s: f64,
+    bws_fraction: f64,
+) -> NormLoading {
+    let l = norms.grf_loading(stride_s, dt_s);
+    let scale = 1.0 - bws_fraction;
+    NormLoading {
+        peak_bw: l.peak * scale,
+        peak_over_load: l.peak,
+        loading_rate_bw_s: l.rate * scale,
+        stance_fraction: norms.toe_off,
+        stride_s,
+    }
+}
+
 /// Each joint's demand over the cycle beside `norms` (the adult data at the reference's
 /// speed), for a patient of `body_mass_kg` on `bws_fraction` support.
 pub fn against_norms(

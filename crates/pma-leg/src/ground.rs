@@ -305,6 +305,23 @@ pub struct TreadmillSettings {
 }
 
 impl TreadmillSettings {
+    /// The share of the body weight the harness carries `t_s` after the start:
+    /// `bws_fraction`, or more while the start's support is lowered.
+    pub fn support_fraction_at(&self, t_s: f64) -> f64 {
+        let Some(start) = self.bws_start_fraction else {
+            return self.bws_fraction;
+        };
+        let [from, to] = self.bws_release_s;
+        let released = if t_s >= to {
+            1.0
+        } else if t_s <= from {
+            0.0
+        } else {
+            pma_control::quintic_blend((t_s - from) / (to - from), to - from).0
+        };
+        start + (self.bws_fraction - start) * released
+    }
+
     /// A release window without a start's support, or a start's support without a
     /// window, would be ignored at run time: both are refused.
     fn validate_release_pairing(&self) -> Result<(), LegError> {
@@ -1099,19 +1116,7 @@ impl Ground {
     /// The share of the body weight the harness carries now: `bws_fraction`, or more
     /// while the start's support is lowered.
     pub fn support_fraction_now(&self) -> f64 {
-        let s = &self.setup.settings;
-        let Some(start) = s.bws_start_fraction else {
-            return s.bws_fraction;
-        };
-        let [from, to] = s.bws_release_s;
-        let released = if self.clock_s >= to {
-            1.0
-        } else if self.clock_s <= from {
-            0.0
-        } else {
-            pma_control::quintic_blend((self.clock_s - from) / (to - from), to - from).0
-        };
-        start + (s.bws_fraction - start) * released
+        self.setup.settings.support_fraction_at(self.clock_s)
     }
 
     /// The harness's upward force (N) with the pelvis at height `z_m`.

@@ -269,7 +269,31 @@ pub struct ImpedanceSettings {
     /// weight the support leaves them.
     #[serde(default = "stance_load_on")]
     pub stance_load: bool,
+    /// An assist-as-needed feedforward learned stride by stride ([`StrideLearning`]).
+    /// Absent: none (the law as before).
+    #[serde(default)]
+    pub learning: Option<LearningSettings>,
 }
+
+/// `[control.impedance.learning]`: the torque each joint's pair adds at each phase of the
+/// stride, learned from the error there in the strides before, with a forgetting factor
+/// (Emken, Benitez and Reinkensmeyer 2007, JNER 4:8: `F(i+1) = f F(i) + g e(i)` per phase;
+/// the forgetting lets the assistance fade where the error is small).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LearningSettings {
+    /// `g` over the joint's stiffness: the share of last stride's spring torque `K e` at a
+    /// phase added to that phase's feedforward (per stride). On a spring alone the error
+    /// then falls to `(1 - f) / (1 - f + gain)` of what it was without learning.
+    pub gain: f64,
+    /// `f`, the share of the learned torque kept from one stride to the next.
+    pub forgetting: f64,
+}
+
+/// Phase bins of a learned feedforward over one stride: 50, about 35 ms each at the adult
+/// reference's 1.75 s stride, averaging the error over tens of periods (the filter that
+/// keeps learning on the stride's shape, not on the valves' ripple).
+pub const LEARNING_BINS: usize = 50;
 
 fn stance_load_on() -> bool {
     true
@@ -295,6 +319,7 @@ impl Default for ImpedanceSettings {
             knee: JointImpedance::default(),
             velocity_filter_s: default_velocity_filter(),
             stance_load: true,
+            learning: None,
         }
     }
 }
@@ -341,7 +366,110 @@ impl ImpedanceSettings {
             0.1,
             "must be 0..=0.1 s",
         )?;
+        if let Some(l) = self.learning {
+            within(
+                "control.impedance.learning.forgetting",
+                l.forgetting,
+                0.0,
+                1.0,
+                "must be 0..=1 (the share of the learned torque kept per stride)",
+            )?;
+            // On a spring the learned torque follows F(i+1) = (f - gain) F(i) + ...: it
+            // converges for |f - gain| < 1.
+            within(
+                "control.impedance.learning.gain",
+                l.gain,
+                0.0,
+                1.0 + l.forgetting - 1e-9,
+                "must be >= 0 and below 1 + forgetting (beyond it the learning diverges)",
+            )?;
+        }
         Ok(())
+    }
+}
+
+/// A feedforward torque per joint over the phases of the stride, learned from the error
+/// at each phase stride by stride ([`LearningSettings`]). Fixed-size: it allocates nothing.
+#[derive(Debug, Clone)]
+pub struct StrideLearning {
+    settings: LearningSettings,
+    /// Learned torque per joint and bin (N m).
+    learned_nm: [[f64; LEARNING_BINS]; 2],
+    /// The error summed over the current visit of a bin, and its periods.
+    error_sum_rad: [f64; 2],
+    periods: u32,
+    /// The bin being visited.
+    bin: Option<usize>,
+}
+
+impl StrideLearning {
+    /// Nothing learned yet.
+    pub fn new(settings: LearningSettings) -> Self {
+        Self {
+            settings,
+            learned_nm: [[0.0; LEARNING_BINS]; 2],
+            error_sum_rad: [0.0; 2],
+            periods: 0,
+            bin: None,
+        }
+    }
+
+    /// The learned torque per joint (N m) at `phase` (0-1), linear between the bins'
+    /// centres, after taking in the error `error_rad` (reference minus measured) of joints
+    /// of stiffness `stiffness_nm_per_rad`. A bin is updated when the phase leaves it,
+    /// from the mean error over that visit.
+    pub fn update(
+        &mut self,
+        phase: f64,
+        error_rad: [f64; 2],
+        stiffness_nm_per_rad: [f64; 2],
+    ) -> [f64; 2] {
+        let x = phase.rem_euclid(1.0) * LEARNING_BINS as f64;
+        let bin = (x as usize).min(LEARNING_BINS - 1);
+        if let Some(left) = self.bin.filter(|&b| b != bin) {
+            self.close(left, stiffness_nm_per_rad);
+        }
+        self.bin = Some(bin);
+        for (sum, e) in self.error_sum_rad.iter_mut().zip(error_rad) {
+            *sum += e;
+        }
+        self.periods += 1;
+        self.at(x)
+    }
+
+    /// Stops taking in errors (a held pose, a standing start): the visit in progress is
+    /// dropped, what was learned stays.
+    pub fn pause(&mut self) {
+        self.bin = None;
+        self.error_sum_rad = [0.0; 2];
+        self.periods = 0;
+    }
+
+    /// The learned torque (N m) at `x` bins into the stride.
+    pub fn at(&self, x: f64) -> [f64; 2] {
+        let s = x - 0.5;
+        let k = s.floor();
+        let w = s - k;
+        let below = (k as i64).rem_euclid(LEARNING_BINS as i64) as usize;
+        let above = (below + 1) % LEARNING_BINS;
+        [0, 1].map(|j| (1.0 - w) * self.learned_nm[j][below] + w * self.learned_nm[j][above])
+    }
+
+    fn close(&mut self, bin: usize, stiffness_nm_per_rad: [f64; 2]) {
+        if self.periods > 0 {
+            let LearningSettings { gain, forgetting } = self.settings;
+            let n = f64::from(self.periods);
+            for ((learned, sum), k) in self
+                .learned_nm
+                .iter_mut()
+                .zip(self.error_sum_rad)
+                .zip(stiffness_nm_per_rad)
+            {
+                learned[bin] = forgetting * learned[bin] + gain * k * (sum / n);
+            }
+        }
+        self.error_sum_rad = [0.0; 2];
+        self.periods = 0;
     }
 }
 
@@ -600,19 +728,32 @@ const SOFT_SHARE: f64 = 0.15;
 #[derive(Debug, Clone)]
 pub struct StanceLoad {
     chain: crate::ground::SagittalChain,
-    load_n: f64,
+    mass_kg: f64,
+    support: crate::ground::TreadmillSettings,
     toe_off: f64,
 }
 
 impl StanceLoad {
-    /// `load_n` (N) carried by legs of `chain`'s geometry whose stance ends at `toe_off`
-    /// (phase, 0.5-1).
-    pub fn new(chain: crate::ground::SagittalChain, load_n: f64, toe_off: f64) -> Self {
+    /// The share of `mass_kg`'s weight that `support`'s harness leaves to the legs (at
+    /// each instant: a start's support lowered over a window is followed), carried by legs
+    /// of `chain`'s geometry whose stance ends at `toe_off` (phase, 0.5-1).
+    pub fn new(
+        chain: crate::ground::SagittalChain,
+        mass_kg: f64,
+        support: crate::ground::TreadmillSettings,
+        toe_off: f64,
+    ) -> Self {
         Self {
             chain,
-            load_n,
+            mass_kg,
+            support,
             toe_off,
         }
+    }
+
+    /// The weight the legs carry together `t_s` after the start (N).
+    pub fn load_n(&self, t_s: f64) -> f64 {
+        (1.0 - self.support.support_fraction_at(t_s)) * self.mass_kg * pma_model::GRAVITY_M_S2
     }
 
     /// The share of the load on a leg at `phase` of its cycle (0-1).
@@ -626,11 +767,11 @@ impl StanceLoad {
         }
     }
 
-    /// Hip and knee torques (N m, flexion positive) that hold `share` of the load up at the
-    /// ankle at hip and knee angles `q` (rad): `-J^T F` with `J` the ankle's height per
-    /// joint angle.
-    pub fn torques_nm(&self, q: [f64; 2], share: f64) -> [f64; 2] {
-        let f = share * self.load_n;
+    /// Hip and knee torques (N m, flexion positive) that hold `share` of the load at
+    /// `t_s` up at the ankle at hip and knee angles `q` (rad): `-J^T F` with `J` the
+    /// ankle's height per joint angle.
+    pub fn torques_nm(&self, q: [f64; 2], share: f64, t_s: f64) -> [f64; 2] {
+        let f = share * self.load_n(t_s);
         if f == 0.0 {
             return [0.0; 2];
         }
@@ -659,6 +800,8 @@ pub struct ImpedanceLaw {
     velocity_rad_s: [f64; 2],
     last_rad: Option<[f64; 2]>,
     commands_pa: [f64; 4],
+    /// The learned feedforward (impedance mode with `[control.impedance.learning]`).
+    learning: Option<StrideLearning>,
 }
 
 impl ImpedanceLaw {
@@ -705,6 +848,10 @@ impl ImpedanceLaw {
             velocity_rad_s: [0.0; 2],
             last_rad: None,
             commands_pa: [0.0; 4],
+            learning: settings
+                .learning
+                .filter(|_| sc.control.mode == ControlMode::Impedance)
+                .map(StrideLearning::new),
         })
     }
 
@@ -750,11 +897,14 @@ impl ImpedanceLaw {
     /// measured angles `q` (rad).
     /// `load_nm` is what the leg carries besides its own dynamics (a stance leg's share of
     /// the weight, [`StanceLoad`]; impedance mode only).
+    /// `phase` is the leg's phase in its stride (0-1), `None` while it stands or holds a
+    /// pose: the learned feedforward ([`StrideLearning`]) learns only while it walks.
     pub fn update(
         &mut self,
         g: &GaitSample,
         q: [f64; 2],
         load_nm: [f64; 2],
+        phase: Option<f64>,
         dt_s: f64,
     ) -> [f64; 4] {
         self.estimate_velocity(q, dt_s);
@@ -765,7 +915,8 @@ impl ImpedanceLaw {
         let qd_ref = [g.hip.velocity_rad_s, g.knee.velocity_rad_s];
         let qdd_ref = [g.hip.acceleration_rad_s2, g.knee.acceleration_rad_s2];
         let dynamics = self.carried.inverse_dynamics(q, qd_ref, qdd_ref);
-        let feedforward = [dynamics[0] + load_nm[0], dynamics[1] + load_nm[1]];
+        let learned = self.learned_nm(phase, [q_ref[0] - q[0], q_ref[1] - q[1]]);
+        let feedforward = [0, 1].map(|j| dynamics[j] + load_nm[j] + learned[j]);
         let mut out = self.commands_pa;
         for pair in &self.pairs {
             let j = pair.joint;
@@ -786,6 +937,21 @@ impl ImpedanceLaw {
             }
         }
         out
+    }
+
+    /// The learned feedforward at `phase` after taking in `error_rad` (zero without
+    /// learning; held, not updated, while the leg does not walk).
+    fn learned_nm(&mut self, phase: Option<f64>, error_rad: [f64; 2]) -> [f64; 2] {
+        let Some(l) = &mut self.learning else {
+            return [0.0; 2];
+        };
+        match phase {
+            Some(phase) => l.update(phase, error_rad, self.stiffness_nm_per_rad),
+            None => {
+                l.pause();
+                [0.0; 2]
+            }
+        }
     }
 
     /// Path and transparent modes: the pairs at their soft stiffness, holding at the
@@ -926,8 +1092,88 @@ mod tests {
         let loaded = crate::Scenario::load("gait_treadmill").expect("embedded");
         let exo =
             crate::sim::build_exo(&loaded, crate::exoskeleton::Mount::default()).expect("trainer");
-        let chain = exo.ground().expect("a treadmill").chain().clone();
-        StanceLoad::new(chain, 500.0, 0.675)
+        let ground = exo.ground().expect("a treadmill");
+        let mut support = *ground.settings();
+        support.bws_fraction = 0.0;
+        StanceLoad::new(
+            ground.chain().clone(),
+            500.0 / pma_model::GRAVITY_M_S2,
+            support,
+            0.675,
+        )
+    }
+
+    #[test]
+    fn learning_on_a_spring_converges_to_the_error_its_forgetting_leaves() {
+        // A spring of stiffness K under a disturbance d(phase): e = (d - F) / K. Per phase,
+        // F(i+1) = f F(i) + gain K e(i) = (f - gain) F(i) + gain d, which settles at
+        // F = gain d / (1 - f + gain): the error falls to (1 - f) / (1 - f + gain) of d / K.
+        let (gain, forgetting) = (0.5, 0.9);
+        let k = [100.0, 20.0];
+        let d = |phase: f64| {
+            let w = std::f64::consts::TAU * phase;
+            [10.0 * w.sin(), 5.0 * w.cos()]
+        };
+        let mut l = StrideLearning::new(LearningSettings { gain, forgetting });
+        let periods = 1000;
+        let mut sq = [[0.0; 2]; 2];
+        for stride in 0..60 {
+            for n in 0..periods {
+                let phase = n as f64 / periods as f64;
+                let x = phase * LEARNING_BINS as f64;
+                let f = l.at(x);
+                let e = [0, 1].map(|j| (d(phase)[j] - f[j]) / k[j]);
+                l.update(phase, e, k);
+                if stride == 59 {
+                    for j in 0..2 {
+                        sq[j][0] += e[j] * e[j];
+                        sq[j][1] += (d(phase)[j] / k[j]).powi(2);
+                    }
+                }
+            }
+        }
+        let expected = (1.0 - forgetting) / (1.0 - forgetting + gain);
+        for (j, [e, unlearned]) in sq.iter().enumerate() {
+            let ratio = (e / unlearned).sqrt();
+            assert!(
+                (ratio / expected - 1.0).abs() < 0.05,
+                "joint {j}: error {ratio:.4} of the unlearned, expected {expected:.4}"
+            );
+        }
+    }
+
+    #[test]
+    fn learning_that_would_diverge_is_refused_naming_the_field() {
+        let mut s = ImpedanceSettings::default();
+        for (gain, forgetting, field) in [
+            (1.95, 0.9, "control.impedance.learning.gain"),
+            (-0.1, 0.9, "control.impedance.learning.gain"),
+            (0.5, 1.2, "control.impedance.learning.forgetting"),
+        ] {
+            s.learning = Some(LearningSettings { gain, forgetting });
+            let e = s.validate().expect_err("refused").to_string();
+            assert!(e.contains(field) && !e.contains('\n'), "{e}");
+        }
+        s.learning = Some(LearningSettings {
+            gain: 1.0,
+            forgetting: 0.95,
+        });
+        assert!(s.validate().is_ok());
+    }
+
+    #[test]
+    fn the_stance_load_follows_a_start_support_as_the_harness_lowers_it() {
+        // 80 % carried until 1 s, lowered to 30 % by 2 s: the legs carry 20 % of the
+        // weight, then 70 %, and the harness's quintic in between.
+        let mut s = stance_load();
+        s.support.bws_fraction = 0.3;
+        s.support.bws_start_fraction = Some(0.8);
+        s.support.bws_release_s = [1.0, 2.0];
+        let weight = 500.0;
+        for (t_s, legs) in [(0.0, 0.2), (1.0, 0.2), (1.5, 0.45), (2.0, 0.7), (9.0, 0.7)] {
+            let load = s.load_n(t_s);
+            assert!((load - legs * weight).abs() < 1e-9, "{t_s} s: {load} N");
+        }
     }
 
     #[test]
@@ -951,7 +1197,7 @@ mod tests {
         let c = &s.chain;
         let f = 0.8 * 500.0;
         for q in [[0.1, 0.1], [0.4, 0.2], [-0.05, 0.6]] {
-            let tau = s.torques_nm(q, 0.8);
+            let tau = s.torques_nm(q, 0.8, 0.0);
             let ankle = c.ankle_centre([q[0], q[1], 0.0]);
             let hip = c.origins_m[0];
             let (sin, cos) = (c.pitch_rad[0] + c.flexion_sign[0] * q[0]).sin_cos();
@@ -968,7 +1214,7 @@ mod tests {
                 );
             }
         }
-        assert_eq!(s.torques_nm([0.3, 0.3], 0.0), [0.0; 2]);
+        assert_eq!(s.torques_nm([0.3, 0.3], 0.0, 0.0), [0.0; 2]);
     }
 
     /// A pair of Table I muscles on pulleys of 15 mm, 30 mm contracted at zero angle.

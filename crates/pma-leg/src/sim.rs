@@ -804,11 +804,11 @@ fn stance_load(
     let Some(ground) = exo.ground().filter(|_| sc.control.impedance.stance_load) else {
         return Ok(None);
     };
-    let load_n = ground.unsupported_weight_n();
     let toe_off = sc.gait.reference()?.toe_off_phase();
     Ok(Some(crate::impedance::StanceLoad::new(
         ground.chain().clone(),
-        load_n,
+        ground.total_mass_kg(),
+        *ground.settings(),
         toe_off,
     )))
 }
@@ -836,7 +836,8 @@ pub(crate) fn build_patients(sc: &Scenario, exo: &Exoskeleton) -> Result<Vec<Pat
                 damping,
             )?;
             if let Some(m) = &walking {
-                p.walk_with_moments(m.clone());
+                let lowered = sc.treadmill.filter(|t| t.bws_start_fraction.is_some());
+                p.walk_with_moments(m.clone(), lowered);
             }
             Ok(p)
         })

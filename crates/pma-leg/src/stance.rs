@@ -62,6 +62,32 @@ impl Spread {
     }
 }
 
+/// The loading response of a stance's vertical ground reaction: its peak in the first half
+/// of stance and the loading rate, the slope from 20 to 80 % of that peak (the units of
+/// the samples, per second).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Loading {
+    /// The largest vertical reaction in the first half of stance.
+    pub peak: f64,
+    /// `0.6 peak` over the time from the first sample at 20 % of the peak to the first at
+    /// 80 % (NaN when the reaction does not rise through both).
+    pub rate: f64,
+}
+
+/// The loading response of `grf`, sampled every `dt_s` from heel strike, over a stance of
+/// `stance_s`: the measure the trainer's feet and the adults' curves are both given.
+pub fn loading(grf: &[f64], dt_s: f64, stance_s: f64) -> Loading {
+    let half = ((0.5 * stance_s / dt_s) as usize).clamp(1, grf.len().max(1));
+    let first = &grf[..half.min(grf.len())];
+    let peak = first.iter().copied().fold(0.0, f64::max);
+    let crossing = |level: f64| first.iter().position(|&f| f >= level);
+    let rate = match (crossing(0.2 * peak), crossing(0.8 * peak)) {
+        (Some(a), Some(b)) if b > a => 0.6 * peak / ((b - a) as f64 * dt_s),
+        _ => f64::NAN,
+    };
+    Loading { peak, rate }
+}
+
 /// One stride, heel strike to heel strike.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct StrideReport {
@@ -297,15 +323,7 @@ impl FootMetrics {
         }
         let stance = self.toe_off_s.map_or(duration, |t| t - start_s);
         let bw = self.body_weight_n;
-        // The loading peak lies in the first half of stance.
-        let half = ((0.5 * stance / self.period_s) as usize).clamp(1, self.grf.len().max(1));
-        let first = &self.grf[..half.min(self.grf.len())];
-        let peak = first.iter().copied().fold(0.0, f64::max);
-        let crossing = |level: f64| first.iter().position(|&f| f >= level);
-        let rate = match (crossing(0.2 * peak), crossing(0.8 * peak)) {
-            (Some(a), Some(b)) if b > a => 0.6 * peak / ((b - a) as f64 * self.period_s),
-            _ => f64::NAN,
-        };
+        let Loading { peak, rate } = loading(&self.grf, self.period_s, stance);
         // Strides whose heel strike falls in the first stride are not counted.
         if start_s >= self.stride_s && self.strides.len() < self.strides.capacity() {
             self.strides.push(StrideReport {
@@ -725,6 +743,22 @@ impl TrainerGroundMetrics {
 mod tests {
     use super::*;
     use crate::exoskeleton::Mount;
+
+    #[test]
+    fn loading_rate_is_the_slope_from_20_to_80_percent_of_the_peak() {
+        // A ramp to 1 over 100 ms, then flat: 20 % at 20 ms, 80 % at 80 ms, 0.6 over 60 ms.
+        let dt_s = 1e-3;
+        let grf: Vec<f64> = (0..600).map(|k| (k as f64 / 100.0).min(1.0)).collect();
+        let l = loading(&grf, dt_s, 0.6);
+        assert_eq!(l.peak, 1.0);
+        assert!((l.rate - 10.0).abs() < 1e-9, "{}", l.rate);
+        // The peak is looked for in the first half of stance only: a push-off peak later
+        // does not count.
+        let mut humps = grf.clone();
+        humps[500] = 1.5;
+        assert_eq!(loading(&humps, dt_s, 0.6).peak, 1.0);
+        assert!(loading(&[0.0; 10], dt_s, 0.01).rate.is_nan());
+    }
 
     /// A foot whose contact follows `grf_at(phase)` over `strides` strides of the
     /// scenario's gait, its report.

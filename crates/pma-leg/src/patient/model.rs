@@ -210,6 +210,9 @@ struct Walker {
     /// (N m, flexion positive, at 0, 1, ..., 100 % of their cycle; see
     /// [`crate::patient::OwnTorque::Walking`]).
     walking_nm: Option<[Vec<f64>; 2]>,
+    /// A harness whose start's support is lowered over a window: the moments, computed for
+    /// its final support, follow the share the legs carry at each instant.
+    walking_support: Option<crate::ground::TreadmillSettings>,
 }
 
 impl Walker {
@@ -225,6 +228,7 @@ impl Walker {
             reference_stride_s: gait.stride_period_s(),
             ramp_s: gait.ramp_s(),
             walking_nm: None,
+            walking_support: None,
         };
         w.reset();
         w
@@ -289,7 +293,10 @@ impl Walker {
         let own = match &self.walking_nm {
             Some(curves) => {
                 let (phase, share) = (gait.phase(self.clock_s), gait.ramp_share(self.clock_s));
-                curves.each_ref().map(|c| share * sample_cycle(c, phase))
+                let carried = self.walking_support.map_or(1.0, |s| legs_share(&s, t_s));
+                curves
+                    .each_ref()
+                    .map(|c| carried * share * sample_cycle(c, phase))
             }
             None => self.limb.inverse_dynamics(aim, aim_v, aim_a),
         };
@@ -300,6 +307,17 @@ impl Walker {
                     + s.stiffness_nm_per_rad[j] * (aim[j] - q[j])
                     + s.damping_nm_s_per_rad[j] * (aim_v[j] - qd[j]))
         })
+    }
+}
+
+/// The share of the body weight the legs carry at `t_s` over the share they carry once
+/// the start's support is lowered (1 after the window; 1 if they carry nothing then).
+fn legs_share(support: &crate::ground::TreadmillSettings, t_s: f64) -> f64 {
+    let settled = 1.0 - support.bws_fraction;
+    if settled > 0.0 {
+        (1.0 - support.support_fraction_at(t_s)) / settled
+    } else {
+        1.0
     }
 }
 
@@ -397,11 +415,18 @@ impl Patient {
     /// Makes an active patient produce walking's joint moments, `moments_nm` (N m, flexion
     /// positive, hip and knee at 0, 1, ..., 100 % of the cycle from initial contact), on
     /// their own clock instead of their limb's inverse dynamics; `false` (and nothing
-    /// changed) for a patient who is not active.
-    pub fn walk_with_moments(&mut self, moments_nm: [Vec<f64>; 2]) -> bool {
+    /// changed) for a patient who is not active. `support`: a harness whose start's
+    /// support is lowered over a window, the moments being those of its final support
+    /// (they then follow the share the legs carry); `None` for a constant support.
+    pub fn walk_with_moments(
+        &mut self,
+        moments_nm: [Vec<f64>; 2],
+        support: Option<crate::ground::TreadmillSettings>,
+    ) -> bool {
         match &mut self.walker {
             Some(w) => {
                 w.walking_nm = Some(moments_nm);
+                w.walking_support = support;
                 true
             }
             None => false,
@@ -587,6 +612,22 @@ mod tests {
         }
     }
 
+    #[test]
+    fn a_walking_patients_moments_follow_the_support_the_harness_lowers() {
+        // The moments are computed for the final 30 %; while the harness carries 80 % the
+        // legs carry 0.2 / 0.7 of that, after the window all of it.
+        let loaded = crate::Scenario::load("gait_treadmill").expect("embedded");
+        let mut s = loaded.scenario.treadmill.expect("a treadmill");
+        s.bws_fraction = 0.3;
+        s.bws_start_fraction = Some(0.8);
+        s.bws_release_s = [1.0, 2.0];
+        for (t_s, share) in [(0.5, 0.2 / 0.7), (1.5, 0.45 / 0.7), (3.0, 1.0)] {
+            assert!((legs_share(&s, t_s) - share).abs() < 1e-12, "{t_s} s");
+        }
+        s.bws_fraction = 1.0;
+        assert_eq!(legs_share(&s, 0.5), 1.0);
+    }
+
     /// A walking patient's effort with no impedance of their own: their moments alone.
     #[test]
     fn a_walking_patient_produces_the_moments_at_their_phase_times_their_strength() {
@@ -600,7 +641,7 @@ mod tests {
         // Hip: 0..100 N m over the cycle; knee: its negative.
         let ramp: Vec<f64> = (0..=100).map(f64::from).collect();
         let minus: Vec<f64> = ramp.iter().map(|v| -v).collect();
-        assert!(p.walk_with_moments([ramp, minus]));
+        assert!(p.walk_with_moments([ramp, minus], None));
         let mut t = 0.0;
         while t < 1.0 + 2.0 * 1.25 {
             p.torques(t, [0.0; 2], [0.0; 2]);
@@ -617,7 +658,7 @@ mod tests {
         // A patient who is not active takes no moments.
         let passive = crate::patient::PatientSettings::default();
         let mut q = Patient::new(&passive, 1e-3, gait, inertia, [0.0; 2]).unwrap();
-        assert!(!q.walk_with_moments([vec![1.0; 101], vec![1.0; 101]]));
+        assert!(!q.walk_with_moments([vec![1.0; 101], vec![1.0; 101]], None));
     }
 
     /// Regression (issue 28): each leg drew its own stride periods, so a person's legs
@@ -643,7 +684,7 @@ mod tests {
                     [0.0; 2],
                 )
                 .unwrap();
-                assert!(p.walk_with_moments([ramp.clone(), ramp.clone()]));
+                assert!(p.walk_with_moments([ramp.clone(), ramp.clone()], None));
                 p
             })
             .collect();
