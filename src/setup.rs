@@ -506,8 +506,13 @@ impl SizeRun {
         let p_max = loaded.scenario.plant.valve.pressure_max_pa;
         let sizing =
             pma_leg::sizing::size_joints(&demand, p_max, args.max_length_m, args.force_margin);
-        let norms = norm_comparison(loaded, &demand)?;
-        let norm_loading = norm_loading(loaded)?;
+        let adults = adult_norms(&loaded.scenario)?;
+        let norms = adults
+            .as_ref()
+            .map_or_else(Vec::new, |n| norm_comparison(&loaded.scenario, &demand, n));
+        let norm_loading = adults
+            .as_ref()
+            .and_then(|n| norm_loading(&loaded.scenario, n));
         Ok(Self {
             demand,
             sizing,
@@ -533,38 +538,40 @@ impl SizeRun {
     }
 }
 
-/// The demand beside the adult normative moments, for a scenario on the adult reference.
-fn norm_comparison(
-    loaded: &LoadedScenario,
-    demand: &pma_leg::demand::Demand,
-) -> Result<Vec<pma_leg::demand::NormComparison>> {
-    let g = &loaded.scenario.gait;
+/// The adult data at the reference's speed, for a scenario on the adults' gait (`None`
+/// on another reference).
+pub fn adult_norms(sc: &pma_leg::Scenario) -> Result<Option<pma_leg::gait::AdultNorms>> {
+    let g = &sc.gait;
     let (pma_leg::gait::GaitData::Fukuchi2018, Some(speed)) = (g.data, g.speed_m_per_s) else {
-        return Ok(Vec::new());
-    };
-    let norms = pma_leg::gait::AdultNorms::at(speed)?;
-    let (mass, bws) = loaded
-        .scenario
-        .treadmill
-        .map_or((75.0, 0.0), |t| (t.body_mass_kg, t.bws_fraction));
-    Ok(pma_leg::demand::against_norms(demand, &norms, mass, bws))
-}
-
-/// The adults' loading response for a treadmill scenario on the adult reference.
-fn norm_loading(loaded: &LoadedScenario) -> Result<Option<pma_leg::demand::NormLoading>> {
-    let sc = &loaded.scenario;
-    let (Some(t), pma_leg::gait::GaitData::Fukuchi2018, Some(speed)) =
-        (&sc.treadmill, sc.gait.data, sc.gait.speed_m_per_s)
-    else {
         return Ok(None);
     };
-    let norms = pma_leg::gait::AdultNorms::at(speed)?;
-    Ok(Some(pma_leg::demand::norm_loading(
-        &norms,
+    Ok(Some(pma_leg::gait::AdultNorms::at(speed)?))
+}
+
+/// The demand beside the adults' moments (`norms`).
+fn norm_comparison(
+    sc: &pma_leg::Scenario,
+    demand: &pma_leg::demand::Demand,
+    norms: &pma_leg::gait::AdultNorms,
+) -> Vec<pma_leg::demand::NormComparison> {
+    let (mass, bws) = sc
+        .treadmill
+        .map_or((75.0, 0.0), |t| (t.body_mass_kg, t.bws_fraction));
+    pma_leg::demand::against_norms(demand, norms, mass, bws)
+}
+
+/// The adults' loading response (`norms`), for a treadmill scenario.
+fn norm_loading(
+    sc: &pma_leg::Scenario,
+    norms: &pma_leg::gait::AdultNorms,
+) -> Option<pma_leg::demand::NormLoading> {
+    let t = sc.treadmill.as_ref()?;
+    Some(pma_leg::demand::norm_loading(
+        norms,
         sc.gait.stride_period_s,
         sc.period_s,
         t.bws_fraction,
-    )))
+    ))
 }
 
 /// A rig log for identification: refused if `rig replay` would refuse it (cut short,

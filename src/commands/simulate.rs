@@ -243,12 +243,9 @@ pub fn run(a: Args) -> Result<i32> {
 /// The adult data's vertical ground reaction at the scenario's speed, scaled by the
 /// body-weight support, for a treadmill on the adult reference (Fukuchi et al. 2018).
 fn norm_grf(sc: &Scenario) -> Result<Option<crate::plot::NormGrf>> {
-    let (Some(t), pma_leg::gait::GaitData::Fukuchi2018, Some(speed)) =
-        (&sc.treadmill, sc.gait.data, sc.gait.speed_m_per_s)
-    else {
+    let (Some(t), Some(norms)) = (&sc.treadmill, pma_exo::setup::adult_norms(sc)?) else {
         return Ok(None);
     };
-    let norms = pma_leg::gait::AdultNorms::at(speed)?;
     let scale = 1.0 - t.bws_fraction;
     let scaled = |v: &[f64]| v.iter().map(|x| x * scale).collect();
     Ok(Some(crate::plot::NormGrf {

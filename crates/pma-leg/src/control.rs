@@ -206,12 +206,18 @@ impl LegControllers {
         let Some(load) = &self.stance_load else {
             return [0.0; 2];
         };
-        let share = if self.hold.is_some() || self.gait.standing(t_s) {
-            0.5
-        } else {
+        let share = if self.walking(t_s) {
             load.share(self.gait.phase(t_s))
+        } else {
+            0.5
         };
         load.torques_nm(*angles, share, t_s)
+    }
+
+    /// Whether the leg walks at `t_s`: neither holding a pose nor standing through a
+    /// standing start-up.
+    fn walking(&self, t_s: f64) -> bool {
+        self.hold.is_none() && !self.gait.standing(t_s)
     }
 
     /// Impedance mode's law, if the leg runs in it.
@@ -286,8 +292,7 @@ impl LegControllers {
     fn update(&mut self, t_s: f64, angles: &[f64; 2], dt_s: f64) -> LegOutput {
         let g = self.reference(t_s);
         let load = self.stance_load_nm(t_s, angles);
-        let walking = self.hold.is_none() && !self.gait.standing(t_s);
-        let phase = walking.then(|| self.gait.phase(t_s));
+        let phase = (self.impedance.is_some() && self.walking(t_s)).then(|| self.gait.phase(t_s));
         if let Some(law) = &mut self.impedance {
             let pressure_cmd_pa = law.update(&g, *angles, load, phase, dt_s);
             self.commands = pressure_cmd_pa;

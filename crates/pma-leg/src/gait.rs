@@ -131,18 +131,11 @@ impl AdultNorms {
     /// subject's own peak is higher and steeper than the mean curve's.
     pub fn grf_loading(&self, stride_s: f64, dt_s: f64) -> crate::stance::Loading {
         let curve = &self.curves.grf_vertical_bw;
-        let last = curve.len().saturating_sub(1);
         let stance_s = self.toe_off * stride_s;
-        let at = |t_s: f64| {
-            let x = (t_s / stride_s * last as f64).clamp(0.0, last as f64);
-            let k = (x.floor() as usize).min(last.saturating_sub(1));
-            let f = x - k as f64;
-            curve[k] * (1.0 - f) + curve[(k + 1).min(last)] * f
-        };
         let samples: Vec<f64> = (0..)
             .map(|i| i as f64 * dt_s)
             .take_while(|t| *t <= stance_s)
-            .map(at)
+            .map(|t_s| sample_cycle(curve, t_s / stride_s))
             .collect();
         crate::stance::loading(&samples, dt_s, stance_s)
     }
@@ -341,6 +334,18 @@ struct FourierFile {
     free: JointCurves,
     fast: JointCurves,
     veryfast: JointCurves,
+}
+
+/// `curve` (samples at 0, 1/(n-1), ..., 1 of a cycle) at `phase`, linearly interpolated.
+pub fn sample_cycle(curve: &[f64], phase: f64) -> f64 {
+    let last = curve.len().saturating_sub(1);
+    if last == 0 {
+        return curve.first().copied().unwrap_or(0.0);
+    }
+    let x = phase.rem_euclid(1.0) * last as f64;
+    let i = (x.floor() as usize).min(last - 1);
+    let f = x - i as f64;
+    curve[i] + f * (curve[i + 1] - curve[i])
 }
 
 /// How a reference leaves standing over its start-up ramp.
@@ -670,6 +675,15 @@ mod tests {
 
     fn deg(r: f64) -> f64 {
         r.to_degrees()
+    }
+
+    #[test]
+    fn sampling_a_cycle_interpolates_and_wraps() {
+        let c = [0.0, 10.0, 20.0];
+        assert_eq!(sample_cycle(&c, 0.25), 5.0);
+        assert_eq!(sample_cycle(&c, 1.0), 0.0);
+        assert_eq!(sample_cycle(&c, -0.25), 15.0);
+        assert_eq!(sample_cycle(&[4.0], 0.3), 4.0);
     }
 
     #[test]

@@ -322,6 +322,18 @@ impl TreadmillSettings {
         start + (self.bws_fraction - start) * released
     }
 
+    /// The share of the body weight the legs carry at `t_s` over the share they carry at
+    /// the walking support `bws_fraction`: 1 (exactly) but while a start's support is
+    /// lowered; 1 if they carry nothing then.
+    pub fn legs_share_at(&self, t_s: f64) -> f64 {
+        let walking = 1.0 - self.bws_fraction;
+        if walking > 0.0 {
+            (1.0 - self.support_fraction_at(t_s)) / walking
+        } else {
+            1.0
+        }
+    }
+
     /// A release window without a start's support, or a start's support without a
     /// window, would be ignored at run time: both are refused.
     fn validate_release_pairing(&self) -> Result<(), LegError> {
@@ -1363,6 +1375,20 @@ mod tests {
             let e = bad.validate().unwrap_err().to_string();
             assert!(e.contains(field) && !e.contains('\n'), "{e}");
         }
+    }
+
+    #[test]
+    fn the_legs_share_follows_the_support_the_harness_lowers() {
+        // Walking at 30 %: while the harness carries 80 % the legs carry 0.2 / 0.7 of what
+        // they carry at 30 %, after the window all of it.
+        let mut s = TreadmillSettings::new(0.3, 75.0);
+        s.bws_start_fraction = Some(0.8);
+        s.bws_release_s = [1.0, 2.0];
+        for (t_s, share) in [(0.5, 0.2 / 0.7), (1.5, 0.45 / 0.7), (3.0, 1.0)] {
+            assert!((s.legs_share_at(t_s) - share).abs() < 1e-12, "{t_s} s");
+        }
+        s.bws_fraction = 1.0;
+        assert_eq!(s.legs_share_at(0.5), 1.0);
     }
 
     #[test]

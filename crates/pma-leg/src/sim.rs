@@ -836,8 +836,7 @@ pub(crate) fn build_patients(sc: &Scenario, exo: &Exoskeleton) -> Result<Vec<Pat
                 damping,
             )?;
             if let Some(m) = &walking {
-                let lowered = sc.treadmill.filter(|t| t.bws_start_fraction.is_some());
-                p.walk_with_moments(m.clone(), lowered);
+                p.walk_with_moments(m.clone(), sc.treadmill);
             }
             Ok(p)
         })

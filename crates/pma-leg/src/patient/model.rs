@@ -210,8 +210,8 @@ struct Walker {
     /// (N m, flexion positive, at 0, 1, ..., 100 % of their cycle; see
     /// [`crate::patient::OwnTorque::Walking`]).
     walking_nm: Option<[Vec<f64>; 2]>,
-    /// A harness whose start's support is lowered over a window: the moments, computed for
-    /// its final support, follow the share the legs carry at each instant.
+    /// The harness: the moments, computed for its walking support, follow the share the
+    /// legs carry at each instant while it lowers a start's support.
     walking_support: Option<crate::ground::TreadmillSettings>,
 }
 
@@ -293,10 +293,10 @@ impl Walker {
         let own = match &self.walking_nm {
             Some(curves) => {
                 let (phase, share) = (gait.phase(self.clock_s), gait.ramp_share(self.clock_s));
-                let carried = self.walking_support.map_or(1.0, |s| legs_share(&s, t_s));
+                let carried = self.walking_support.map_or(1.0, |s| s.legs_share_at(t_s));
                 curves
                     .each_ref()
-                    .map(|c| carried * share * sample_cycle(c, phase))
+                    .map(|c| carried * share * crate::gait::sample_cycle(c, phase))
             }
             None => self.limb.inverse_dynamics(aim, aim_v, aim_a),
         };
@@ -308,29 +308,6 @@ impl Walker {
                     + s.damping_nm_s_per_rad[j] * (aim_v[j] - qd[j]))
         })
     }
-}
-
-/// The share of the body weight the legs carry at `t_s` over the share they carry once
-/// the start's support is lowered (1 after the window; 1 if they carry nothing then).
-fn legs_share(support: &crate::ground::TreadmillSettings, t_s: f64) -> f64 {
-    let settled = 1.0 - support.bws_fraction;
-    if settled > 0.0 {
-        (1.0 - support.support_fraction_at(t_s)) / settled
-    } else {
-        1.0
-    }
-}
-
-/// `curve` (samples at 0, 1/(n-1), ..., 1 of a cycle) at `phase`, linearly interpolated.
-fn sample_cycle(curve: &[f64], phase: f64) -> f64 {
-    let last = curve.len().saturating_sub(1);
-    if last == 0 {
-        return curve.first().copied().unwrap_or(0.0);
-    }
-    let x = phase.rem_euclid(1.0) * last as f64;
-    let i = (x.floor() as usize).min(last - 1);
-    let f = x - i as f64;
-    curve[i] + f * (curve[i + 1] - curve[i])
 }
 
 /// The patient of a run: the resolved model, its delay lines and its spasm plan.
@@ -415,9 +392,9 @@ impl Patient {
     /// Makes an active patient produce walking's joint moments, `moments_nm` (N m, flexion
     /// positive, hip and knee at 0, 1, ..., 100 % of the cycle from initial contact), on
     /// their own clock instead of their limb's inverse dynamics; `false` (and nothing
-    /// changed) for a patient who is not active. `support`: a harness whose start's
-    /// support is lowered over a window, the moments being those of its final support
-    /// (they then follow the share the legs carry); `None` for a constant support.
+    /// changed) for a patient who is not active. `support`: the treadmill's harness, the
+    /// moments being those of its walking support (they follow the share the legs carry
+    /// while it lowers a start's support); `None`: the moments as given throughout.
     pub fn walk_with_moments(
         &mut self,
         moments_nm: [Vec<f64>; 2],
@@ -612,22 +589,6 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_walking_patients_moments_follow_the_support_the_harness_lowers() {
-        // The moments are computed for the final 30 %; while the harness carries 80 % the
-        // legs carry 0.2 / 0.7 of that, after the window all of it.
-        let loaded = crate::Scenario::load("gait_treadmill").expect("embedded");
-        let mut s = loaded.scenario.treadmill.expect("a treadmill");
-        s.bws_fraction = 0.3;
-        s.bws_start_fraction = Some(0.8);
-        s.bws_release_s = [1.0, 2.0];
-        for (t_s, share) in [(0.5, 0.2 / 0.7), (1.5, 0.45 / 0.7), (3.0, 1.0)] {
-            assert!((legs_share(&s, t_s) - share).abs() < 1e-12, "{t_s} s");
-        }
-        s.bws_fraction = 1.0;
-        assert_eq!(legs_share(&s, 0.5), 1.0);
-    }
-
     /// A walking patient's effort with no impedance of their own: their moments alone.
     #[test]
     fn a_walking_patient_produces_the_moments_at_their_phase_times_their_strength() {
@@ -702,15 +663,6 @@ mod tests {
             worst < 0.5,
             "the legs' phases drifted {worst} % of a cycle from half"
         );
-    }
-
-    #[test]
-    fn sampling_a_cycle_interpolates_and_wraps() {
-        let c = [0.0, 10.0, 20.0];
-        assert_eq!(sample_cycle(&c, 0.25), 5.0);
-        assert_eq!(sample_cycle(&c, 1.0), 0.0);
-        assert_eq!(sample_cycle(&c, -0.25), 15.0);
-        assert_eq!(sample_cycle(&[4.0], 0.3), 4.0);
     }
 
     #[test]
