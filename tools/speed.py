@@ -3,7 +3,10 @@
 median of 5 runs each; wall time (perf_counter around the process) and CPU time (user +
 sys of the child, getrusage), and real time over each.
 
-    python3 tools/speed.py [PMA_EXO_BINARY]   # default target/release/pma-exo
+    python3 tools/speed.py [PMA_EXO_BINARY ...]   # default target/release/pma-exo
+
+With several binaries (two builds to compare) their runs alternate, so that this noisy
+machine's drift falls on all of them alike, and a table follows per binary.
 """
 import os
 import pathlib
@@ -36,16 +39,25 @@ def timed(binary, args):
 def main():
     root = pathlib.Path(__file__).resolve().parents[1]
     target = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", root / "target"))
-    binary = sys.argv[1] if len(sys.argv) > 1 else str(target / "release/pma-exo")
-    print("| run (60 s simulated, median of 5) | wall | real time | CPU | real time on CPU |")
-    print("|---|---|---|---|---|")
+    binaries = sys.argv[1:] or [str(target / "release/pma-exo")]
+    results = {b: {} for b in binaries}
     for case in CASES:
-        runs = [timed(binary, case.split()) for _ in range(RUNS)]
-        wall = statistics.median(r[0] for r in runs)
-        cpu = statistics.median(r[1] for r in runs)
-        print(f"| `pma-exo {case}` | {wall * 1e3:.1f} ms | {60 / wall:.0f}x | "
-              f"{cpu * 1e3:.1f} ms | {60 / max(cpu, 1e-4):.0f}x |")
-
+        runs = {b: [] for b in binaries}
+        for _ in range(RUNS):
+            for b in binaries:
+                runs[b].append(timed(b, case.split()))
+        for b in binaries:
+            results[b][case] = runs[b]
+    for b in binaries:
+        if len(binaries) > 1:
+            print(f"\n{b}:")
+        print("| run (60 s simulated, median of 5) | wall | real time | CPU | real time on CPU |")
+        print("|---|---|---|---|---|")
+        for case in CASES:
+            wall = statistics.median(r[0] for r in results[b][case])
+            cpu = statistics.median(r[1] for r in results[b][case])
+            print(f"| `pma-exo {case}` | {wall * 1e3:.1f} ms | {60 / wall:.0f}x | "
+                  f"{cpu * 1e3:.1f} ms | {60 / max(cpu, 1e-4):.0f}x |")
 
 if __name__ == "__main__":
     main()

@@ -13,12 +13,21 @@ one run of this script on this machine.
   4 APRC-NDO controllers + references, 100 periods per iteration); the point estimates of
   their means from criterion's JSON.
 
+- The two-leg trainer (crates/pma-leg/models/exo_trainer.urdf: the pelvis on its two
+  slides, two legs of hip, knee and passive ankle, n = 8), standing on both feet at 30 %
+  body-weight support: in MuJoCo as tools/mujoco/stance.py builds it (its four foot spheres
+  on a floor, position servos on hips and knees, the orthoses as joint springs,
+  implicit-fast) at one step per period; in rapier `rapier_treadmill_bare_2_leg` (one
+  substep, pma-leg's own foot contacts) and `closed_loop_treadmill_x100` (gait_treadmill:
+  eight muscles and controllers, the gait's references and figures).
+
     python3 tools/mujoco/speed.py [--skip-bench]   # --skip-bench: read the last bench's JSON
 
-Prints one Markdown table (docs/benchmarks.md quotes it).
+Prints two Markdown tables (docs/benchmarks.md quotes them).
 """
 import argparse
 import json
+import math
 import os
 import pathlib
 import statistics
@@ -35,7 +44,8 @@ URDF = ROOT / "crates/pma-leg/models/exo_leg.urdf"
 PERIOD_S = 1e-3
 N = 20_000
 REPEATS = 7
-BENCHES = ("rapier_bare", "closed_loop_x100")
+BENCHES = ("rapier_bare", "closed_loop_x100", "rapier_treadmill_bare_2_leg",
+           "closed_loop_treadmill_x100")
 
 
 def model(substeps):
@@ -71,12 +81,36 @@ def mujoco_us_per_period(substeps):
     return statistics.median(times), m.nv
 
 
+def mujoco_trainer_us():
+    """Median cost of one 1 ms period (us) of the two-leg trainer standing in MuJoCo."""
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+    import stance
+
+    m, total, _ = stance.build(75.0, 2)
+    tilt = stance.hip_pitch_rad()
+    flat = (tilt + math.radians(stance.SHANK_VERTICAL[0]), math.radians(stance.SHANK_VERTICAL[1]))
+    d, _ = stance.settle(m, [flat, flat], 0.3, total)
+    m.opt.timestep = PERIOD_S
+    hold = d.ctrl.copy()
+    times = []
+    for r in range(REPEATS):
+        # A sway of the servos' set-points (+-0.05 rad), held per block: the feet stay down.
+        d.ctrl[:] = hold + 0.05 * np.sin(0.4 * r)
+        t0 = time.perf_counter()
+        mujoco.mj_step(m, d, nstep=N)
+        times.append((time.perf_counter() - t0) / N * 1e6)
+        if not np.all(np.isfinite(d.qpos)):
+            sys.exit("MuJoCo's trainer went non-finite")
+    return statistics.median(times), m.nv, d.ncon
+
+
 def rapier_us(skip_bench):
     """The rapier leg's bare step and closed-loop period (us) from criterion's JSON."""
     target = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
     if not skip_bench:
         subprocess.run(
-            ["cargo", "bench", "--bench", "leg", "--", "rapier_bare|closed_loop_x100$",
+            ["cargo", "bench", "--bench", "leg", "--",
+             "rapier_bare|closed_loop_x100$|rapier_treadmill_bare_2_leg|closed_loop_treadmill_x100",
              "--warm-up-time", "1", "--measurement-time", "5", "--noplot"],
             cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
     out = {}
@@ -104,7 +138,19 @@ def main():
     print("|---|---|---|---|")
     for name, us in rows:
         print(f"| {name} | {us:.2f} | {1e3 / us:.0f}x | {us / mujoco_2:.2f} |")
-
+    us, nv, ncon = mujoco_trainer_us()
+    rows = [
+        (f"MuJoCo {mujoco.__version__}, `mj_step` x1 (implicit-fast, {nv} dof, "
+         f"{ncon} contacts)", us),
+        ("rapier, bare step (1 substep, the feet's contacts)", rapier["rapier_treadmill_bare_2_leg"]),
+        ("rapier trainer, closed loop (8 muscles, 8 APRC-NDO, `gait_treadmill`)",
+         rapier["closed_loop_treadmill_x100"]),
+    ]
+    print()
+    print("| 1 ms period of the two-leg trainer, standing | us | real time | / MuJoCo |")
+    print("|---|---|---|---|")
+    for name, us_row in rows:
+        print(f"| {name} | {us_row:.2f} | {1e3 / us_row:.0f}x | {us_row / us:.2f} |")
 
 if __name__ == "__main__":
     main()

@@ -1411,4 +1411,136 @@ mod tests {
             "{a:?}"
         );
     }
+
+    /// The rapier fork (vendor/rapier3d/PATCHES.md) computes the multibody's body
+    /// Jacobians and mass matrix on each link's branch (its own and its ancestors' DOFs)
+    /// only. On the two-leg trainer, moving, they must be what the full products give: each
+    /// link's Jacobian times the generalized velocity is the link's velocity (rapier's own,
+    /// propagated link to link), and the mass matrix is the sum over links of Jᵀ M J, the
+    /// legs' cross terms zero.
+    #[test]
+    fn rapier_fork_branch_dynamics_equal_the_full_products_on_two_legs() {
+        let t = TreadmillSettings {
+            legs: 2,
+            speed_m_per_s: Some(0.5),
+            contralateral: Some(crate::ground::Contralateral::None),
+            ..TreadmillSettings::new(0.3, 75.0)
+        };
+        let j = JointSettings {
+            damping_nm_s_per_rad: 0.5,
+            friction_nm: 0.0,
+        };
+        let mut e = Exoskeleton::on_treadmill(
+            crate::config::EMBEDDED_TRAINER_URDF,
+            "exo_trainer.urdf",
+            [j, j],
+            1e-3,
+            1,
+            &t,
+        )
+        .unwrap();
+        e.set_state(0, [0.4, 0.7], [1.5, -2.0]);
+        e.set_state(1, [-0.1, 0.2], [-0.7, 3.0]);
+        for _ in 0..5 {
+            e.step(|_, _| PerLeg::from_fn(2, |leg| [10.0 * leg as f64, -5.0]));
+        }
+        let handle = e.legs[0].joints[0].handle;
+        // Each link's Jacobian at this pose against its centre of mass's finite difference
+        // over the next period (semi-implicit Euler moves the pose with the new velocity).
+        let coms = |e: &Exoskeleton| -> Vec<[f64; 3]> {
+            let (mb, _) = e.world.multibody_joints.get(handle).unwrap();
+            mb.links()
+                .map(|l| {
+                    let c = e.world.bodies[l.rigid_body_handle()]
+                        .mass_properties()
+                        .world_com;
+                    [c.x, c.y, c.z].map(f64::from)
+                })
+                .collect()
+        };
+        let before = coms(&e);
+        let jacobians: Vec<_> = {
+            let (mb, _) = e.world.multibody_joints.get(handle).unwrap();
+            (0..mb.num_links())
+                .map(|i| mb.body_jacobian(i).clone())
+                .collect()
+        };
+        e.step(|_, _| PerLeg::from_fn(2, |leg| [10.0 * leg as f64, -5.0]));
+        let after = coms(&e);
+        let bodies = &e.world.bodies;
+        let (mb, _) = e.world.multibody_joints.get_mut(handle).unwrap();
+        let n = mb.ndofs();
+        assert_eq!(n, 8, "pelvis x and z, two hips, knees and ankles");
+        let qd: Vec<f64> = mb
+            .generalized_velocity()
+            .iter()
+            .map(|&v| f64::from(v))
+            .collect();
+        let (mut worst_velocity, mut fastest) = (0.0f64, 0.0f64);
+        for (i, jac) in jacobians.iter().enumerate() {
+            for r in 0..3 {
+                let jv: f64 = (0..n).map(|c| f64::from(jac[(r, c)]) * qd[c]).sum();
+                let moved = (after[i][r] - before[i][r]) / 1e-3;
+                worst_velocity = worst_velocity.max((jv - moved).abs());
+                fastest = fastest.max(moved.abs());
+            }
+        }
+        // The mass matrix at the present pose: rapier reassembles it (dt = 0: no damping).
+        mb.dof_inverse_inertia(bodies);
+        let mut full = vec![vec![0.0f64; n]; n];
+        for (i, link) in mb.links().enumerate() {
+            let jac = mb.body_jacobian(i);
+            let props = bodies[link.rigid_body_handle()].mass_properties();
+            let m = props.effective_mass();
+            let inertia = props.effective_angular_inertia();
+            // The link's spatial inertia at its centre of mass: mass, then the world inertia.
+            let i3 = [
+                [inertia.m11, inertia.m12, inertia.m13],
+                [inertia.m12, inertia.m22, inertia.m23],
+                [inertia.m13, inertia.m23, inertia.m33],
+            ];
+            let mut spatial = [[0.0f64; 6]; 6];
+            for (k, mass) in [m.x, m.y, m.z].into_iter().enumerate() {
+                spatial[k][k] = f64::from(mass);
+                for l in 0..3 {
+                    spatial[3 + k][3 + l] = f64::from(i3[k][l]);
+                }
+            }
+            for (r, row) in full.iter_mut().enumerate() {
+                for (c, entry) in row.iter_mut().enumerate() {
+                    for a in 0..6 {
+                        for b in 0..6 {
+                            *entry +=
+                                f64::from(jac[(a, r)]) * spatial[a][b] * f64::from(jac[(b, c)]);
+                        }
+                    }
+                }
+            }
+        }
+        let lu = mb.inv_augmented_mass();
+        let mut fork = lu.l() * lu.u();
+        lu.p().inv_permute_rows(&mut fork);
+        let scale = full.iter().flatten().fold(0.0f64, |a, &b| a.max(b.abs()));
+        let mut worst_mass = 0.0f64;
+        for r in 0..n {
+            for c in 0..n {
+                worst_mass = worst_mass.max((f64::from(fork[(r, c)]) - full[r][c]).abs() / scale);
+            }
+        }
+        // The hips' cross term: no link moves with both legs.
+        let hips = e.legs.iter().map(|l| l.joints[0].dof).collect::<Vec<_>>();
+        let cross = f64::from(fork[(hips[0], hips[1])]).abs() / scale;
+        println!(
+            "J qdot vs the links' finite-difference velocity: {worst_velocity:.2e} m/s (fastest {fastest:.2} m/s); mass matrix vs full sum: {worst_mass:.2e} of its largest entry ({scale:.1} kg); hips' cross term {cross:.1e}"
+        );
+        assert!(
+            worst_velocity < 0.02 * fastest,
+            "J qdot is {worst_velocity} m/s off a link's velocity"
+        );
+        assert!(
+            worst_mass < 1e-5,
+            "mass matrix {worst_mass} off the full sum"
+        );
+        assert!(cross < 1e-6, "the hips' cross term is {cross}");
+    }
 }

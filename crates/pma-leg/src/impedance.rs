@@ -200,6 +200,8 @@ impl Tunnel {
             tangent: [1.0, 0.0],
         };
         let mut index = 0;
+        // Compared squared: `hypot`, once per segment, was 5 % of a two-leg period.
+        let mut best_d2 = f64::INFINITY;
         for i in range {
             let a = self.points[i];
             let b = self.points[(i + 1) % n];
@@ -210,17 +212,23 @@ impl Tunnel {
             }
             let s = (((q[0] - a[0]) * ab[0] + (q[1] - a[1]) * ab[1]) / len2).clamp(0.0, 1.0);
             let offset = [q[0] - a[0] - s * ab[0], q[1] - a[1] - s * ab[1]];
-            let d = offset[0].hypot(offset[1]);
-            if d < best.distance_rad {
+            let d2 = offset[0] * offset[0] + offset[1] * offset[1];
+            if d2 < best_d2 {
+                best_d2 = d2;
                 let len = len2.sqrt();
                 best = PathPoint {
                     offset_rad: offset,
-                    distance_rad: d,
+                    distance_rad: f64::NAN,
                     tangent: [ab[0] / len, ab[1] / len],
                 };
                 index = i;
             }
         }
+        best.distance_rad = if best_d2.is_finite() {
+            best.offset_rad[0].hypot(best.offset_rad[1])
+        } else {
+            f64::INFINITY
+        };
         (best, index)
     }
 }
