@@ -40,14 +40,11 @@ def main():
     root = pathlib.Path(__file__).resolve().parents[1]
     target = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", root / "target"))
     binaries = sys.argv[1:] or [str(target / "release/pma-exo")]
-    results = {b: {} for b in binaries}
+    results = {b: {case: [] for case in CASES} for b in binaries}
     for case in CASES:
-        runs = {b: [] for b in binaries}
         for _ in range(RUNS):
             for b in binaries:
-                runs[b].append(timed(b, case.split()))
-        for b in binaries:
-            results[b][case] = runs[b]
+                results[b][case].append(timed(b, case.split()))
     for b in binaries:
         if len(binaries) > 1:
             print(f"\n{b}:")
@@ -58,6 +55,7 @@ def main():
             cpu = statistics.median(r[1] for r in results[b][case])
             print(f"| `pma-exo {case}` | {wall * 1e3:.1f} ms | {60 / wall:.0f}x | "
                   f"{cpu * 1e3:.1f} ms | {60 / max(cpu, 1e-4):.0f}x |")
+
 
 if __name__ == "__main__":
     main()

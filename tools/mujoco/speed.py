@@ -133,24 +133,26 @@ def main():
         rows.append((f"MuJoCo {mujoco.__version__}, `mj_step` x{substeps} (Euler, {nv} dof)", us))
     rows.append(("rapier, bare step (2 substeps)", rapier["rapier_bare"]))
     rows.append(("rapier leg, closed loop (4 muscles, 4 APRC-NDO)", rapier["closed_loop_x100"]))
-    mujoco_2 = rows[1][1]
-    print("| 1 ms period of the in-air leg | us | real time | / MuJoCo x2 |")
-    print("|---|---|---|---|")
-    for name, us in rows:
-        print(f"| {name} | {us:.2f} | {1e3 / us:.0f}x | {us / mujoco_2:.2f} |")
+    table("1 ms period of the in-air leg", "/ MuJoCo x2", rows, rows[1][1])
     us, nv, ncon = mujoco_trainer_us()
-    rows = [
+    print()
+    table("1 ms period of the two-leg trainer, standing", "/ MuJoCo", [
         (f"MuJoCo {mujoco.__version__}, `mj_step` x1 (implicit-fast, {nv} dof, "
          f"{ncon} contacts)", us),
         ("rapier, bare step (1 substep, the feet's contacts)", rapier["rapier_treadmill_bare_2_leg"]),
         ("rapier trainer, closed loop (8 muscles, 8 APRC-NDO, `gait_treadmill`)",
          rapier["closed_loop_treadmill_x100"]),
-    ]
-    print()
-    print("| 1 ms period of the two-leg trainer, standing | us | real time | / MuJoCo |")
+    ], us)
+
+
+def table(title, ratio, rows, base_us):
+    """A Markdown table of `rows` (name, us per period): real time and the ratio to
+    `base_us`."""
+    print(f"| {title} | us | real time | {ratio} |")
     print("|---|---|---|---|")
-    for name, us_row in rows:
-        print(f"| {name} | {us_row:.2f} | {1e3 / us_row:.0f}x | {us_row / us:.2f} |")
+    for name, us in rows:
+        print(f"| {name} | {us:.2f} | {1e3 / us:.0f}x | {us / base_us:.2f} |")
+
 
 if __name__ == "__main__":
     main()

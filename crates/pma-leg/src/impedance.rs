@@ -216,19 +216,14 @@ impl Tunnel {
             if d2 < best_d2 {
                 best_d2 = d2;
                 let len = len2.sqrt();
-                best = PathPoint {
-                    offset_rad: offset,
-                    distance_rad: f64::NAN,
-                    tangent: [ab[0] / len, ab[1] / len],
-                };
+                best.offset_rad = offset;
+                best.tangent = [ab[0] / len, ab[1] / len];
                 index = i;
             }
         }
-        best.distance_rad = if best_d2.is_finite() {
-            best.offset_rad[0].hypot(best.offset_rad[1])
-        } else {
-            f64::INFINITY
-        };
+        if best_d2.is_finite() {
+            best.distance_rad = best.offset_rad[0].hypot(best.offset_rad[1]);
+        }
         (best, index)
     }
 }
