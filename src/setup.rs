@@ -210,6 +210,9 @@ pub enum Mode {
     /// Patient in charge: only the device's own weight and the muscles' damping
     /// compensated.
     Transparent,
+    /// Each joint a spring and damper about the reference by the muscles' own controllers
+    /// tracking a reference the cuff torque displaces (`[control.impedance]`).
+    Admittance,
 }
 
 impl Mode {
@@ -220,6 +223,7 @@ impl Mode {
             Mode::Impedance => ControlMode::Impedance,
             Mode::Path => ControlMode::Path,
             Mode::Transparent => ControlMode::Transparent,
+            Mode::Admittance => ControlMode::Admittance,
         }
     }
 }
@@ -291,6 +295,7 @@ impl LegRun {
 pub fn controller_label(loaded: &LoadedScenario, config: &ControllerConfig) -> String {
     match loaded.scenario.control.mode {
         ControlMode::Position => config.kind().as_str().to_owned(),
+        ControlMode::Admittance => format!("{} in admittance mode", config.kind().as_str()),
         mode => format!("none: {mode} mode, the pairs set by pressure"),
     }
 }

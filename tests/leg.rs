@@ -292,14 +292,17 @@ fn a_leg_run_that_leaves_physical_bounds_fails() {
     sim.run(0.5, &mut ()).expect("a normal run");
 }
 
-/// The leg's knee encoder reading NaN from `at_s` on (a broken wire).
-struct NanKnee {
+/// The leg's reading channel `channel` (0-1 the encoders, 2-3 the cuff torques) reading
+/// `value` from `at_s` on (a broken wire, a saturated sensor).
+struct BadChannel {
     plant: pma_leg::LegPlant,
     at_s: f64,
+    channel: usize,
+    value: f64,
 }
 
-impl pma_loop::Backend for NanKnee {
-    type Reading = PerLeg<[f64; 2]>;
+impl pma_loop::Backend for BadChannel {
+    type Reading = PerLeg<pma_leg::LegReading>;
     type Command = PerLeg<[f64; 4]>;
     type Truth = pma_leg::TrainerState;
     type Error = pma_leg::LegError;
@@ -315,7 +318,7 @@ impl pma_loop::Backend for NanKnee {
     fn read(&mut self) -> Result<Self::Reading, Self::Error> {
         let mut r = self.plant.read()?;
         if self.plant.time() >= self.at_s {
-            r[0][1] = f64::NAN;
+            r[0][self.channel] = self.value;
         }
         Ok(r)
     }
@@ -330,14 +333,37 @@ impl pma_loop::Backend for NanKnee {
     }
 }
 
+/// `gait_training`'s leg in `mode` under the rig's supervisor, its channel `channel`
+/// reading `value` from `at_s` on, and its controllers.
+fn with_bad_channel(
+    mode: pma_leg::ControlMode,
+    channel: usize,
+    value: f64,
+    at_s: f64,
+) -> (
+    pma_control::Supervised<BadChannel>,
+    pma_leg::TrainerControllers,
+) {
+    let mut loaded = Scenario::load("gait_training").unwrap();
+    loaded.scenario.control.mode = mode;
+    let sim = LegSim::new(&loaded).unwrap();
+    let (plant, controllers, limits) = sim.into_parts();
+    let bad = BadChannel {
+        plant,
+        at_s,
+        channel,
+        value,
+    };
+    (pma_control::Supervised::new(bad, limits, None), controllers)
+}
+
 /// The leg runs under the rig's supervisor: a NaN encoder vents all four muscles and ends
 /// the run as a fault naming the joint.
 #[test]
 fn a_nan_encoder_vents_all_four_muscles_and_ends_the_run_as_a_fault() {
     use pma_loop::Backend;
-    let sim = LegSim::new(&Scenario::load("gait_training").unwrap()).unwrap();
-    let (plant, mut controllers, limits) = sim.into_parts();
-    let mut leg = pma_control::Supervised::new(NanKnee { plant, at_s: 1.0 }, limits, None);
+    let (mut leg, mut controllers) =
+        with_bad_channel(pma_leg::ControlMode::Position, 1, f64::NAN, 1.0);
     let settings = pma_loop::LoopSettings::new(3.0).unwrap();
     let out = pma_loop::run(&mut leg, &mut controllers, &mut (), &settings).unwrap();
     match out.end {
@@ -361,4 +387,29 @@ fn a_nan_encoder_vents_all_four_muscles_and_ends_the_run_as_a_fault() {
     assert_eq!(set_points, [0.0; 4], "every muscle vented");
     assert!(leg.inner().plant.time() < 1.01);
     let _ = leg.period_s();
+}
+
+/// In admittance mode, whose loop reads the cuffs, a cuff torque sensor beyond its full
+/// scale (saturated, or a cable pulled) is a fault as an encoder out of its window is:
+/// the muscles vent and the fault names the sensor.
+#[test]
+fn a_cuff_torque_beyond_full_scale_vents_the_muscles_and_names_the_sensor() {
+    let full_scale = pma_leg::sim::CUFF_TORQUE_FULL_SCALE_NM;
+    let (mut leg, mut controllers) =
+        with_bad_channel(pma_leg::ControlMode::Admittance, 2, 1.5 * full_scale, 0.5);
+    let settings = pma_loop::LoopSettings::new(2.0).unwrap();
+    let out = pma_loop::run(&mut leg, &mut controllers, &mut (), &settings).unwrap();
+    match out.end {
+        pma_loop::End::Fault {
+            error: pma_control::Fault::PositionOut { channel, unit, .. },
+            ..
+        } => assert_eq!((channel, unit), ("hip cuff torque", "N m")),
+        other => panic!("{other:?}"),
+    }
+    assert!(leg
+        .inner()
+        .plant
+        .muscles()
+        .iter()
+        .all(|m| m.set_point() == 0.0));
 }

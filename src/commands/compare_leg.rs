@@ -42,7 +42,7 @@ pub struct Args {
         long,
         value_delimiter = ',',
         default_value = "position",
-        value_name = "position,impedance,path,transparent"
+        value_name = "position,impedance,path,transparent,admittance"
     )]
     modes: Vec<pma_exo::setup::Mode>,
     /// Simulated seconds per run; at least two strides.
@@ -248,7 +248,7 @@ fn cases<'a>(
         for &mode in modes {
             let mut loaded = s.clone();
             loaded.scenario.control.mode = mode.control_mode();
-            let kinds: &[ControllerKind] = if mode == pma_exo::setup::Mode::Position {
+            let kinds: &[ControllerKind] = if mode.control_mode().runs_muscle_controllers() {
                 &COMPARED
             } else {
                 &[ControllerKind::AprcNdo]
@@ -259,6 +259,9 @@ fn cases<'a>(
                 .collect::<Result<Vec<_>, _>>()?;
             let labels = match mode {
                 pma_exo::setup::Mode::Position => kinds.iter().map(|k| k.to_string()).collect(),
+                pma_exo::setup::Mode::Admittance => {
+                    kinds.iter().map(|k| format!("{k}, admittance")).collect()
+                }
                 _ => vec![format!("{} mode", mode.control_mode())],
             };
             out.push(Case {
@@ -274,16 +277,17 @@ fn cases<'a>(
 
 /// What ran, for the provenance: the controllers in position mode, and the other modes.
 fn compared(modes: &[pma_exo::setup::Mode]) -> String {
+    let controllers = || COMPARED.iter().map(|k| k.as_str().to_owned());
     let mut what = Vec::new();
-    if modes.contains(&pma_exo::setup::Mode::Position) {
-        what.extend(COMPARED.iter().map(|k| k.as_str().to_owned()));
+    for m in modes {
+        match m {
+            pma_exo::setup::Mode::Position => what.extend(controllers()),
+            pma_exo::setup::Mode::Admittance => {
+                what.extend(controllers().map(|k| format!("{k} in admittance mode")));
+            }
+            _ => what.push(format!("{} mode", m.control_mode())),
+        }
     }
-    what.extend(
-        modes
-            .iter()
-            .filter(|m| **m != pma_exo::setup::Mode::Position)
-            .map(|m| format!("{} mode", m.control_mode())),
-    );
     what.join(",")
 }
 

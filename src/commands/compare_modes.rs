@@ -19,6 +19,11 @@ pub struct Args {
     /// Worker threads (default: one per core); the results do not depend on it.
     #[arg(long)]
     threads: Option<usize>,
+    /// Admittance mode again at each of these joint stiffnesses (N m/rad, both joints,
+    /// comma-separated): from patient-in-charge towards robot-in-charge, beyond what
+    /// co-contraction reaches.
+    #[arg(long, value_delimiter = ',', value_name = "N m/rad")]
+    admittance_stiffness: Vec<f64>,
     /// Print JSON instead of tables.
     #[arg(long)]
     json: bool,
@@ -30,6 +35,8 @@ pub struct Args {
 enum Drive {
     /// A control mode (position: the scenario's APRC-NDO).
     Mode(ControlMode),
+    /// Admittance mode (APRC-NDO) with both joints at this stiffness (N m/rad).
+    AdmittanceAt(f64),
     /// Every muscle vented and unhooked: the patient alone with the frames.
     Unhooked,
 }
@@ -38,15 +45,18 @@ impl Drive {
     fn name(self) -> String {
         match self {
             Drive::Mode(ControlMode::Position) => "position (APRC-NDO)".into(),
+            Drive::Mode(ControlMode::Admittance) => "admittance (APRC-NDO)".into(),
             Drive::Mode(m) => m.to_string(),
+            Drive::AdmittanceAt(k) => format!("admittance (APRC-NDO), {k} N m/rad"),
             Drive::Unhooked => "muscles unhooked".into(),
         }
     }
 }
 
-const DRIVES: [Drive; 5] = [
+const DRIVES: [Drive; 6] = [
     Drive::Mode(ControlMode::Position),
     Drive::Mode(ControlMode::Impedance),
+    Drive::Mode(ControlMode::Admittance),
     Drive::Mode(ControlMode::Path),
     Drive::Mode(ControlMode::Transparent),
     Drive::Unhooked,
@@ -122,8 +132,15 @@ fn row(scenario: &str, drive: Drive, r: &LegReport) -> Row {
 
 fn run_one(loaded: &LoadedScenario, drive: Drive, duration_s: f64) -> Result<LegReport> {
     let mut loaded = loaded.clone();
-    if let Drive::Mode(m) = drive {
-        loaded.scenario.control.mode = m;
+    let control = &mut loaded.scenario.control;
+    match drive {
+        Drive::Mode(m) => control.mode = m,
+        Drive::AdmittanceAt(k) => {
+            control.mode = ControlMode::Admittance;
+            control.impedance.hip.stiffness_nm_per_rad = Some(k);
+            control.impedance.knee.stiffness_nm_per_rad = Some(k);
+        }
+        Drive::Unhooked => {}
     }
     let mut sim = LegSim::new(&loaded)?;
     if let Drive::Unhooked = drive {
@@ -149,8 +166,25 @@ pub fn run(a: Args) -> Result<i32> {
             );
         }
     }
+    if let Some(k) = a.admittance_stiffness.iter().find(|k| {
+        !(k.is_finite() && **k > 0.0 && **k <= pma_leg::impedance::STIFFNESS_MAX_NM_PER_RAD)
+    }) {
+        anyhow::bail!(
+            "--admittance-stiffness {k}: each must be > 0 and at most {} N m/rad",
+            pma_leg::impedance::STIFFNESS_MAX_NM_PER_RAD
+        );
+    }
+    let drives: Vec<Drive> = DRIVES
+        .iter()
+        .copied()
+        .chain(
+            a.admittance_stiffness
+                .iter()
+                .map(|k| Drive::AdmittanceAt(*k)),
+        )
+        .collect();
     let jobs: Vec<(usize, Drive)> = (0..scenarios.len())
-        .flat_map(|i| DRIVES.iter().map(move |d| (i, *d)))
+        .flat_map(|i| drives.iter().map(move |d| (i, *d)))
         .collect();
     let reports = super::with_threads(a.threads, || {
         jobs.par_iter()

@@ -4,8 +4,10 @@ use crate::provenance::Provenance;
 use crate::say;
 use anyhow::Result;
 use pma_leg::exoskeleton::JOINT_NAMES;
-use pma_leg::impedance::{probe_stiffness, StiffnessProbe, StiffnessRange};
-use pma_leg::{LegSim, MusclePair, Scenario};
+use pma_leg::impedance::{
+    probe_stiffness, StiffnessProbe, StiffnessRange, STIFFNESS_MAX_NM_PER_RAD,
+};
+use pma_leg::{ControlMode, LegSim, MusclePair, Scenario};
 use serde::Serialize;
 
 /// `impedance`'s arguments.
@@ -21,6 +23,15 @@ pub struct Args {
     /// constant, its own damping over its stiffness (1.6 s for gait_training's hip).
     #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
     settle: f64,
+    /// The mode whose stiffness the perturbation tests measure: `impedance` (the pairs'
+    /// co-contraction) or `admittance` (the muscles' controllers tracking a reference the
+    /// cuff torque displaces).
+    #[arg(long, default_value = "impedance", value_name = "impedance|admittance")]
+    mode: pma_exo::setup::Mode,
+    /// Stiffness set points to test at both joints (N m/rad, comma-separated); default:
+    /// three across what co-contraction reaches at the test pose.
+    #[arg(long, value_delimiter = ',', value_name = "N m/rad")]
+    stiffness: Vec<f64>,
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
@@ -53,6 +64,17 @@ pub fn run(a: Args) -> Result<i32> {
     if !(a.settle.is_finite() && (0.2..=30.0).contains(&a.settle)) {
         anyhow::bail!("--settle must be 0.2..=30 s (got {})", a.settle);
     }
+    let mode = a.mode.control_mode();
+    if !matches!(mode, ControlMode::Impedance | ControlMode::Admittance) {
+        anyhow::bail!("--mode {mode}: the perturbation tests measure a stiffness set point, which impedance and admittance modes have");
+    }
+    if let Some(k) = a
+        .stiffness
+        .iter()
+        .find(|k| !(k.is_finite() && **k > 0.0 && **k <= STIFFNESS_MAX_NM_PER_RAD))
+    {
+        anyhow::bail!("--stiffness {k}: each set point must be > 0 and at most {STIFFNESS_MAX_NM_PER_RAD} N m/rad");
+    }
     let pose_deg = [a.pose_deg[0], a.pose_deg[1]];
     if pose_deg.iter().any(|d| !d.is_finite()) {
         anyhow::bail!("--pose-deg must be two finite angles in degrees");
@@ -76,9 +98,16 @@ pub fn run(a: Args) -> Result<i32> {
         let at_pose = p.stiffness_range(gravity, pose_rad[j]);
         let mut probes = Vec::new();
         if let (true, Some(r)) = (in_air, at_pose) {
-            for share in SET_POINTS {
-                let k = r.min_nm_per_rad + share * (r.max_nm_per_rad - r.min_nm_per_rad);
-                probes.push(probe_stiffness(&loaded, j, k, pose_rad, a.settle)?);
+            let set_points = if a.stiffness.is_empty() {
+                SET_POINTS
+                    .iter()
+                    .map(|share| r.min_nm_per_rad + share * (r.max_nm_per_rad - r.min_nm_per_rad))
+                    .collect()
+            } else {
+                a.stiffness.clone()
+            };
+            for k in set_points {
+                probes.push(probe_stiffness(&loaded, mode, j, k, pose_rad, a.settle)?);
             }
         }
         joints.push(JointReach {
@@ -97,6 +126,7 @@ pub fn run(a: Args) -> Result<i32> {
         let json = serde_json::json!({
             "provenance": provenance,
             "pose_deg": pose_deg,
+            "mode": mode,
             "joints": joints,
         });
         say!("{}", serde_json::to_string(&json)?);
@@ -112,6 +142,16 @@ pub fn run(a: Args) -> Result<i32> {
             format!("{lo:.1}..{hi:.1} N m/rad")
         })
     };
+    if in_air {
+        say!(
+            "  perturbation tests in {mode} mode ({})",
+            if mode == ControlMode::Admittance {
+                "the muscles' controllers track a reference the cuff torque displaces"
+            } else {
+                "the pairs' co-contraction is the spring"
+            }
+        );
+    }
     for j in &joints {
         say!(
             "  {:<5} at rest {}; at every point of a stride in the air {}; at {:.0}/{:.0} deg holding gravity {}",

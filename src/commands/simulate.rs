@@ -198,6 +198,13 @@ pub fn run(a: Args) -> Result<i32> {
             pma_leg::ControlMode::Position => {
                 format!("{}: {} on every muscle", sc.name, config.kind())
             }
+            pma_leg::ControlMode::Admittance => {
+                format!(
+                    "{}: {} on every muscle, admittance mode",
+                    sc.name,
+                    config.kind()
+                )
+            }
             mode => format!("{}: {mode} mode, no muscle controller", sc.name),
         };
         let leg_title = if sim.leg_count() > 1 {

@@ -1,12 +1,13 @@
 //! The leg's controller set as a [`Task`] of the closed loop: one muscle controller per
 //! muscle, a co-contraction regulator per joint, and the gait reference.
+use crate::admittance::Admittance;
 use crate::config::{MuscleGeometry, Scenario};
 use crate::error::{invalid, LegError};
 use crate::exoskeleton::LegInertia;
 use crate::gait::{GaitReference, GaitSample, JointSample};
 use crate::impedance::{ControlMode, ImpedanceLaw, StanceLoad};
 use crate::legs::PerLeg;
-use crate::plant::MuscleActuator;
+use crate::plant::{reading_angles, reading_cuff_nm, LegReading, MuscleActuator};
 use pma_control::{
     build_controller, CommandLimits, Controller, ControllerConfig, Diagnostics, Measurement,
     NominalModel, RefSample,
@@ -98,9 +99,12 @@ pub struct LegControllers {
     gait: GaitReference,
     hold: Option<[f64; 2]>,
     commands: [f64; 4],
-    /// Impedance mode's law (none: position mode, the muscles' controllers in charge).
+    /// The pressure-set modes' law (none: the muscles' controllers in charge).
     impedance: Option<ImpedanceLaw>,
-    /// The weight the leg carries in stance on a treadmill, which impedance mode holds.
+    /// Admittance mode's displacement of the reference the muscles' controllers track.
+    admittance: Option<Admittance>,
+    /// The weight the leg carries in stance on a treadmill, which impedance and admittance
+    /// modes hold.
     stance_load: Option<StanceLoad>,
 }
 
@@ -117,13 +121,15 @@ impl LegControllers {
     /// assumes ([`MuscleActuator::assumed`]: Table I, or its Festo map's fit), a
     /// fraction of the standing leg's joint inertia seen through the pulley (see
     /// `ControlSettings::nominal_inertia_fraction`), and the antagonist's pull at the
-    /// co-contraction target as its static load.
+    /// co-contraction target as its static load. `limits_rad` bounds each joint's
+    /// reference where admittance mode displaces it.
     pub(crate) fn new(
         sc: &Scenario,
         muscles: &[MuscleActuator],
         inertia: &LegInertia,
         config: &ControllerConfig,
         leg: usize,
+        limits_rad: [[f64; 2]; 2],
     ) -> Result<Self, LegError> {
         let limits = CommandLimits {
             min_pa: 0.0,
@@ -172,10 +178,14 @@ impl LegControllers {
             filtered_pa: sc.control.cocontraction_pa,
         };
         let gait = sc.gait.reference()?.for_leg(leg);
-        let impedance = match sc.control.mode {
-            ControlMode::Position => None,
-            _ => Some(ImpedanceLaw::new(sc, muscles, inertia, &gait)?),
-        };
+        let mode = sc.control.mode;
+        let impedance = mode
+            .sets_pressures()
+            .then(|| ImpedanceLaw::new(sc, muscles, inertia, &gait))
+            .transpose()?;
+        let admittance = (mode == ControlMode::Admittance)
+            .then(|| admittance_of(sc, muscles, inertia, limits_rad))
+            .transpose()?;
         Ok(Self {
             levers,
             controllers,
@@ -185,16 +195,19 @@ impl LegControllers {
             hold: None,
             commands: [0.0; 4],
             impedance,
+            admittance,
             stance_load: None,
         })
     }
 
-    /// Impedance mode holds `load` in stance (a leg on a treadmill); other modes ignore it.
+    /// Impedance and admittance modes hold `load` in stance (a leg on a treadmill); other
+    /// modes ignore it.
     pub fn set_stance_load(&mut self, load: StanceLoad) {
-        if self
-            .impedance
-            .as_ref()
-            .is_some_and(|law| law.mode() == ControlMode::Impedance)
+        if self.admittance.is_some()
+            || self
+                .impedance
+                .as_ref()
+                .is_some_and(|law| law.mode() == ControlMode::Impedance)
         {
             self.stance_load = Some(load);
         }
@@ -220,9 +233,14 @@ impl LegControllers {
         self.hold.is_none() && !self.gait.standing(t_s)
     }
 
-    /// Impedance mode's law, if the leg runs in it.
+    /// The pressure-set modes' law, if the leg runs in one.
     pub fn impedance(&self) -> Option<&ImpedanceLaw> {
         self.impedance.as_ref()
+    }
+
+    /// Admittance mode's displacement, if the leg runs in it.
+    pub fn admittance(&self) -> Option<&Admittance> {
+        self.admittance.as_ref()
     }
 
     /// The gait reference (also while a pose is held).
@@ -270,14 +288,18 @@ impl LegControllers {
     fn start(
         &mut self,
         t_s: f64,
-        angles: &[f64; 2],
+        reading: &LegReading,
         resting: &[f64; 4],
         period_s: f64,
     ) -> LegOutput {
+        let angles = reading_angles(reading);
         self.commands = *resting;
         self.cocontraction = [self.regulator_at_rest; 2];
         if let Some(law) = &mut self.impedance {
             law.reset(*resting);
+        }
+        if let Some(a) = &mut self.admittance {
+            a.reset();
         }
         let g = self.reference(t_s);
         for (lever, c) in self.levers.iter().zip(self.controllers.iter_mut()) {
@@ -286,10 +308,11 @@ impl LegControllers {
             };
             c.reset(measured, lever.reference(joint(&g, lever.joint), 0.0));
         }
-        self.update(t_s, angles, period_s)
+        self.update(t_s, reading, period_s)
     }
 
-    fn update(&mut self, t_s: f64, angles: &[f64; 2], dt_s: f64) -> LegOutput {
+    fn update(&mut self, t_s: f64, reading: &LegReading, dt_s: f64) -> LegOutput {
+        let angles = &reading_angles(reading);
         let g = self.reference(t_s);
         let load = self.stance_load_nm(t_s, angles);
         let phase = (self.impedance.is_some() && self.walking(t_s)).then(|| self.gait.phase(t_s));
@@ -321,6 +344,12 @@ impl LegControllers {
             diagnostics: [Diagnostics::NONE; 4],
             reference_in_stance: self.hold.is_some() || self.gait.in_stance(t_s),
         };
+        // The tracked reference: the gait's, or admittance mode's displacement of it (the
+        // outputs keep the gait's, against which every mode's tracking is measured).
+        let g = match &mut self.admittance {
+            Some(a) => a.update(&g, *angles, reading_cuff_nm(reading), load, dt_s),
+            None => g,
+        };
         for (i, (lever, c)) in self
             .levers
             .iter()
@@ -349,6 +378,28 @@ impl LegControllers {
         }
         self.commands = *written;
     }
+}
+
+/// Admittance mode's displacement for a leg of `muscles` (its set points checked, a
+/// stiffness left out taking co-contraction's default).
+fn admittance_of(
+    sc: &Scenario,
+    muscles: &[MuscleActuator],
+    inertia: &LegInertia,
+    limits_rad: [[f64; 2]; 2],
+) -> Result<Admittance, LegError> {
+    let pressure_max_pa = sc.plant.valve.pressure_max_pa;
+    let pairs = [
+        crate::MusclePair::new(muscles, 0, pressure_max_pa)?,
+        crate::MusclePair::new(muscles, 1, pressure_max_pa)?,
+    ];
+    Admittance::new(
+        &sc.control.impedance,
+        sc.control.compensation,
+        &pairs,
+        inertia,
+        limits_rad,
+    )
 }
 
 /// Every leg's controllers: the trainer's task. Each leg runs its own [`LegControllers`]
@@ -387,7 +438,7 @@ impl TrainerControllers {
 }
 
 impl Task for TrainerControllers {
-    type Reading = PerLeg<[f64; 2]>;
+    type Reading = PerLeg<LegReading>;
     type Command = PerLeg<[f64; 4]>;
     type Output = PerLeg<LegOutput>;
 
@@ -481,7 +532,7 @@ impl Vented {
 }
 
 impl Task for Vented {
-    type Reading = PerLeg<[f64; 2]>;
+    type Reading = PerLeg<LegReading>;
     type Command = PerLeg<[f64; 4]>;
     type Output = PerLeg<LegOutput>;
 

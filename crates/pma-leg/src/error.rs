@@ -75,6 +75,16 @@ pub enum LegError {
         /// What the hardware reaches.
         message: String,
     },
+    /// A choice this computation cannot run.
+    #[error("{name} = {value}: {message}")]
+    Unsupported {
+        /// Parameter.
+        name: String,
+        /// The choice.
+        value: String,
+        /// Why, and what it runs.
+        message: String,
+    },
     /// A parameter is needed and absent.
     #[error("{name} is missing: {hint}")]
     Missing {

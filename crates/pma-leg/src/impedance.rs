@@ -43,13 +43,24 @@ pub enum ControlMode {
     /// Patient in charge: no torque on the limb but what compensates the device (its
     /// weight, the muscles' own damping); the pairs at their softest.
     Transparent,
+    /// Impedance through the muscles' own controllers (admittance control): each joint's
+    /// reference displaced by the cuff torque the patient adds over the set stiffness
+    /// (`[control.impedance]`), tracked by the muscle controllers as in position mode
+    /// ([`crate::admittance`]).
+    Admittance,
 }
 
 impl ControlMode {
     /// Whether the muscles' own controllers run (position mode) or the pairs are set by
     /// pressure (every other mode).
     pub fn runs_muscle_controllers(self) -> bool {
-        self == Self::Position
+        matches!(self, Self::Position | Self::Admittance)
+    }
+
+    /// Whether the pairs' pressures are set by [`ImpedanceLaw`] (impedance, path and
+    /// transparent modes), no muscle controller running.
+    pub fn sets_pressures(self) -> bool {
+        !self.runs_muscle_controllers()
     }
 }
 
@@ -235,6 +246,7 @@ impl std::fmt::Display for ControlMode {
             Self::Impedance => "impedance",
             Self::Path => "path",
             Self::Transparent => "transparent",
+            Self::Admittance => "admittance",
         })
     }
 }
@@ -276,6 +288,10 @@ pub struct ImpedanceSettings {
     /// Absent: none (the law as before).
     #[serde(default)]
     pub learning: Option<LearningSettings>,
+    /// Admittance mode: time constant of the filter on the cuff torque the patient adds
+    /// (s; [`crate::admittance`]).
+    #[serde(default = "default_cuff_filter")]
+    pub cuff_filter_s: f64,
 }
 
 /// `[control.impedance.learning]`: the torque each joint's pair adds at each phase of the
@@ -315,6 +331,10 @@ fn default_velocity_filter() -> f64 {
     0.005
 }
 
+fn default_cuff_filter() -> f64 {
+    0.01
+}
+
 impl Default for ImpedanceSettings {
     fn default() -> Self {
         Self {
@@ -323,6 +343,7 @@ impl Default for ImpedanceSettings {
             velocity_filter_s: default_velocity_filter(),
             stance_load: true,
             learning: None,
+            cuff_filter_s: default_cuff_filter(),
         }
     }
 }
@@ -368,6 +389,13 @@ impl ImpedanceSettings {
             0.0,
             0.1,
             "must be 0..=0.1 s",
+        )?;
+        within(
+            "control.impedance.cuff_filter_s",
+            self.cuff_filter_s,
+            0.0,
+            0.5,
+            "must be 0..=0.5 s",
         )?;
         if let Some(l) = self.learning {
             within(
@@ -1018,12 +1046,14 @@ pub struct StiffnessProbe {
 /// range and large against the valves' pressure resolution.
 const PROBE_DEFLECTION_RAD: f64 = 0.017_453_292_519_943_295;
 
-/// Holds the first leg of an in-air scenario at `pose_rad` in impedance mode, joint `joint`
-/// at `stiffness` N m/rad (the other joint at its default), and hangs a load of `stiffness`
+/// Holds the first leg of an in-air scenario at `pose_rad` in `mode` (impedance by
+/// co-contraction, or admittance through the muscles' controllers), joint `joint` at
+/// `stiffness` N m/rad (the other joint at its default), and hangs a load of `stiffness`
 /// times a degree on the joint, first flexing, then extending, each for `settle_s`: the
 /// realised stiffness is twice the load over the deflection between the two steady poses.
 pub fn probe_stiffness(
     loaded: &crate::LoadedScenario,
+    mode: ControlMode,
     joint: usize,
     stiffness: f64,
     pose_rad: [f64; 2],
@@ -1045,9 +1075,16 @@ pub fn probe_stiffness(
             ),
         });
     }
+    if !matches!(mode, ControlMode::Impedance | ControlMode::Admittance) {
+        return Err(LegError::Unsupported {
+            name: "mode".into(),
+            value: mode.to_string(),
+            message: "the perturbation test runs impedance or admittance mode, the modes with a stiffness set point".into(),
+        });
+    }
     let mut loaded = loaded.clone();
     let control = &mut loaded.scenario.control;
-    control.mode = ControlMode::Impedance;
+    control.mode = mode;
     let set = if joint == 0 {
         &mut control.impedance.hip
     } else {

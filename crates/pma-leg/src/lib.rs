@@ -6,6 +6,7 @@
 //! treadmill belt ([`ground`], [`stance`]).
 #![warn(missing_docs)]
 
+pub mod admittance;
 pub mod config;
 pub mod control;
 pub mod cooperative;
@@ -35,7 +36,7 @@ pub use impedance::{ControlMode, ImpedanceLaw, ImpedanceSettings, JointImpedance
 pub use legs::{PerLeg, MAX_LEGS, SIDES};
 pub use metrics::{JointStats, LegMetrics, LegPeriod, LegRecorder, LegReport, MuscleStats, OnLeg};
 pub use patient::{Patient, PatientSettings, PatientTorques, SpasmEvent};
-pub use plant::{LegPlant, LegState, MuscleActuator, SupervisedLeg, TrainerState};
+pub use plant::{LegPlant, LegReading, LegState, MuscleActuator, SupervisedLeg, TrainerState};
 pub use safety::{PatientMetrics, PatientReport, SafetyReport, SpasmReport};
 pub use sim::{
     balanced_pressures, FootSample, GroundSample, LegFault, LegSample, LegSim, TrainerSample,

@@ -118,6 +118,23 @@ pub fn leg_label(legs: usize, leg: usize, name: &str) -> String {
 /// encoder); a fault vents all muscles.
 pub type SupervisedLeg = pma_control::Supervised<LegPlant>;
 
+/// What a leg's sensors read each period: its two joint encoders (rad, hip then knee,
+/// flexion positive) and its two cuff torque sensors (N m, the torque the device puts
+/// into the limb at hip and knee, flexion positive, [`LegState::interaction_nm`] as an
+/// ideal sensor reads it). Position mode and the pressure-set modes read only the angles;
+/// admittance mode also the cuffs.
+pub type LegReading = [f64; 4];
+
+/// The joint angles of a leg's reading (rad).
+pub fn reading_angles(r: &LegReading) -> [f64; 2] {
+    [r[0], r[1]]
+}
+
+/// The cuff torques of a leg's reading (N m).
+pub fn reading_cuff_nm(r: &LegReading) -> [f64; 2] {
+    [r[2], r[3]]
+}
+
 /// One leg's true state at a reading.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct LegState {
@@ -386,16 +403,40 @@ impl LegPlant {
         self.periods += 1;
     }
 
-    fn encoder_angles(&mut self) -> PerLeg<[f64; 2]> {
+    fn readings(&mut self) -> PerLeg<LegReading> {
+        let legs = self.exo.leg_count();
+        let cuffs = PerLeg::from_fn(legs, |leg| {
+            self.cuff_torque_nm(leg, self.exo.angles(leg), self.exo.velocities(leg))
+        });
         let exo = &self.exo;
         let encoders = &mut self.encoders;
-        PerLeg::from_fn(exo.leg_count(), |leg| {
+        PerLeg::from_fn(legs, |leg| {
             let q = exo.angles(leg);
             [
                 encoders[leg][0].measure(q[0]),
                 encoders[leg][1].measure(q[1]),
+                cuffs[leg][0],
+                cuffs[leg][1],
             ]
         })
+    }
+
+    /// The torque the device puts into leg `leg`'s limb at angles `q` and velocities `qd`
+    /// (N m): the muscles' torque less the frames' inverse dynamics, the acceleration the
+    /// mean over the last period.
+    fn cuff_torque_nm(&self, leg: usize, q: [f64; 2], qd: [f64; 2]) -> [f64; 2] {
+        let mut muscles_nm = [0.0; 2];
+        if self.muscles_attached {
+            for mm in self.leg_muscles(leg) {
+                muscles_nm[mm.joint] += mm.torque(q, qd);
+            }
+        }
+        let frames = self
+            .exo
+            .inertia()
+            .frames()
+            .inverse_dynamics(q, qd, self.acceleration[leg]);
+        [muscles_nm[0] - frames[0], muscles_nm[1] - frames[1]]
     }
 
     /// Leg `leg`'s true state now.
@@ -405,21 +446,10 @@ impl LegPlant {
         let each = |f: &dyn Fn(&MuscleActuator) -> f64| -> [f64; 4] {
             std::array::from_fn(|i| m.get(i).map_or(f64::NAN, f))
         };
-        let mut muscles_nm = [0.0; 2];
-        if self.muscles_attached {
-            for mm in m {
-                muscles_nm[mm.joint] += mm.torque(q, qd);
-            }
-        }
-        let frames = self
-            .exo
-            .inertia()
-            .frames()
-            .inverse_dynamics(q, qd, self.acceleration[leg]);
         LegState {
             angle_rad: q,
             velocity_rad_s: qd,
-            interaction_nm: [muscles_nm[0] - frames[0], muscles_nm[1] - frames[1]],
+            interaction_nm: self.cuff_torque_nm(leg, q, qd),
             pressure_pa: each(&|m| m.pressure()),
             force_n: each(&|m| m.force(q, qd)),
             length_m: each(&|m| m.contraction(q)),
@@ -575,7 +605,7 @@ fn left_physics(q: f64, qd: f64, [lo, hi]: [f64; 2]) -> Option<String> {
 }
 
 impl Backend for LegPlant {
-    type Reading = PerLeg<[f64; 2]>;
+    type Reading = PerLeg<LegReading>;
     type Command = PerLeg<[f64; 4]>;
     type Truth = TrainerState;
     type Error = LegError;
@@ -586,7 +616,7 @@ impl Backend for LegPlant {
         for p in &mut self.patients {
             p.reset();
         }
-        let reading = self.encoder_angles();
+        let reading = self.readings();
         let state = self.state();
         Ok(Started {
             t_s: self.time(),
@@ -606,7 +636,7 @@ impl Backend for LegPlant {
     }
 
     fn read(&mut self) -> Result<Self::Reading, LegError> {
-        Ok(self.encoder_angles())
+        Ok(self.readings())
     }
 
     fn write(&mut self, commands_pa: &Self::Command) -> Result<Self::Command, LegError> {

@@ -490,7 +490,8 @@ impl LegSim {
         let mut per_leg = Vec::with_capacity(legs);
         for leg in 0..legs {
             let own = &muscles[leg * MUSCLES_PER_LEG..(leg + 1) * MUSCLES_PER_LEG];
-            let mut controllers = LegControllers::new(&sc, own, exo.inertia(), config, leg)?;
+            let mut controllers =
+                LegControllers::new(&sc, own, exo.inertia(), config, leg, exo.limits_rad(leg))?;
             if let Some(load) = stance_load(&sc, &exo)? {
                 controllers.set_stance_load(load);
             }
@@ -569,7 +570,7 @@ impl LegSim {
     ) -> Result<pma_loop::Outcome<std::convert::Infallible>, LegError>
     where
         T: pma_loop::Task<
-            Reading = PerLeg<[f64; 2]>,
+            Reading = PerLeg<crate::LegReading>,
             Command = PerLeg<[f64; 4]>,
             Output = PerLeg<LegOutput>,
         >,
@@ -958,25 +959,58 @@ pub struct LegFault {
     pub message: String,
 }
 
+/// Full scale of a cuff torque sensor (N m): where admittance mode reads the cuffs, a
+/// reading beyond it is a fault. Twice the largest interaction peak any shipped scenario
+/// has shown (443 N m at the hip, the transparent leg swinging into a spasm's end of
+/// range, docs/cooperative.md), so that only a broken or saturated reading trips it.
+pub const CUFF_TORQUE_FULL_SCALE_NM: f64 = 1000.0;
+
 /// What the supervisor enforces: every muscle's pressure within its valve's range and the
 /// scenario's rate limit, each encoder finite and inside its joint's limits (with
-/// [`LIMIT_OVERSHOOT_MAX_RAD`] to spare: rapier holds a limit to milliradians), leg after
-/// leg.
+/// [`LIMIT_OVERSHOOT_MAX_RAD`] to spare: rapier holds a limit to milliradians), each cuff
+/// torque not NaN and, in admittance mode, the one mode whose loop reads it, within
+/// [`CUFF_TORQUE_FULL_SCALE_NM`]; leg after leg. (The other modes do not stop a run on a
+/// sensor they do not read: the reading is the frames' model's, meaningless on a URDF
+/// whose links are lighter than the frames.)
 fn supervisor_limits(sc: &Scenario, exo: &Exoskeleton) -> SupervisorLimits {
-    const NAMES: [[&str; 2]; 2] = [
-        ["hip angle", "knee angle"],
-        ["left hip angle", "left knee angle"],
+    const NAMES: [[&str; 4]; 2] = [
+        [
+            "hip angle",
+            "knee angle",
+            "hip cuff torque",
+            "knee cuff torque",
+        ],
+        [
+            "left hip angle",
+            "left knee angle",
+            "left hip cuff torque",
+            "left knee cuff torque",
+        ],
     ];
-    let mut windows = Vec::with_capacity(2 * exo.leg_count());
+    let mut windows = Vec::with_capacity(4 * exo.leg_count());
     for leg in 0..exo.leg_count() {
         let limits = exo.limits_rad(leg);
+        let names = NAMES[leg.min(1)];
         for k in 0..2 {
             let [lo, hi] = limits[k];
             windows.push(ReadingWindow {
-                name: NAMES[leg.min(1)][k],
+                name: names[k],
                 unit: "rad",
                 min: lo - LIMIT_OVERSHOOT_MAX_RAD,
                 max: hi + LIMIT_OVERSHOOT_MAX_RAD,
+            });
+        }
+        let full_scale = if sc.control.mode == crate::ControlMode::Admittance {
+            CUFF_TORQUE_FULL_SCALE_NM
+        } else {
+            f64::INFINITY
+        };
+        for name in &names[2..] {
+            windows.push(ReadingWindow {
+                name,
+                unit: "N m",
+                min: -full_scale,
+                max: full_scale,
             });
         }
     }

@@ -33,10 +33,23 @@ fn the_limb_and_the_frames_add_up_to_the_leg() {
 }
 
 fn run(mode: Option<ControlMode>, unhooked: bool, seconds: f64) -> LegReport {
+    run_at(mode, None, unhooked, seconds)
+}
+
+/// `run` with both joints' stiffness set point at `stiffness` (N m/rad) if given.
+fn run_at(
+    mode: Option<ControlMode>,
+    stiffness: Option<f64>,
+    unhooked: bool,
+    seconds: f64,
+) -> LegReport {
     let mut loaded = Scenario::load("gait_active").unwrap();
     if let Some(m) = mode {
         loaded.scenario.control.mode = m;
     }
+    let set = &mut loaded.scenario.control.impedance;
+    set.hip.stiffness_nm_per_rad = stiffness.or(set.hip.stiffness_nm_per_rad);
+    set.knee.stiffness_nm_per_rad = stiffness.or(set.knee.stiffness_nm_per_rad);
     let mut sim = LegSim::new(&loaded).unwrap();
     if unhooked {
         sim.release_muscles().unwrap();
@@ -83,4 +96,40 @@ fn interaction_torque_falls_from_position_to_impedance_to_path_control() {
         (position.stride_time_mean_s - 1.6).abs() < 0.01,
         "{position:?}"
     );
+}
+
+/// Admittance mode is a dial from patient-in-charge to robot-in-charge: the stiffer its
+/// spring, the more the device's muscle controllers impose the reference and the larger
+/// the torque on the active patient's limb, at both joints, up to position control's
+/// (LOPES's robot-in-charge and patient-in-charge ends, Veneman et al. 2007).
+#[test]
+fn admittance_interaction_torque_rises_with_its_stiffness_towards_position_control() {
+    let secs = 30.0;
+    let rms = |r: &LegReport| {
+        let c = &r.cooperation[0];
+        [
+            c.joints["hip"].interaction_rms_nm,
+            c.joints["knee"].interaction_rms_nm,
+        ]
+    };
+    let soft = rms(&run_at(Some(ControlMode::Admittance), None, false, secs));
+    let medium = rms(&run_at(
+        Some(ControlMode::Admittance),
+        Some(100.0),
+        false,
+        secs,
+    ));
+    let stiff = rms(&run_at(
+        Some(ControlMode::Admittance),
+        Some(1000.0),
+        false,
+        secs,
+    ));
+    let position = rms(&run(Some(ControlMode::Position), false, secs));
+    for j in 0..2 {
+        assert!(
+            soft[j] < medium[j] && medium[j] < stiff[j] && stiff[j] < position[j],
+            "joint {j}: {soft:?} {medium:?} {stiff:?} {position:?}"
+        );
+    }
 }

@@ -20,25 +20,55 @@ fn realised_stiffness_is_within_ten_percent_of_three_set_points_per_joint() {
         let r = pair.stiffness_range(gravity, pose[joint]).unwrap();
         for share in [0.2, 0.5, 0.8] {
             let k = r.min_nm_per_rad + share * (r.max_nm_per_rad - r.min_nm_per_rad);
-            let p = probe_stiffness(&loaded, joint, k, pose, SETTLE_S).unwrap();
+            let p =
+                probe_stiffness(&loaded, ControlMode::Impedance, joint, k, pose, SETTLE_S).unwrap();
             assert!(!p.held_by_friction, "{p:?}");
             assert!(p.error.abs() < 0.10, "{p:?}");
         }
     }
 }
 
+/// Admittance mode's spring is its law's, not the pairs': it realises set points
+/// co-contraction cannot reach (the pairs reach about 6-11 N m/rad here), up to LOPES II's
+/// 1500 N m/rad.
 #[test]
-fn the_perturbation_test_refuses_a_treadmill_scenario() {
-    let loaded = Scenario::load("gait_treadmill").unwrap();
-    let e = probe_stiffness(&loaded, 0, 100.0, [0.0; 2], 1.0)
+fn admittance_realises_set_points_beyond_what_co_contraction_reaches() {
+    let loaded = Scenario::load("gait_training").unwrap();
+    let pose = [20f64.to_radians(), 30f64.to_radians()];
+    for joint in 0..2 {
+        for k in [30.0, 300.0, 1500.0] {
+            let p = probe_stiffness(&loaded, ControlMode::Admittance, joint, k, pose, SETTLE_S)
+                .unwrap();
+            assert!(!p.held_by_friction, "{p:?}");
+            assert!(p.error.abs() < 0.10, "{p:?}");
+        }
+    }
+    let e = probe_stiffness(&loaded, ControlMode::Impedance, 0, 300.0, pose, SETTLE_S)
         .unwrap_err()
         .to_string();
-    assert!(e.contains("in the air"), "{e}");
+    assert!(e.contains("co-contraction"), "{e}");
+}
+
+/// The perturbation test refuses, with a one-line error, a treadmill scenario (it holds a
+/// leg in the air) and a mode without a stiffness set point.
+#[test]
+fn the_perturbation_test_refuses_a_treadmill_and_a_mode_without_a_set_point() {
+    for (scenario, mode, expected) in [
+        ("gait_treadmill", ControlMode::Impedance, "in the air"),
+        ("gait_training", ControlMode::Path, "mode = path"),
+    ] {
+        let loaded = Scenario::load(scenario).unwrap();
+        let e = probe_stiffness(&loaded, mode, 0, 10.0, [0.0; 2], 1.0)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(expected) && !e.contains('\n'), "{e}");
+    }
 }
 
 /// A knee spasm under impedance mode against position control: the leg yields (a larger
 /// deviation) and the valves barely move (a far lower pressure rate), as a compliant joint
-/// should; position control holds the knee by racing its valves.
+/// should; position control holds the knee by racing its valves. Admittance mode, the
+/// same spring through the muscles' controllers, yields as well.
 #[test]
 fn a_spasm_deflects_an_impedance_joint_more_with_slower_valves_than_position_control() {
     let run = |mode: ControlMode| {
@@ -51,6 +81,11 @@ fn a_spasm_deflects_an_impedance_joint_more_with_slower_valves_than_position_con
     };
     let (position_dev, position_rate) = run(ControlMode::Position);
     let (impedance_dev, impedance_rate) = run(ControlMode::Impedance);
+    let (admittance_dev, _) = run(ControlMode::Admittance);
+    assert!(
+        admittance_dev > 3.0 * position_dev,
+        "{admittance_dev} against {position_dev}"
+    );
     assert!(
         impedance_dev > 3.0 * position_dev,
         "{impedance_dev} against {position_dev}"

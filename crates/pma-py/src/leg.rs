@@ -6,6 +6,7 @@ use numpy::{
 };
 use pma_control::supervisor::SupervisorLimits;
 use pma_leg::gait::GaitReference;
+use pma_leg::plant::{reading_angles, reading_cuff_nm};
 use pma_leg::{LegSim, LoadedScenario, PerLeg, Scenario, SupervisedLeg};
 use pma_loop::Backend;
 use pyo3::exceptions::PyTypeError;
@@ -32,7 +33,7 @@ fn python_shape(shape: &[usize]) -> String {
 /// A supervised leg, started: its first reading and the pressures it holds.
 struct Started {
     sup: SupervisedLeg,
-    reading: PerLeg<[f64; 2]>,
+    reading: PerLeg<pma_leg::LegReading>,
     applied: PerLeg<[f64; MUSCLES]>,
 }
 
@@ -206,14 +207,21 @@ impl Leg {
         self.planned_until_s = 0.0;
         self.fault.clear();
         self.plan_spasms();
-        self.array(py, &self.run.reading)
+        self.array(py, &self.run.reading.map(reading_angles))
     }
 
     /// The encoders' last reading (rad, flexion positive): shape ``(legs, 2)``, hip and
     /// knee.
     fn read<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         self.check_fault()?;
-        self.array(py, &self.run.reading)
+        self.array(py, &self.run.reading.map(reading_angles))
+    }
+
+    /// The cuff torque sensors' last reading (N m, the torque the device puts into the
+    /// limb, flexion positive): shape ``(legs, 2)``, hip and knee.
+    fn cuffs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        self.check_fault()?;
+        self.array(py, &self.run.reading.map(reading_cuff_nm))
     }
 
     /// Sends the pressure commands (Pa gauge), held over the next period; returns them as
@@ -245,7 +253,7 @@ impl Leg {
         self.periods += 1;
         let reading = self.run.sup.read().map_err(|e| self.trip(e.to_string()))?;
         self.run.reading = reading;
-        self.array(py, &reading)
+        self.array(py, &reading.map(reading_angles))
     }
 
     /// The gait reference at time ``t`` (s; default: now): hip and knee angles (rad),
@@ -264,8 +272,9 @@ impl Leg {
         self.array(py, &angles)
     }
 
-    /// The true state at the last reading: ``angle_rad`` and ``velocity_rad_s`` (shape
-    /// ``(legs, 2)``), ``pressure_pa`` and ``force_n`` (shape ``(legs, 4)``).
+    /// The true state at the last reading: ``angle_rad``, ``velocity_rad_s`` and
+    /// ``interaction_nm`` (the torque the device puts into the limb; shape ``(legs, 2)``),
+    /// ``pressure_pa`` and ``force_n`` (shape ``(legs, 4)``).
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let s = self.run.sup.truth();
         let d = PyDict::new(py);
@@ -279,6 +288,10 @@ impl Leg {
             self.array(py, &s.legs.map(|l| l.pressure_pa))?,
         )?;
         d.set_item("force_n", self.array(py, &s.legs.map(|l| l.force_n))?)?;
+        d.set_item(
+            "interaction_nm",
+            self.array(py, &s.legs.map(|l| l.interaction_nm))?,
+        )?;
         Ok(d)
     }
 

@@ -30,10 +30,21 @@ def test_a_python_pd_tracks_the_gait():
     assert np.all(rms < 3.0), rms
 
 
+def test_the_cuffs_read_the_torque_the_device_puts_into_the_limb():
+    leg = pma_exo.Leg("gait_training")
+    joint_pid(leg, 500)
+    cuffs = leg.cuffs()
+    assert cuffs.shape == (1, 2) and np.all(np.isfinite(cuffs))
+    np.testing.assert_allclose(cuffs, leg.state()["interaction_nm"], rtol=1e-12)
+    # The PD holds the limb up: the device carries part of its weight at the hip.
+    assert abs(cuffs[0, 0]) > 0.1, cuffs
+
+
 def test_the_trainer_has_two_legs():
     leg = pma_exo.Leg("gait_treadmill")
     assert leg.legs == 2
     assert leg.read().shape == (2, 2) and leg.command.shape == (2, 4)
+    assert leg.cuffs().shape == (2, 2)
     with pytest.raises(pma_exo.PmaError, match=r"shape \(4,\)"):
         leg.write(np.zeros(4))
     leg.write(leg.command)

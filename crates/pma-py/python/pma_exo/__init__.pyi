@@ -182,6 +182,8 @@ class Leg:
         """Back at rest, the clock at 0, a fault cleared; the first reading."""
     def read(self) -> npt.NDArray[np.float64]:
         """The encoders' last reading (rad), shape ``(legs, 2)``."""
+    def cuffs(self) -> npt.NDArray[np.float64]:
+        """The cuff torque sensors' last reading (N m, device on limb), shape ``(legs, 2)``."""
     def write(self, pressures: Union[npt.NDArray[np.float64], List[float]]) -> npt.NDArray[np.float64]:
         """Pressure commands (Pa gauge) for the next period; returns them as applied.
 
@@ -193,7 +195,8 @@ class Leg:
     def reference(self, t: Optional[float] = None) -> npt.NDArray[np.float64]:
         """The gait reference (rad) at ``t`` (default: now), shape ``(legs, 2)``."""
     def state(self) -> Dict[str, npt.NDArray[np.float64]]:
-        """The true state: ``angle_rad``, ``velocity_rad_s``, ``pressure_pa``, ``force_n``."""
+        """The true state: ``angle_rad``, ``velocity_rad_s``, ``pressure_pa``, ``force_n``,
+        ``interaction_nm``."""
     @property
     def time(self) -> float:
         """Time of the last reading (s)."""
