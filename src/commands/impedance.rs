@@ -4,9 +4,8 @@ use crate::provenance::Provenance;
 use crate::say;
 use anyhow::Result;
 use pma_leg::exoskeleton::JOINT_NAMES;
-use pma_leg::impedance::{
-    probe_stiffness, StiffnessProbe, StiffnessRange, STIFFNESS_MAX_NM_PER_RAD,
-};
+use pma_leg::impedance::{StiffnessRange, STIFFNESS_MAX_NM_PER_RAD};
+use pma_leg::probe::{probe_frequency, probe_stiffness, FrequencyProbe, ProbeAt, StiffnessProbe};
 use pma_leg::{ControlMode, LegSim, MusclePair, Scenario};
 use serde::Serialize;
 
@@ -32,6 +31,10 @@ pub struct Args {
     /// three across what co-contraction reaches at the test pose.
     #[arg(long, value_delimiter = ',', value_name = "N m/rad")]
     stiffness: Vec<f64>,
+    /// Also load each set point sinusoidally at these frequencies (Hz, comma-separated):
+    /// the dynamic stiffness, against admittance mode's model.
+    #[arg(long, value_delimiter = ',', value_name = "Hz")]
+    frequencies: Vec<f64>,
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
@@ -53,6 +56,8 @@ struct JointReach {
     /// At the test pose holding its gravity.
     at_pose: Option<[f64; 2]>,
     probes: Vec<StiffnessProbe>,
+    /// The frequency-response tests, set point after set point.
+    frequency_probes: Vec<FrequencyProbe>,
 }
 
 fn pair(r: Option<StiffnessRange>) -> Option<[f64; 2]> {
@@ -74,6 +79,14 @@ pub fn run(a: Args) -> Result<i32> {
         .find(|k| !(k.is_finite() && **k > 0.0 && **k <= STIFFNESS_MAX_NM_PER_RAD))
     {
         anyhow::bail!("--stiffness {k}: each set point must be > 0 and at most {STIFFNESS_MAX_NM_PER_RAD} N m/rad");
+    }
+    let [lo, hi] = pma_leg::probe::PROBE_FREQUENCY_RANGE_HZ;
+    if let Some(f) = a
+        .frequencies
+        .iter()
+        .find(|f| !(f.is_finite() && (lo..=hi).contains(*f)))
+    {
+        anyhow::bail!("--frequencies {f}: each must be {lo}..={hi} Hz");
     }
     let pose_deg = [a.pose_deg[0], a.pose_deg[1]];
     if pose_deg.iter().any(|d| !d.is_finite()) {
@@ -97,6 +110,7 @@ pub fn run(a: Args) -> Result<i32> {
         let gravity = inertia.inverse_dynamics(pose_rad, [0.0; 2], [0.0; 2])[j];
         let at_pose = p.stiffness_range(gravity, pose_rad[j]);
         let mut probes = Vec::new();
+        let mut frequency_probes = Vec::new();
         if let (true, Some(r)) = (in_air, at_pose) {
             let set_points = if a.stiffness.is_empty() {
                 SET_POINTS
@@ -107,7 +121,16 @@ pub fn run(a: Args) -> Result<i32> {
                 a.stiffness.clone()
             };
             for k in set_points {
-                probes.push(probe_stiffness(&loaded, mode, j, k, pose_rad, a.settle)?);
+                let at = ProbeAt {
+                    mode,
+                    joint: j,
+                    stiffness_nm_per_rad: k,
+                    pose_rad,
+                };
+                probes.push(probe_stiffness(&loaded, &at, a.settle)?);
+                for &f in &a.frequencies {
+                    frequency_probes.push(probe_frequency(&loaded, &at, f)?);
+                }
             }
         }
         joints.push(JointReach {
@@ -116,6 +139,7 @@ pub fn run(a: Args) -> Result<i32> {
             over_stride_in_air: over_stride,
             at_pose: pair(at_pose),
             probes,
+            frequency_probes,
         });
     }
     let provenance = Provenance {
@@ -180,6 +204,25 @@ pub fn run(a: Args) -> Result<i32> {
                 100.0 * p.error,
                 p.load_nm,
                 p.deflection_deg
+            );
+        }
+        for f in &j.frequency_probes {
+            let model = if f.model_magnitude_nm_per_rad.is_nan() {
+                String::new()
+            } else {
+                format!(
+                    "; admittance's law {:.2} N m/rad at {:+.1} deg ({:+.1} %)",
+                    f.model_magnitude_nm_per_rad,
+                    f.model_phase_deg,
+                    100.0 * f.magnitude_error
+                )
+            };
+            say!(
+                "        set {:7.2} N m/rad at {:5.2} Hz: |Z| {:8.2} N m/rad at {:+.1} deg{model}",
+                f.set_nm_per_rad,
+                f.frequency_hz,
+                f.magnitude_nm_per_rad,
+                f.phase_deg
             );
         }
     }

@@ -22,6 +22,7 @@ pub mod legs;
 pub mod metrics;
 pub mod patient;
 pub mod plant;
+pub mod probe;
 pub mod safety;
 pub mod sim;
 pub mod sizing;

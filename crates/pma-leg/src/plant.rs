@@ -192,6 +192,33 @@ pub struct LegPlant {
     external_nm: [[f64; 2]; MAX_LEGS],
     /// Each leg's mean joint acceleration over the last period (rad/s^2).
     acceleration: [[f64; 2]; MAX_LEGS],
+    /// A sinusoidal load on one joint, beside `external_nm`.
+    external_wave: Option<ExternalWave>,
+}
+
+/// A sinusoidal load on one joint (N m, flexion positive): a frequency-response test's
+/// excitation, `amplitude_nm sin(2 pi frequency_hz t)` at each substep's time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExternalWave {
+    /// The leg (0 right).
+    pub leg: usize,
+    /// The joint (0 hip, 1 knee).
+    pub joint: usize,
+    /// Amplitude (N m).
+    pub amplitude_nm: f64,
+    /// Frequency (Hz).
+    pub frequency_hz: f64,
+}
+
+impl ExternalWave {
+    fn torque_nm(&self, leg: usize, t_s: f64) -> [f64; 2] {
+        let mut out = [0.0; 2];
+        if leg == self.leg {
+            out[self.joint.min(1)] =
+                self.amplitude_nm * (std::f64::consts::TAU * self.frequency_hz * t_s).sin();
+        }
+        out
+    }
 }
 
 impl LegPlant {
@@ -218,7 +245,13 @@ impl LegPlant {
             muscles_attached: true,
             external_nm: [[0.0; 2]; MAX_LEGS],
             acceleration: [[0.0; 2]; MAX_LEGS],
+            external_wave: None,
         })
+    }
+
+    /// Adds a sinusoidal load on one joint (none: take it off), beside the constant one.
+    pub fn set_external_wave(&mut self, wave: Option<ExternalWave>) {
+        self.external_wave = wave;
     }
 
     /// Hangs a constant load on leg `leg`'s joints (N m, flexion positive; zero to take it
@@ -360,6 +393,7 @@ impl LegPlant {
         let patients = &mut self.patients;
         let attached = self.muscles_attached;
         let external = self.external_nm;
+        let wave = self.external_wave;
         let legs = self.exo.leg_count();
         let h = self.period_s / f64::from(self.exo.substeps());
         let t0 = self.periods as f64 * self.period_s;
@@ -378,7 +412,11 @@ impl LegPlant {
                     Some(p) => p.torques(t, exo.angles(leg), exo.velocities(leg)).total(),
                     None => [0.0; 2],
                 };
-                [patient[0] + external[leg][0], patient[1] + external[leg][1]]
+                let w = wave.map_or([0.0; 2], |w| w.torque_nm(leg, t));
+                [
+                    patient[0] + external[leg][0] + w[0],
+                    patient[1] + external[leg][1] + w[1],
+                ]
             });
             for m in muscles.iter_mut() {
                 let (q, qd) = (exo.angles(m.leg), exo.velocities(m.leg));

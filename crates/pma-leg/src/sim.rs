@@ -606,6 +606,11 @@ impl LegSim {
         (self.plant.into_inner(), self.controllers, limits)
     }
 
+    /// Every leg's controllers.
+    pub fn controllers(&self) -> &TrainerControllers {
+        &self.controllers
+    }
+
     /// The exoskeleton (poses, angles).
     pub fn exo(&self) -> &Exoskeleton {
         self.plant.exo()
