@@ -166,9 +166,11 @@ pub fn run(a: Args) -> Result<i32> {
             );
         }
     }
-    if let Some(k) = a.admittance_stiffness.iter().find(|k| {
-        !(k.is_finite() && **k > 0.0 && **k <= pma_leg::impedance::STIFFNESS_MAX_NM_PER_RAD)
-    }) {
+    if let Some(k) = a
+        .admittance_stiffness
+        .iter()
+        .find(|k| !pma_leg::impedance::stiffness_in_range(**k))
+    {
         anyhow::bail!(
             "--admittance-stiffness {k}: each must be > 0 and at most {} N m/rad",
             pma_leg::impedance::STIFFNESS_MAX_NM_PER_RAD

@@ -76,7 +76,7 @@ pub fn run(a: Args) -> Result<i32> {
     if let Some(k) = a
         .stiffness
         .iter()
-        .find(|k| !(k.is_finite() && **k > 0.0 && **k <= STIFFNESS_MAX_NM_PER_RAD))
+        .find(|k| !pma_leg::impedance::stiffness_in_range(**k))
     {
         anyhow::bail!("--stiffness {k}: each set point must be > 0 and at most {STIFFNESS_MAX_NM_PER_RAD} N m/rad");
     }

@@ -388,11 +388,7 @@ fn admittance_of(
     inertia: &LegInertia,
     limits_rad: [[f64; 2]; 2],
 ) -> Result<Admittance, LegError> {
-    let pressure_max_pa = sc.plant.valve.pressure_max_pa;
-    let pairs = [
-        crate::MusclePair::new(muscles, 0, pressure_max_pa)?,
-        crate::MusclePair::new(muscles, 1, pressure_max_pa)?,
-    ];
+    let pairs = crate::MusclePair::of_leg(muscles, sc.plant.valve.pressure_max_pa)?;
     Admittance::new(
         &sc.control.impedance,
         sc.control.compensation,

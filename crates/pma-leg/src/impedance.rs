@@ -348,6 +348,12 @@ impl Default for ImpedanceSettings {
     }
 }
 
+/// Checks a stiffness set point given on a command line: finite, above 0 and at most
+/// [`STIFFNESS_MAX_NM_PER_RAD`].
+pub fn stiffness_in_range(k: f64) -> bool {
+    k.is_finite() && k > 0.0 && k <= STIFFNESS_MAX_NM_PER_RAD
+}
+
 /// Highest stiffness a set point may name (N m/rad): ten times what LOPES II renders at
 /// most (1500 N m/rad), beyond any gait trainer's; what a pair reaches is checked against
 /// its muscles when the leg is built.
@@ -574,6 +580,14 @@ pub struct StiffnessRange {
 const RANGE_POINTS: usize = 400;
 
 impl MusclePair {
+    /// A leg's two pairs, hip then knee, from its four muscles.
+    pub fn of_leg(muscles: &[MuscleActuator], pressure_max_pa: f64) -> Result<[Self; 2], LegError> {
+        Ok([
+            Self::new(muscles, 0, pressure_max_pa)?,
+            Self::new(muscles, 1, pressure_max_pa)?,
+        ])
+    }
+
     /// The pair on joint `joint` of a leg's four muscles.
     pub fn new(
         muscles: &[MuscleActuator],
@@ -848,10 +862,7 @@ impl ImpedanceLaw {
         let pressure_max_pa = sc.plant.valve.pressure_max_pa;
         settings.validate()?;
         sc.control.path.validate()?;
-        let pairs = [
-            MusclePair::new(muscles, 0, pressure_max_pa)?,
-            MusclePair::new(muscles, 1, pressure_max_pa)?,
-        ];
+        let pairs = MusclePair::of_leg(muscles, pressure_max_pa)?;
         let stiffness_nm_per_rad = [
             pairs[0].resolve(settings.hip)?,
             pairs[1].resolve(settings.knee)?,
