@@ -630,3 +630,60 @@ fn a_foot_sunk_through_the_belt_ends_the_run() {
     );
     assert_refused(&path, "into the belt");
 }
+
+/// `simulate PATH --mode admittance --duration S --json`'s worst joint RMS (deg).
+fn admittance_rms(path: &std::path::Path, duration_s: &str) -> f64 {
+    let v = json_of(&[
+        "simulate",
+        path.to_str().unwrap(),
+        "--mode",
+        "admittance",
+        "--duration",
+        duration_s,
+        "--json",
+    ]);
+    assert!(v["finite"].as_bool().unwrap(), "{}", path.display());
+    worst_rms_and_force(&v).0
+}
+
+#[test]
+fn admittance_with_phase_sync_walks_a_patient_on_their_own_timing_which_a_fixed_clock_loses() {
+    // docs/cooperative.md: the patient producing the adults' moments on their own clock
+    // (stride time varying by 2 %, seed 1) at 300 N m/rad, the plan leaving them the
+    // adults' moments. On the reference's own clock their phase drifts away and the legs
+    // are lost at about 39 s; with the clock following the legs' lead they walk 60 s
+    // within a degree.
+    let dir = temp_dir("phase-sync");
+    let with_sync = |gain: &str| {
+        let path = dir.join(format!("sync-{gain}.toml"));
+        let text = format!(
+            "{SCENARIO}\n[control.impedance]\npatient_moment_share = 1.0\nphase_sync_per_s = {gain}\n\
+             [control.impedance.hip]\nstiffness_nm_per_rad = 300.0\n\
+             [control.impedance.knee]\nstiffness_nm_per_rad = 300.0\n\
+             [patient.active]\nseed = 1\nown_torque = \"walking\"\n"
+        );
+        std::fs::write(&path, text).unwrap();
+        admittance_rms(&path, "45")
+    };
+    let (fixed, synced) = (with_sync("0.0"), with_sync("2.0"));
+    eprintln!("worst RMS over 45 s: fixed clock {fixed:.2} deg, synchronised {synced:.2} deg");
+    assert!(synced < 2.0, "synchronised: {synced} deg RMS");
+    assert!(fixed > 10.0, "fixed clock: {fixed} deg RMS");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn leaving_moments_or_timing_to_the_patient_is_refused_where_no_mode_yields() {
+    let dir = temp_dir("yield");
+    for (field, value) in [("patient_moment_share", "1.0"), ("phase_sync_per_s", "2.0")] {
+        let path = dir.join(format!("{field}.toml"));
+        let text = format!("{SCENARIO}\n[control.impedance]\n{field} = {value}\n");
+        std::fs::write(&path, &text).unwrap();
+        // The scenario runs in position mode: nothing yields to the patient.
+        assert_refused(&path, &format!("control.impedance.{field}"));
+        let negative = text.replace(&format!("{field} = {value}"), &format!("{field} = -1.0"));
+        std::fs::write(&path, negative).unwrap();
+        assert_refused(&path, &format!("control.impedance.{field}"));
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

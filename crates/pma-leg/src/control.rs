@@ -5,8 +5,9 @@ use crate::config::{MuscleGeometry, Scenario};
 use crate::error::{invalid, LegError};
 use crate::exoskeleton::LegInertia;
 use crate::gait::{GaitReference, GaitSample, JointSample};
-use crate::impedance::{ControlMode, ImpedanceLaw, StanceLoad};
+use crate::impedance::{ControlMode, ExpectedMoments, ImpedanceLaw, StanceLoad};
 use crate::legs::PerLeg;
+use crate::phase_sync::PhaseSync;
 use crate::plant::{reading_angles, reading_cuff_nm, LegReading, MuscleActuator};
 use pma_control::{
     build_controller, CommandLimits, Controller, ControllerConfig, Diagnostics, Measurement,
@@ -106,6 +107,8 @@ pub struct LegControllers {
     /// The weight the leg carries in stance on a treadmill, which impedance and admittance
     /// modes hold.
     stance_load: Option<StanceLoad>,
+    /// The moments the plan leaves to a walking patient (impedance and admittance modes).
+    expected: Option<ExpectedMoments>,
 }
 
 fn joint(g: &GaitSample, joint: usize) -> &JointSample {
@@ -197,6 +200,7 @@ impl LegControllers {
             impedance,
             admittance,
             stance_load: None,
+            expected: None,
         })
     }
 
@@ -213,23 +217,44 @@ impl LegControllers {
         }
     }
 
+    /// Impedance and admittance modes leave `expected` to the patient: the torque they
+    /// hold is the stance load (and the limb's dynamics) less it.
+    pub fn set_expected_moments(&mut self, expected: ExpectedMoments) {
+        self.expected = Some(expected);
+    }
+
+    /// What the plan holds besides the carried limb's dynamics at `t_s`, the gait at its
+    /// time `clock_s`: the stance load, less the moments left to the patient while the leg
+    /// follows the gait.
+    fn planned_load_nm(&self, t_s: f64, clock_s: f64, angles: &[f64; 2]) -> [f64; 2] {
+        let load = self.stance_load_nm(t_s, clock_s, angles);
+        match (&self.expected, self.hold) {
+            (Some(e), None) => {
+                let m = e.torques_nm(&self.gait, clock_s, t_s);
+                [load[0] - m[0], load[1] - m[1]]
+            }
+            _ => load,
+        }
+    }
+
     /// The torques that hold this leg's share of the weight at `t_s` (zero without a
-    /// stance load): half while the start-up stands, then by the reference's phase.
-    fn stance_load_nm(&self, t_s: f64, angles: &[f64; 2]) -> [f64; 2] {
+    /// stance load): half while the start-up stands, then by the reference's phase at its
+    /// time `clock_s`.
+    fn stance_load_nm(&self, t_s: f64, clock_s: f64, angles: &[f64; 2]) -> [f64; 2] {
         let Some(load) = &self.stance_load else {
             return [0.0; 2];
         };
-        let share = if self.walking(t_s) {
-            load.share(self.gait.phase(t_s))
+        let share = if self.walking(clock_s) {
+            load.share(self.gait.phase(clock_s))
         } else {
             0.5
         };
         load.torques_nm(*angles, share, t_s)
     }
 
-    /// Whether the leg walks at `t_s`: neither holding a pose nor standing through a
-    /// standing start-up.
-    fn walking(&self, t_s: f64) -> bool {
+    /// Whether the leg walks at the gait's time `t_s`: neither holding a pose nor
+    /// standing through a standing start-up.
+    pub(crate) fn walking(&self, t_s: f64) -> bool {
         self.hold.is_none() && !self.gait.standing(t_s)
     }
 
@@ -312,10 +337,25 @@ impl LegControllers {
     }
 
     fn update(&mut self, t_s: f64, reading: &LegReading, dt_s: f64) -> LegOutput {
+        self.update_at(t_s, t_s, 1.0, reading, dt_s)
+    }
+
+    /// As `update` with the gait at its time `clock_s`, its clock running at `rate` gait
+    /// seconds per second ([`crate::phase_sync`]): the reference's velocity scales by
+    /// `rate`, its acceleration by `rate` squared.
+    fn update_at(
+        &mut self,
+        t_s: f64,
+        clock_s: f64,
+        rate: f64,
+        reading: &LegReading,
+        dt_s: f64,
+    ) -> LegOutput {
         let angles = &reading_angles(reading);
-        let g = self.reference(t_s);
-        let load = self.stance_load_nm(t_s, angles);
-        let phase = (self.impedance.is_some() && self.walking(t_s)).then(|| self.gait.phase(t_s));
+        let g = at_rate(self.reference(clock_s), rate);
+        let load = self.planned_load_nm(t_s, clock_s, angles);
+        let phase =
+            (self.impedance.is_some() && self.walking(clock_s)).then(|| self.gait.phase(clock_s));
         if let Some(law) = &mut self.impedance {
             let pressure_cmd_pa = law.update(&g, *angles, load, phase, dt_s);
             self.commands = pressure_cmd_pa;
@@ -328,7 +368,7 @@ impl LegControllers {
                 }),
                 pressure_cmd_pa,
                 diagnostics: [Diagnostics::NONE; 4],
-                reference_in_stance: self.hold.is_some() || self.gait.in_stance(t_s),
+                reference_in_stance: self.hold.is_some() || self.gait.in_stance(clock_s),
             };
         }
         let cm = self.common_mode_pa();
@@ -342,7 +382,7 @@ impl LegControllers {
             length_ref_m: [0.0; 4],
             pressure_cmd_pa: [0.0; 4],
             diagnostics: [Diagnostics::NONE; 4],
-            reference_in_stance: self.hold.is_some() || self.gait.in_stance(t_s),
+            reference_in_stance: self.hold.is_some() || self.gait.in_stance(clock_s),
         };
         // The tracked reference: the gait's, or admittance mode's displacement of it (the
         // outputs keep the gait's, against which every mode's tracking is measured).
@@ -380,6 +420,23 @@ impl LegControllers {
     }
 }
 
+/// `g` on a clock running at `rate` gait seconds per second.
+fn at_rate(g: GaitSample, rate: f64) -> GaitSample {
+    if rate == 1.0 {
+        return g;
+    }
+    let scaled = |j: JointSample| JointSample {
+        angle_rad: j.angle_rad,
+        velocity_rad_s: rate * j.velocity_rad_s,
+        acceleration_rad_s2: rate * rate * j.acceleration_rad_s2,
+    };
+    GaitSample {
+        hip: scaled(g.hip),
+        knee: scaled(g.knee),
+        ankle: scaled(g.ankle),
+    }
+}
+
 /// Admittance mode's displacement for a leg of `muscles` (its set points checked, a
 /// stiffness left out taking co-contraction's default).
 fn admittance_of(
@@ -402,12 +459,27 @@ fn admittance_of(
 /// on its own readings; nothing passes between legs but the time.
 pub struct TrainerControllers {
     legs: Vec<LegControllers>,
+    /// The gait's clock, when it follows the legs' lead (none: the reference's own).
+    sync: Option<PhaseSync>,
 }
 
 impl TrainerControllers {
     /// One set of controllers per leg, in leg order.
     pub fn new(legs: Vec<LegControllers>) -> Self {
-        Self { legs }
+        Self { legs, sync: None }
+    }
+
+    /// The legs' gait follows `sync`'s clock.
+    pub fn with_phase_sync(self, sync: PhaseSync) -> Self {
+        Self {
+            sync: Some(sync),
+            ..self
+        }
+    }
+
+    /// The gait's clock, if it follows the legs' lead.
+    pub fn phase_sync(&self) -> Option<&PhaseSync> {
+        self.sync.as_ref()
     }
 
     /// Leg `leg`'s controllers.
@@ -445,6 +517,9 @@ impl Task for TrainerControllers {
         resting: &Self::Command,
         period_s: f64,
     ) -> Option<Self::Output> {
+        if let Some(s) = &mut self.sync {
+            s.reset(t_s);
+        }
         let legs = &mut self.legs;
         Some(PerLeg::from_fn(legs.len(), |i| {
             legs[i].start(t_s, &angles[i], &resting[i], period_s)
@@ -452,8 +527,34 @@ impl Task for TrainerControllers {
     }
 
     fn update(&mut self, t_s: f64, angles: &Self::Reading, dt_s: f64) -> Self::Output {
+        let Some(sync) = &mut self.sync else {
+            let legs = &mut self.legs;
+            return PerLeg::from_fn(legs.len(), |i| legs[i].update(t_s, &angles[i], dt_s));
+        };
+        let (clock_s, rate) = (sync.advance(t_s), sync.rate());
         let legs = &mut self.legs;
-        PerLeg::from_fn(legs.len(), |i| legs[i].update(t_s, &angles[i], dt_s))
+        let out = PerLeg::from_fn(legs.len(), |i| {
+            legs[i].update_at(t_s, clock_s, rate, &angles[i], dt_s)
+        });
+        // The lead is measured only while every leg walks (not through a standing start
+        // or a held pose), against the reference's velocity at rate 1.
+        if legs.iter().all(|l| l.walking(clock_s)) {
+            let (mut cross, mut power) = (0.0, 0.0);
+            for (o, reading) in out.iter().zip(angles.iter()) {
+                let q = reading_angles(reading);
+                for ((q, r), v) in q
+                    .iter()
+                    .zip(o.reference_rad)
+                    .zip(o.reference_velocity_rad_s)
+                {
+                    let v = v / rate;
+                    cross += (q - r) * v;
+                    power += v * v;
+                }
+            }
+            sync.observe(cross, power, dt_s);
+        }
+        out
     }
 
     fn command(output: &Self::Output) -> Self::Command {

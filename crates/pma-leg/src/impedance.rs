@@ -292,6 +292,24 @@ pub struct ImpedanceSettings {
     /// (s; [`crate::admittance`]).
     #[serde(default = "default_cuff_filter")]
     pub cuff_filter_s: f64,
+    /// Share of the adults' walking moments (Fukuchi et al. 2018 at the reference's speed,
+    /// scaled as `own_torque = "walking"` scales them) the plan leaves to the patient:
+    /// impedance and admittance modes take it off the torque they hold, at the reference's
+    /// phase ([`ExpectedMoments`]). Default 0: the device plans the whole stance and
+    /// swing, a passive patient's; 1: it expects a patient who walks as adults do, and
+    /// yields to what they do beyond it or lack. Needs a `[treadmill]` and the adult gait.
+    #[serde(default)]
+    pub patient_moment_share: f64,
+    /// The share per leg on a two-leg trainer, `[right, left]`, instead of
+    /// `patient_moment_share`: less left to a patient's weak side (as
+    /// `patient.active.strength_by_leg` makes one).
+    #[serde(default)]
+    pub patient_moment_share_by_leg: Option<[f64; 2]>,
+    /// Gain (1/s) of the trainer's gait clock on the legs' measured lead over the
+    /// reference ([`crate::phase_sync`]): the reference's timing follows a patient who
+    /// walks on their own. Default 0: the reference keeps its own clock.
+    #[serde(default)]
+    pub phase_sync_per_s: f64,
 }
 
 /// `[control.impedance.learning]`: the torque each joint's pair adds at each phase of the
@@ -344,6 +362,9 @@ impl Default for ImpedanceSettings {
             stance_load: true,
             learning: None,
             cuff_filter_s: default_cuff_filter(),
+            patient_moment_share: 0.0,
+            patient_moment_share_by_leg: None,
+            phase_sync_per_s: 0.0,
         }
     }
 }
@@ -360,6 +381,12 @@ pub fn stiffness_in_range(k: f64) -> bool {
 pub const STIFFNESS_MAX_NM_PER_RAD: f64 = 15_000.0;
 
 impl ImpedanceSettings {
+    /// The share of the adults' walking moments left to leg `leg`'s patient.
+    pub fn patient_moment_share(&self, leg: usize) -> f64 {
+        self.patient_moment_share_by_leg
+            .map_or(self.patient_moment_share, |by_leg| by_leg[leg.min(1)])
+    }
+
     /// The set point of joint `joint` (0 hip, 1 knee).
     pub fn joint(&self, joint: usize) -> JointImpedance {
         if joint == 0 {
@@ -403,6 +430,24 @@ impl ImpedanceSettings {
             0.5,
             "must be 0..=0.5 s",
         )?;
+        within(
+            "control.impedance.patient_moment_share",
+            self.patient_moment_share,
+            0.0,
+            1.0,
+            "must be 0..=1 (the share of the adults' walking moments left to the patient)",
+        )?;
+        for (leg, side) in ["right", "left"].iter().enumerate() {
+            if let Some(by_leg) = self.patient_moment_share_by_leg {
+                within(
+                    format!("control.impedance.patient_moment_share_by_leg[{leg}] ({side})"),
+                    by_leg[leg],
+                    0.0,
+                    1.0,
+                    "must be 0..=1 (the share of the adults' walking moments left to the patient)",
+                )?;
+            }
+        }
         if let Some(l) = self.learning {
             within(
                 "control.impedance.learning.forgetting",
@@ -825,6 +870,49 @@ impl StanceLoad {
     }
 }
 
+/// The joint moments the plan leaves to a walking patient: the adults' mean moments at
+/// the leg's reference phase, times the share of them expected
+/// ([`ImpedanceSettings::patient_moment_share`]), the walking start's ramp and, while the
+/// harness lowers a start's support, the share of the weight the legs carry: the torque
+/// an active patient of `own_torque = "walking"` produces on the reference's clock.
+#[derive(Debug, Clone)]
+pub struct ExpectedMoments {
+    /// Hip and knee moments (N m, flexion positive) at 0, 1, ..., 100 % of the cycle,
+    /// the share already applied.
+    moments_nm: [Vec<f64>; 2],
+    support: crate::ground::TreadmillSettings,
+}
+
+impl ExpectedMoments {
+    /// `share` of walking's moments `moments_nm` (N m at 0, 1, ..., 100 % of the cycle,
+    /// for the legs' share of the weight under `support`'s constant support).
+    pub fn new(
+        moments_nm: [Vec<f64>; 2],
+        share: f64,
+        support: crate::ground::TreadmillSettings,
+    ) -> Self {
+        Self {
+            moments_nm: moments_nm.map(|c| c.into_iter().map(|m| share * m).collect()),
+            support,
+        }
+    }
+
+    /// Hip and knee moments (N m) expected of the patient at `t_s`, with `gait` at its
+    /// time `clock_s` (the harness's support follows `t_s`).
+    pub fn torques_nm(
+        &self,
+        gait: &crate::gait::GaitReference,
+        clock_s: f64,
+        t_s: f64,
+    ) -> [f64; 2] {
+        let scale = gait.ramp_share(clock_s) * self.support.legs_share_at(t_s);
+        let phase = gait.phase(clock_s);
+        self.moments_nm
+            .each_ref()
+            .map(|c| scale * crate::gait::sample_cycle(c, phase))
+    }
+}
+
 /// One leg's law in every mode that sets the pairs' pressures (impedance, path,
 /// transparent): two pairs, their set points and the leg's rigid model.
 #[derive(Debug, Clone)]
@@ -1090,6 +1178,29 @@ mod tests {
                 "joint {j}: error {ratio:.4} of the unlearned, expected {expected:.4}"
             );
         }
+    }
+
+    #[test]
+    fn a_moment_share_out_of_range_is_refused_naming_the_leg_and_a_leg_takes_its_own() {
+        let mut s = ImpedanceSettings {
+            patient_moment_share: 1.5,
+            ..ImpedanceSettings::default()
+        };
+        let e = s.validate().expect_err("refused").to_string();
+        assert!(e.contains("control.impedance.patient_moment_share"), "{e}");
+        s.patient_moment_share = 1.0;
+        s.patient_moment_share_by_leg = Some([1.0, -0.2]);
+        let e = s.validate().expect_err("refused").to_string();
+        assert!(
+            e.contains("patient_moment_share_by_leg[1] (left)") && !e.contains('\n'),
+            "{e}"
+        );
+        s.patient_moment_share_by_leg = Some([1.0, 0.4]);
+        assert!(s.validate().is_ok());
+        assert_eq!(
+            [s.patient_moment_share(0), s.patient_moment_share(1)],
+            [1.0, 0.4]
+        );
     }
 
     #[test]

@@ -21,6 +21,7 @@ pub mod impedance;
 pub mod legs;
 pub mod metrics;
 pub mod patient;
+pub mod phase_sync;
 pub mod plant;
 pub mod probe;
 pub mod safety;

@@ -252,6 +252,9 @@ pub struct LegReport {
     pub treadmill: Option<crate::stance::TreadmillReport>,
     /// What the device did to the patient and the patient's own gait, leg by leg.
     pub cooperation: Vec<crate::cooperative::CooperationReport>,
+    /// The gait's clock where it follows the legs' lead (`phase_sync_per_s`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub phase_sync: Option<crate::phase_sync::PhaseSyncReport>,
 }
 
 /// Accumulates the [`LegReport`] figures period by period.
@@ -393,6 +396,7 @@ impl LegMetrics {
             safety: SafetyReport::default(),
             treadmill: None,
             cooperation: Vec::new(),
+            phase_sync: None,
         }
     }
 }

@@ -6,6 +6,7 @@ use crate::error::{invalid, LegError};
 use crate::exoskeleton::{Exoskeleton, Mount, JOINT_NAMES};
 use crate::gait::GaitReference;
 use crate::ground::{Contralateral, FootReaction};
+use crate::impedance::{Compensation, ControlMode};
 use crate::legs::{PerLeg, SIDES};
 use crate::metrics::{LegMetrics, LegReport, OnLeg};
 use crate::patient::{Patient, PatientTorques, SpasmEvent};
@@ -482,6 +483,7 @@ impl LegSim {
     ) -> Result<Self, LegError> {
         let sc = loaded.scenario.clone();
         sc.validate()?;
+        let sync = phase_sync(&sc)?;
         let exo = build_exo(loaded, mount)?;
         let legs = exo.leg_count();
         let patients = build_patients(&sc, &exo)?;
@@ -495,6 +497,9 @@ impl LegSim {
             if let Some(load) = stance_load(&sc, &exo)? {
                 controllers.set_stance_load(load);
             }
+            if let Some(expected) = expected_moments(&sc, leg)? {
+                controllers.set_expected_moments(expected);
+            }
             per_leg.push(controllers);
         }
         let limits = supervisor_limits(&sc, &exo);
@@ -507,10 +512,14 @@ impl LegSim {
             plant.set_state(leg, [start.hip.angle_rad, start.knee.angle_rad], [0.0; 2]);
             plant.set_pressures(leg, resting)?;
         }
+        let controllers = match sync {
+            Some(sync) => TrainerControllers::new(per_leg).with_phase_sync(sync),
+            None => TrainerControllers::new(per_leg),
+        };
         Ok(Self {
             scenario: sc,
             plant: Supervised::new(plant, limits, None),
-            controllers: TrainerControllers::new(per_leg),
+            controllers,
             origin: Some(Box::new((loaded.clone(), *config, mount))),
         })
     }
@@ -797,6 +806,7 @@ impl LegSim {
         report.interrupted = interrupted;
         report.treadmill = ground.report(feet.iter().map(|f| f.inner.report()).collect());
         report.cooperation = cooperation.iter().map(|c| c.inner.report()).collect();
+        report.phase_sync = self.controllers.phase_sync().map(|s| s.report());
         Ok((report, fault))
     }
 }
@@ -863,23 +873,126 @@ fn walking_moments(
     if active.own_torque != crate::patient::OwnTorque::Walking {
         return Ok(None);
     }
+    adult_moments(
+        sc,
+        gait,
+        [
+            "patient.active.own_torque = \"walking\" needs a treadmill (its body mass and support)",
+            "patient.active.own_torque = \"walking\" produces the adult data's moments",
+        ],
+    )
+    .map(Some)
+}
+
+/// The adults' mean walking moments at the reference's speed (N m, flexion positive, at
+/// 0, 1, ..., 100 % of the cycle), times the body mass and the share of the weight the
+/// legs carry under constant support, as `pma-exo size` scales the moments it compares
+/// with; `hints` say what needs the treadmill and the adult data.
+fn adult_moments(
+    sc: &Scenario,
+    gait: &crate::gait::GaitReference,
+    hints: [&'static str; 2],
+) -> Result<[Vec<f64>; 2], LegError> {
     // Walking's moments carry a stance, which needs a belt, a body and the adult data.
     let treadmill = sc.treadmill.as_ref().ok_or_else(|| LegError::Missing {
         name: "[treadmill]".into(),
-        hint:
-            "patient.active.own_torque = \"walking\" needs a treadmill (its body mass and support)",
+        hint: hints[0],
     })?;
     let speed = gait.data_speed_m_s().ok_or_else(|| LegError::Missing {
         name: "gait.data = \"fukuchi2018\"".into(),
-        hint: "patient.active.own_torque = \"walking\" produces the adult data's moments",
+        hint: hints[1],
     })?;
     let norms = crate::gait::AdultNorms::at(speed)?;
     let scale = treadmill.body_mass_kg * (1.0 - treadmill.bws_fraction);
-    Ok(Some(
-        norms
-            .flexion_torques_nm_kg()
-            .map(|c| c.iter().map(|t| t * scale).collect()),
-    ))
+    Ok(norms
+        .flexion_torques_nm_kg()
+        .map(|c| c.iter().map(|t| t * scale).collect()))
+}
+
+/// Checks that the scenario's mode is one that yields to the patient and plans a torque
+/// to leave to them (impedance, or admittance carrying the leg), for setting `field`.
+fn yielding_mode(sc: &Scenario, field: &str, value: f64) -> Result<(), LegError> {
+    let unsupported = |message: &str| LegError::Unsupported {
+        name: field.into(),
+        value: format!("{value}"),
+        message: message.into(),
+    };
+    match sc.control.mode {
+        ControlMode::Impedance => Ok(()),
+        ControlMode::Admittance if sc.control.compensation == Compensation::Leg => Ok(()),
+        ControlMode::Admittance => Err(unsupported(
+            "with compensation = \"device\" admittance mode plans none of the limb's torque to leave to the patient",
+        )),
+        _ => Err(unsupported(
+            "only impedance and admittance modes yield to the patient and plan a torque to leave to them",
+        )),
+    }
+}
+
+/// The gait's clock following the legs' lead (`control.impedance.phase_sync_per_s`;
+/// `None` at 0).
+fn phase_sync(sc: &Scenario) -> Result<Option<crate::phase_sync::PhaseSync>, LegError> {
+    let gain = sc.control.impedance.phase_sync_per_s;
+    if gain == 0.0 {
+        return Ok(None);
+    }
+    let field = "control.impedance.phase_sync_per_s";
+    yielding_mode(sc, field, gain)?;
+    if sc
+        .treadmill
+        .is_some_and(|t| t.other_leg() == Contralateral::Reference)
+    {
+        return Err(LegError::Unsupported {
+            name: field.into(),
+            value: format!("{gain}"),
+            message: "the virtual other leg walks on the reference's own clock: give the trainer two legs".into(),
+        });
+    }
+    let gait = sc.gait.reference()?;
+    let stride = gait.stride_period_s();
+    // The reference's Σ q̇² over one stride after the start-up, every leg alike.
+    let n = 200;
+    let start = (gait.ramp_s() / stride).ceil() * stride;
+    let mean_power = (0..n)
+        .map(|k| {
+            let g = gait.sample(start + k as f64 / n as f64 * stride);
+            g.hip.velocity_rad_s.powi(2) + g.knee.velocity_rad_s.powi(2)
+        })
+        .sum::<f64>()
+        / n as f64
+        * sc.treadmill.map_or(1, |t| t.legs) as f64;
+    crate::phase_sync::PhaseSync::new(gain, stride, mean_power).map(Some)
+}
+
+/// The moments impedance or admittance mode leaves to leg `leg`'s walking patient
+/// (`control.impedance.patient_moment_share`, or its `_by_leg`; `None` at 0).
+fn expected_moments(
+    sc: &Scenario,
+    leg: usize,
+) -> Result<Option<crate::impedance::ExpectedMoments>, LegError> {
+    let share = sc.control.impedance.patient_moment_share(leg);
+    if share == 0.0 {
+        return Ok(None);
+    }
+    yielding_mode(sc, "control.impedance.patient_moment_share", share)?;
+    const NEEDS_TREADMILL: &str =
+        "control.impedance.patient_moment_share > 0 needs a treadmill (its body mass and support)";
+    let support = sc.treadmill.ok_or_else(|| LegError::Missing {
+        name: "[treadmill]".into(),
+        hint: NEEDS_TREADMILL,
+    })?;
+    let gait = sc.gait.reference()?;
+    let moments = adult_moments(
+        sc,
+        &gait,
+        [
+            NEEDS_TREADMILL,
+            "control.impedance.patient_moment_share > 0 leaves the adult data's moments to the patient",
+        ],
+    )?;
+    Ok(Some(crate::impedance::ExpectedMoments::new(
+        moments, share, support,
+    )))
 }
 
 /// The scenario's exoskeleton: a fixed pelvis (as `mount` says), or its treadmill, the
