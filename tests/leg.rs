@@ -413,3 +413,38 @@ fn a_cuff_torque_beyond_full_scale_vents_the_muscles_and_names_the_sensor() {
         .iter()
         .all(|m| m.set_point() == 0.0));
 }
+
+/// The cuff sensors' readings are the true torque the device puts into the limb (the
+/// outputs' interaction torque) plus the sensor's bias and noise of the RMS it is given;
+/// each reading draws afresh.
+#[test]
+fn cuff_readings_carry_the_sensors_bias_and_noise_around_the_true_torque() {
+    use pma_loop::Backend;
+    let mut loaded = Scenario::load("gait_training").unwrap();
+    loaded.scenario.plant.cuff_sensor = pma_leg::config::CuffSensorSettings {
+        noise_rms_nm: 2.0,
+        bias_nm: [1.0, -3.0],
+        seed: 7,
+    };
+    let mut sim = LegSim::new(&loaded).unwrap();
+    let plant = sim.plant_mut();
+    let truth = plant.truth().legs[0].interaction_nm;
+    let n = 20_000;
+    let mut sum = [0.0; 2];
+    let mut sq = [0.0; 2];
+    for _ in 0..n {
+        let r = plant.read().unwrap()[0];
+        for j in 0..2 {
+            let e = r[2 + j] - truth[j];
+            sum[j] += e;
+            sq[j] += e * e;
+        }
+    }
+    for (j, bias) in [1.0, -3.0].iter().enumerate() {
+        let mean = sum[j] / n as f64;
+        let sd = (sq[j] / n as f64 - mean * mean).sqrt();
+        // Four standard errors of the mean (2 / sqrt(n) = 0.014 N m); the RMS within 3 %.
+        assert!((mean - bias).abs() < 0.06, "joint {j}: mean {mean}");
+        assert!((sd - 2.0).abs() < 0.06, "joint {j}: sd {sd}");
+    }
+}

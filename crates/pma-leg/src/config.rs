@@ -369,6 +369,54 @@ pub struct PlantSettings {
     /// muscles, `size`, is held against the Festo rating.)
     #[serde(default)]
     pub muscle_rated_force_n: Option<f64>,
+    /// The cuff torque sensors' errors (default: ideal).
+    #[serde(default)]
+    pub cuff_sensor: CuffSensorSettings,
+}
+
+/// `[plant.cuff_sensor]`: what separates the cuff torque sensors' readings (which
+/// admittance mode acts on) from the torque the device puts into the limb, on every leg.
+/// The true torque is what the outputs report as the interaction.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CuffSensorSettings {
+    /// RMS of white Gaussian noise on each reading (N m). Default 0.
+    #[serde(default)]
+    pub noise_rms_nm: f64,
+    /// Constant offset of the hip's and the knee's readings (N m): a sensor not tared, or
+    /// its drift. Default 0.
+    #[serde(default)]
+    pub bias_nm: [f64; 2],
+    /// Seed of the noise (leg `l`'s joint `j` draws from `seed + 2 l + j`).
+    #[serde(default)]
+    pub seed: u64,
+}
+
+/// Largest noise or bias a cuff sensor may be given (N m): a tenth of its full scale
+/// ([`crate::sim::CUFF_TORQUE_FULL_SCALE_NM`]).
+pub const CUFF_ERROR_MAX_NM: f64 = 100.0;
+
+impl CuffSensorSettings {
+    /// Checks each field's range; the error names it.
+    pub fn validate(&self) -> Result<(), LegError> {
+        within(
+            "plant.cuff_sensor.noise_rms_nm",
+            self.noise_rms_nm,
+            0.0,
+            CUFF_ERROR_MAX_NM,
+            "must be 0..=100 N m (a tenth of the sensor's 1000 N m full scale)",
+        )?;
+        for (j, name) in ["hip", "knee"].iter().enumerate() {
+            within(
+                format!("plant.cuff_sensor.bias_nm[{j}] ({name})"),
+                self.bias_nm[j],
+                -CUFF_ERROR_MAX_NM,
+                CUFF_ERROR_MAX_NM,
+                "must be -100..=100 N m (a tenth of the sensor's 1000 N m full scale)",
+            )?;
+        }
+        Ok(())
+    }
 }
 
 /// Festo DMSP-20's rated (maximum) force (N).
@@ -627,6 +675,7 @@ impl Scenario {
             positive("plant.muscle_rated_force_n", f)?;
         }
         self.plant.encoder.sensor(0).validate()?;
+        self.plant.cuff_sensor.validate()?;
         positive("control.cocontraction_pa", self.control.cocontraction_pa)?;
         if self.control.cocontraction_pa > self.plant.valve.pressure_max_pa {
             return Err(invalid(
@@ -748,5 +797,30 @@ impl Scenario {
             muscles,
             muscles_source,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_cuff_sensor_error_beyond_a_tenth_of_full_scale_is_refused_naming_the_field() {
+        let ok: CuffSensorSettings =
+            toml::from_str("noise_rms_nm = 2.0\nbias_nm = [1.0, -1.0]\nseed = 4\n").unwrap();
+        assert!(ok.validate().is_ok());
+        for (text, field) in [
+            ("noise_rms_nm = 150.0", "plant.cuff_sensor.noise_rms_nm"),
+            ("noise_rms_nm = -1.0", "plant.cuff_sensor.noise_rms_nm"),
+            (
+                "bias_nm = [0.0, 101.0]",
+                "plant.cuff_sensor.bias_nm[1] (knee)",
+            ),
+        ] {
+            let s: CuffSensorSettings = toml::from_str(text).unwrap();
+            let e = s.validate().expect_err(text).to_string();
+            assert!(e.contains(field) && !e.contains('\n'), "{e}");
+        }
+        assert!(toml::from_str::<CuffSensorSettings>("drift = 1.0").is_err());
     }
 }

@@ -1,13 +1,13 @@
 //! The exoskeleton as a [`Backend`] of the closed loop: the rapier multibody, four muscles
 //! with their valves and two joint encoders per leg.
-use crate::config::{MuscleGeometry, Scenario};
+use crate::config::{CuffSensorSettings, MuscleGeometry, Scenario};
 use crate::error::LegError;
 use crate::exoskeleton::{Exoskeleton, JOINT_NAMES};
 use crate::ground::GroundReaction;
 use crate::legs::{PerLeg, MAX_LEGS, SIDES};
 use crate::patient::{Patient, PatientTorques};
 use pma_loop::{Backend, Started};
-use pma_model::{MuscleModel, PositionSensor, Valve};
+use pma_model::{GaussianRng, MuscleModel, PositionSensor, Valve};
 
 /// Muscles per leg: a flexor and an extensor at hip and knee.
 pub const MUSCLES_PER_LEG: usize = 4;
@@ -194,6 +194,9 @@ pub struct LegPlant {
     acceleration: [[f64; 2]; MAX_LEGS],
     /// A sinusoidal load on one joint, beside `external_nm`.
     external_wave: Option<ExternalWave>,
+    cuff_sensor: CuffSensorSettings,
+    /// Each leg's cuff sensors' noise streams (hip, knee).
+    cuff_noise: Vec<[GaussianRng; 2]>,
 }
 
 /// A sinusoidal load on one joint (N m, flexion positive): a frequency-response test's
@@ -234,7 +237,13 @@ impl LegPlant {
                 PositionSensor::new(scenario.plant.encoder.sensor(2 * leg + 1))?,
             ]);
         }
+        let cuff = scenario.plant.cuff_sensor;
+        let cuff_noise = (0..exo.leg_count() as u64)
+            .map(|leg| [0, 1].map(|j| GaussianRng::new(cuff.seed.wrapping_add(2 * leg + j))))
+            .collect();
         Ok(Self {
+            cuff_sensor: cuff,
+            cuff_noise,
             exo,
             muscles,
             encoders,
@@ -448,13 +457,23 @@ impl LegPlant {
         });
         let exo = &self.exo;
         let encoders = &mut self.encoders;
+        let (sensor, noise) = (&self.cuff_sensor, &mut self.cuff_noise);
         PerLeg::from_fn(legs, |leg| {
             let q = exo.angles(leg);
+            let cuff = |j: usize, rng: &mut GaussianRng| {
+                let drawn = if sensor.noise_rms_nm > 0.0 {
+                    sensor.noise_rms_nm * rng.standard_normal()
+                } else {
+                    0.0
+                };
+                cuffs[leg][j] + sensor.bias_nm[j] + drawn
+            };
+            let [hip_rng, knee_rng] = &mut noise[leg];
             [
                 encoders[leg][0].measure(q[0]),
                 encoders[leg][1].measure(q[1]),
-                cuffs[leg][0],
-                cuffs[leg][1],
+                cuff(0, hip_rng),
+                cuff(1, knee_rng),
             ]
         })
     }

@@ -141,3 +141,39 @@ fn a_spasm_deflects_an_impedance_joint_more_with_slower_valves_than_position_con
         "{impedance_rate} against {position_rate}"
     );
 }
+
+/// The first leg of `gait_training` held at `pose` in admittance mode at `k` N m/rad on
+/// both joints with cuff sensors off by `bias_nm`: its angles after `seconds`.
+fn held_with_cuff_bias(k: f64, pose: [f64; 2], bias_nm: [f64; 2], seconds: f64) -> [f64; 2] {
+    let mut loaded = Scenario::load("gait_training").unwrap();
+    let sc = &mut loaded.scenario;
+    sc.control.mode = ControlMode::Admittance;
+    sc.control.impedance.hip.stiffness_nm_per_rad = Some(k);
+    sc.control.impedance.knee.stiffness_nm_per_rad = Some(k);
+    sc.plant.cuff_sensor.bias_nm = bias_nm;
+    let mut sim = LegSim::new(&loaded).unwrap();
+    sim.hold_pose(pose);
+    sim.set_state(pose, [0.0; 2]);
+    sim.run(seconds, &mut ()).unwrap();
+    sim.exo().angles(0)
+}
+
+/// A cuff sensor's bias is a push the patient does not make: admittance mode yields to it
+/// as to a load, by the bias over the stiffness (a reading `b` too high is a push of `-b`).
+#[test]
+fn a_cuff_sensors_bias_moves_the_held_pose_by_bias_over_stiffness() {
+    let (k, pose) = (300.0, [20f64.to_radians(), 30f64.to_radians()]);
+    let bias = [3.0, -2.0];
+    let true_pose = held_with_cuff_bias(k, pose, [0.0; 2], 4.0);
+    let biased = held_with_cuff_bias(k, pose, bias, 4.0);
+    for j in 0..2 {
+        let moved = biased[j] - true_pose[j];
+        let expected = -bias[j] / k;
+        assert!(
+            (moved - expected).abs() < 0.03 * expected.abs(),
+            "joint {j}: moved {:.4} deg, expected {:.4}",
+            moved.to_degrees(),
+            expected.to_degrees()
+        );
+    }
+}
