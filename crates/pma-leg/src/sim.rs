@@ -909,9 +909,10 @@ fn adult_moments(
         .map(|c| c.iter().map(|t| t * scale).collect()))
 }
 
-/// Checks that the scenario's mode is one that yields to the patient and plans a torque
-/// to leave to them (impedance, or admittance carrying the leg), for setting `field`.
-fn yielding_mode(sc: &Scenario, field: &str, value: f64) -> Result<(), LegError> {
+/// Checks, for setting `field` to `value`, that the scenario's mode yields to the patient
+/// (impedance or admittance) and, if `plans` (a share of a plan left to them), that it
+/// plans the limb's torque (admittance carrying the leg, not only the device).
+fn yielding_mode(sc: &Scenario, field: &str, value: f64, plans: bool) -> Result<(), LegError> {
     let unsupported = |message: &str| LegError::Unsupported {
         name: field.into(),
         value: format!("{value}"),
@@ -919,12 +920,14 @@ fn yielding_mode(sc: &Scenario, field: &str, value: f64) -> Result<(), LegError>
     };
     match sc.control.mode {
         ControlMode::Impedance => Ok(()),
-        ControlMode::Admittance if sc.control.compensation == Compensation::Leg => Ok(()),
+        ControlMode::Admittance if !plans || sc.control.compensation == Compensation::Leg => {
+            Ok(())
+        }
         ControlMode::Admittance => Err(unsupported(
             "with compensation = \"device\" admittance mode plans none of the limb's torque to leave to the patient",
         )),
         _ => Err(unsupported(
-            "only impedance and admittance modes yield to the patient and plan a torque to leave to them",
+            "only impedance and admittance modes yield to the patient",
         )),
     }
 }
@@ -937,7 +940,7 @@ fn phase_sync(sc: &Scenario) -> Result<Option<crate::phase_sync::PhaseSync>, Leg
         return Ok(None);
     }
     let field = "control.impedance.phase_sync_per_s";
-    yielding_mode(sc, field, gain)?;
+    yielding_mode(sc, field, gain, false)?;
     if sc
         .treadmill
         .is_some_and(|t| t.other_leg() == Contralateral::Reference)
@@ -974,7 +977,7 @@ fn expected_moments(
     if share == 0.0 {
         return Ok(None);
     }
-    yielding_mode(sc, "control.impedance.patient_moment_share", share)?;
+    yielding_mode(sc, "control.impedance.patient_moment_share", share, true)?;
     const NEEDS_TREADMILL: &str =
         "control.impedance.patient_moment_share > 0 needs a treadmill (its body mass and support)";
     let support = sc.treadmill.ok_or_else(|| LegError::Missing {

@@ -133,3 +133,22 @@ fn admittance_interaction_torque_rises_with_its_stiffness_towards_position_contr
         );
     }
 }
+
+/// The gait's clock follows a patient who carries their own limb too (`gait_active`,
+/// `compensation = "device"`): a first version refused it there, for the moment share's
+/// reason (a plan with nothing to leave). The patient strides in 1.5 s against the
+/// reference's 1.6 s, so the clock must run faster: over the walking part of 20 s its
+/// mean rate lies between 1.02 and their 1.6 / 1.5 = 1.067 (with margin to 1.10).
+#[test]
+fn regression_the_clock_was_refused_where_the_device_carries_only_itself() {
+    let mut loaded = Scenario::load("gait_active").unwrap();
+    loaded.scenario.control.mode = ControlMode::Admittance;
+    loaded.scenario.control.impedance.phase_sync_per_s = 2.0;
+    let mut sim = LegSim::new(&loaded).expect("the clock follows whatever the device carries");
+    let r = sim.run(20.0, &mut ()).unwrap();
+    let sync = r.phase_sync.expect("reported");
+    let walking_s = 20.0 - loaded.scenario.gait.ramp_s;
+    let mean_rate = 1.0 + sync.clock_offset_s / walking_s;
+    eprintln!("{sync:?}, mean rate {mean_rate:.4}");
+    assert!((1.02..=1.10).contains(&mean_rate), "{mean_rate}");
+}
