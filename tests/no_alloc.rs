@@ -221,10 +221,14 @@ fn the_leg_loop_allocates_nothing_but_what_rapier_allocates_itself() {
     // mass matrix, the contact graph; its list of changed bodies is taken each step and
     // refilled by the next `RigidBodySet::get_mut`): about 11 allocations a substep.
     // Everything around it (muscles, valves, controllers, the patient, the belt, the
-    // harness, the other leg, the recorders, `simulate --plot`'s gait-cycle bins) must add
-    // none: each allocation of 300 periods is attributed by its backtrace.
-    for scenario in ["gait_spastic", "gait_treadmill_spastic"] {
-        let loaded = pma_leg::Scenario::load(scenario).expect("scenario");
+    // harness, the other leg, the recorders, `simulate --plot`'s gait-cycle bins, the
+    // admittance law, the walking patient and the gait's clock) must add none: each
+    // allocation of 300 periods is attributed by its backtrace.
+    for scenario in ["gait_spastic", "gait_treadmill_spastic", "gait_treadmill"] {
+        let mut loaded = pma_leg::Scenario::load(scenario).expect("scenario");
+        if scenario == "gait_treadmill" {
+            follow_a_walking_patient(&mut loaded.scenario);
+        }
         let mut sim = pma_leg::LegSim::new(&loaded).expect("sim");
         let mut counter = Attributing::default();
         let mut cycles = pma_exo::strides::GaitCycles::new(&sim, 0.0).expect("gait cycles");
@@ -243,4 +247,18 @@ fn the_leg_loop_allocates_nothing_but_what_rapier_allocates_itself() {
         assert!(rapiers > 300, "{scenario}: {rapiers}");
         assert_eq!(ours, 0, "{scenario}");
     }
+}
+
+/// Admittance mode with a patient who walks on their own timing, the adults' moments left
+/// to them and the gait's clock following the legs (docs/cooperative.md).
+fn follow_a_walking_patient(sc: &mut pma_leg::config::Scenario) {
+    sc.control.mode = pma_leg::ControlMode::Admittance;
+    let imp = &mut sc.control.impedance;
+    imp.hip.stiffness_nm_per_rad = Some(300.0);
+    imp.knee.stiffness_nm_per_rad = Some(300.0);
+    imp.patient_moment_share = 1.0;
+    imp.phase_sync_per_s = 2.0;
+    imp.phase_sync_integral_per_s2 = 0.5;
+    let active = toml::from_str("own_torque = \"walking\"\nseed = 1").expect("active patient");
+    sc.patient.active = Some(active);
 }

@@ -675,7 +675,11 @@ fn admittance_with_phase_sync_walks_a_patient_on_their_own_timing_which_a_fixed_
 #[test]
 fn leaving_moments_or_timing_to_the_patient_is_refused_where_no_mode_yields() {
     let dir = temp_dir("yield");
-    for (field, value) in [("patient_moment_share", "1.0"), ("phase_sync_per_s", "2.0")] {
+    for (field, value) in [
+        ("patient_moment_share", "1.0"),
+        ("phase_sync_per_s", "2.0"),
+        ("phase_sync_integral_per_s2", "0.5"),
+    ] {
         let path = dir.join(format!("{field}.toml"));
         let text = format!("{SCENARIO}\n[control.impedance]\n{field} = {value}\n");
         std::fs::write(&path, &text).unwrap();
@@ -685,5 +689,17 @@ fn leaving_moments_or_timing_to_the_patient_is_refused_where_no_mode_yields() {
         std::fs::write(&path, negative).unwrap();
         assert_refused(&path, &format!("control.impedance.{field}"));
     }
+    // In a mode that yields, an integral beyond the clock loop's stability bound (the
+    // gain over the stride period, 2 / 1.75 per s²) is refused.
+    let path = dir.join("unstable.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "{}\n[control.impedance]\nphase_sync_per_s = 2.0\nphase_sync_integral_per_s2 = 1.2\n",
+            SCENARIO.replace("[control]\n", "[control]\nmode = \"admittance\"\n")
+        ),
+    )
+    .unwrap();
+    assert_refused(&path, "control.impedance.phase_sync_integral_per_s2");
     std::fs::remove_dir_all(&dir).ok();
 }

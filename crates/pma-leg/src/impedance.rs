@@ -310,6 +310,12 @@ pub struct ImpedanceSettings {
     /// walks on their own. Default 0: the reference keeps its own clock.
     #[serde(default)]
     pub phase_sync_per_s: f64,
+    /// Integral gain (1/s²) of the gait clock's loop: with it the clock takes the whole of
+    /// a patient's steady cadence difference, not only the part a stiff spring lets the
+    /// legs show ([`crate::phase_sync`]). Default 0; below `phase_sync_per_s` over the
+    /// stride period (the loop's stability bound).
+    #[serde(default)]
+    pub phase_sync_integral_per_s2: f64,
 }
 
 /// `[control.impedance.learning]`: the torque each joint's pair adds at each phase of the
@@ -365,6 +371,7 @@ impl Default for ImpedanceSettings {
             patient_moment_share: 0.0,
             patient_moment_share_by_leg: None,
             phase_sync_per_s: 0.0,
+            phase_sync_integral_per_s2: 0.0,
         }
     }
 }

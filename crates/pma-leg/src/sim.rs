@@ -935,19 +935,26 @@ fn yielding_mode(sc: &Scenario, field: &str, value: f64, plans: bool) -> Result<
 /// The gait's clock following the legs' lead (`control.impedance.phase_sync_per_s`;
 /// `None` at 0).
 fn phase_sync(sc: &Scenario) -> Result<Option<crate::phase_sync::PhaseSync>, LegError> {
-    let gain = sc.control.impedance.phase_sync_per_s;
-    if gain == 0.0 {
+    let (gain, integral) = (
+        sc.control.impedance.phase_sync_per_s,
+        sc.control.impedance.phase_sync_integral_per_s2,
+    );
+    if gain == 0.0 && integral == 0.0 {
         return Ok(None);
     }
-    let field = "control.impedance.phase_sync_per_s";
-    yielding_mode(sc, field, gain, false)?;
+    let (field, value) = if gain != 0.0 {
+        ("control.impedance.phase_sync_per_s", gain)
+    } else {
+        ("control.impedance.phase_sync_integral_per_s2", integral)
+    };
+    yielding_mode(sc, field, value, false)?;
     if sc
         .treadmill
         .is_some_and(|t| t.other_leg() == Contralateral::Reference)
     {
         return Err(LegError::Unsupported {
             name: field.into(),
-            value: format!("{gain}"),
+            value: format!("{value}"),
             message: "the virtual other leg walks on the reference's own clock: give the trainer two legs".into(),
         });
     }
@@ -964,7 +971,7 @@ fn phase_sync(sc: &Scenario) -> Result<Option<crate::phase_sync::PhaseSync>, Leg
         .sum::<f64>()
         / n as f64
         * sc.treadmill.map_or(1, |t| t.legs) as f64;
-    crate::phase_sync::PhaseSync::new(gain, stride, mean_power).map(Some)
+    crate::phase_sync::PhaseSync::new(gain, integral, stride, mean_power).map(Some)
 }
 
 /// The moments impedance or admittance mode leaves to leg `leg`'s walking patient

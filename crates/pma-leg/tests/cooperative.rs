@@ -152,3 +152,29 @@ fn regression_the_clock_was_refused_where_the_device_carries_only_itself() {
     eprintln!("{sync:?}, mean rate {mean_rate:.4}");
     assert!((1.02..=1.10).contains(&mean_rate), "{mean_rate}");
 }
+
+/// Behind a stiff spring (300 N m/rad) the legs show the clock too little of the
+/// patient's lead for the proportional loop at 2/s to lock: over 20 s its mean rate
+/// stays below 1.03 (1.019 measured) against the patient's 1.6 / 1.5 = 1.067. The
+/// loop's integral (`phase_sync_integral_per_s2 = 0.5`, 0.4 of its stability bound)
+/// takes the patient's cadence: the mean rate within 1.04-1.10.
+#[test]
+fn the_clocks_integral_takes_the_patients_cadence_behind_a_stiff_spring() {
+    let mean_rate = |integral: f64| {
+        let mut loaded = Scenario::load("gait_active").unwrap();
+        let c = &mut loaded.scenario.control;
+        c.mode = ControlMode::Admittance;
+        c.impedance.hip.stiffness_nm_per_rad = Some(300.0);
+        c.impedance.knee.stiffness_nm_per_rad = Some(300.0);
+        c.impedance.phase_sync_per_s = 2.0;
+        c.impedance.phase_sync_integral_per_s2 = integral;
+        let mut sim = LegSim::new(&loaded).expect("valid");
+        let r = sim.run(20.0, &mut ()).unwrap();
+        let sync = r.phase_sync.expect("reported");
+        1.0 + sync.clock_offset_s / (20.0 - loaded.scenario.gait.ramp_s)
+    };
+    let (proportional, integral) = (mean_rate(0.0), mean_rate(0.5));
+    eprintln!("mean rate: proportional {proportional:.4}, with the integral {integral:.4}");
+    assert!(proportional < 1.03, "{proportional}");
+    assert!((1.04..=1.10).contains(&integral), "{integral}");
+}
