@@ -1345,3 +1345,55 @@ fn the_treadmill_experiments_refuse_bad_input_in_one_line() {
     let out = pma_exo(&["fit-gait", "--body-speed", "swinging"]);
     assert!(!out.status.success());
 }
+
+/// `compare-modes --phase-sync` adds impedance and admittance rows whose gait clock
+/// follows the patient; a gain or integral out of range is refused before any run,
+/// naming the option.
+#[test]
+fn compare_modes_adds_rows_whose_clock_follows_the_patient() {
+    let out = pma_exo_ok(&[
+        "compare-modes",
+        "--scenarios",
+        "gait_active",
+        "--duration",
+        "4",
+        "--phase-sync",
+        "2",
+        "--phase-sync-integral",
+        "0.5",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let modes: Vec<&str> = v["rows"]
+        .as_array()
+        .expect("rows")
+        .iter()
+        .map(|r| r["mode"].as_str().expect("mode"))
+        .collect();
+    assert_eq!(modes.len(), 8, "{modes:?}");
+    assert!(
+        modes[6].starts_with("impedance, clock following"),
+        "{modes:?}"
+    );
+    assert!(
+        modes[7].starts_with("admittance (APRC-NDO), clock following"),
+        "{modes:?}"
+    );
+    let args = |gain: &'static str, integral: &'static str| {
+        [
+            "compare-modes",
+            "--scenarios",
+            "gait_active",
+            "--duration",
+            "4",
+            "--phase-sync",
+            gain,
+            "--phase-sync-integral",
+            integral,
+        ]
+    };
+    assert_one_line_error(&args("25", "0"), "--phase-sync 25");
+    assert_one_line_error(&args("0", "0"), "--phase-sync 0");
+    assert_one_line_error(&args("2", "2"), "--phase-sync-integral 2");
+    assert_one_line_error(&args("2", "-1"), "--phase-sync-integral -1");
+}

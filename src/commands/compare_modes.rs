@@ -24,6 +24,20 @@ pub struct Args {
     /// co-contraction reaches.
     #[arg(long, value_delimiter = ',', value_name = "N m/rad")]
     admittance_stiffness: Vec<f64>,
+    /// Impedance and admittance mode again with the gait's clock following the legs'
+    /// lead at this gain (1/s, 0-20; `control.impedance.phase_sync_per_s`).
+    #[arg(long, value_name = "1/s", allow_negative_numbers = true)]
+    phase_sync: Option<f64>,
+    /// The clock's integral gain for those rows (1/s², below the gain over the stride
+    /// period; `control.impedance.phase_sync_integral_per_s2`).
+    #[arg(
+        long,
+        value_name = "1/s²",
+        default_value_t = 0.0,
+        requires = "phase_sync",
+        allow_negative_numbers = true
+    )]
+    phase_sync_integral: f64,
     /// Print JSON instead of tables.
     #[arg(long)]
     json: bool,
@@ -39,6 +53,8 @@ enum Drive {
     AdmittanceAt(f64),
     /// Every muscle vented and unhooked: the patient alone with the frames.
     Unhooked,
+    /// A yielding mode whose gait clock follows the legs (gain 1/s, integral 1/s²).
+    Following(ControlMode, f64, f64),
 }
 
 impl Drive {
@@ -49,6 +65,14 @@ impl Drive {
             Drive::Mode(m) => m.to_string(),
             Drive::AdmittanceAt(k) => format!("admittance (APRC-NDO), {k} N m/rad"),
             Drive::Unhooked => "muscles unhooked".into(),
+            Drive::Following(m, gain, integral) => {
+                let mode = Drive::Mode(m).name();
+                if integral > 0.0 {
+                    format!("{mode}, clock following ({gain} /s, {integral} /s²)")
+                } else {
+                    format!("{mode}, clock following ({gain} /s)")
+                }
+            }
         }
     }
 }
@@ -141,6 +165,11 @@ fn run_one(loaded: &LoadedScenario, drive: Drive, duration_s: f64) -> Result<Leg
             control.impedance.knee.stiffness_nm_per_rad = Some(k);
         }
         Drive::Unhooked => {}
+        Drive::Following(m, gain, integral) => {
+            control.mode = m;
+            control.impedance.phase_sync_per_s = gain;
+            control.impedance.phase_sync_integral_per_s2 = integral;
+        }
     }
     let mut sim = LegSim::new(&loaded)?;
     if let Drive::Unhooked = drive {
@@ -176,9 +205,20 @@ pub fn run(a: Args) -> Result<i32> {
             pma_leg::impedance::STIFFNESS_MAX_NM_PER_RAD
         );
     }
+    let following: Vec<Drive> = a
+        .phase_sync
+        .map(|gain| {
+            [ControlMode::Impedance, ControlMode::Admittance]
+                .map(|m| Drive::Following(m, gain, a.phase_sync_integral))
+        })
+        .into_iter()
+        .flatten()
+        .collect();
+    check_following(&scenarios, &following, &a)?;
     let drives: Vec<Drive> = DRIVES
         .iter()
         .copied()
+        .chain(following.iter().copied())
         .chain(
             a.admittance_stiffness
                 .iter()
@@ -210,6 +250,37 @@ pub fn run(a: Args) -> Result<i32> {
     say!("{}", table(&rows, a.duration));
     say!("{}", provenance.line());
     Ok(0)
+}
+
+/// Builds each scenario's synchronised run before any run starts, so that a gain or
+/// integral out of range is one error naming the option.
+fn check_following(scenarios: &[LoadedScenario], following: &[Drive], a: &Args) -> Result<()> {
+    let Some(&Drive::Following(mode, gain, integral)) = following.first() else {
+        return Ok(());
+    };
+    if gain == 0.0 {
+        anyhow::bail!("--phase-sync 0: must be > 0 (0 leaves the gait on its own clock)");
+    }
+    for s in scenarios {
+        let mut loaded = s.clone();
+        let control = &mut loaded.scenario.control;
+        control.mode = mode;
+        control.impedance.phase_sync_per_s = gain;
+        control.impedance.phase_sync_integral_per_s2 = integral;
+        match LegSim::new(&loaded) {
+            Err(e) if e.to_string().contains("phase_sync_integral") => anyhow::bail!(
+                "--phase-sync-integral {} ({}): {e}",
+                a.phase_sync_integral,
+                s.scenario.name
+            ),
+            Err(e) if e.to_string().contains("phase_sync") => {
+                anyhow::bail!("--phase-sync {gain} ({}): {e}", s.scenario.name)
+            }
+            Err(e) => return Err(e.into()),
+            Ok(_) => {}
+        }
+    }
+    Ok(())
 }
 
 fn table(rows: &[Row], duration_s: f64) -> String {
