@@ -909,6 +909,8 @@ pub struct LegTrace {
     pub patient_nm: [Vec<f64>; 2],
     /// The device's torque on the limb (N m) at hip and knee.
     pub interaction_nm: [Vec<f64>; 2],
+    /// The thigh and shank cuff forces that put it there (N, forward positive).
+    pub cuff_force_n: [Vec<f64>; 2],
     /// Muscle names.
     pub muscles: Vec<String>,
     /// Spasms: joint (0 hip, 1 knee), onset and end (s).
@@ -1157,6 +1159,23 @@ pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawRe
     panels.push(LinePanel {
         y_desc: "torque on the limb (N m, flexion +)",
         lines: torques,
+        marks: Vec::new(),
+        spasms: spasms(None),
+    });
+    panels.push(LinePanel {
+        y_desc: "cuff force on the limb (N, forward +)",
+        lines: ["thigh cuff", "shank cuff"]
+            .iter()
+            .enumerate()
+            .map(|(i, name)| {
+                (
+                    (*name).into(),
+                    tail(&tr.cuff_force_n[i], first),
+                    colour(i),
+                    true,
+                )
+            })
+            .collect(),
         marks: Vec::new(),
         spasms: spasms(None),
     });

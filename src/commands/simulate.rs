@@ -281,6 +281,7 @@ impl Trace {
             force_n: [v(), v(), v(), v()],
             patient_nm: [v(), v()],
             interaction_nm: [v(), v()],
+            cuff_force_n: [v(), v()],
             ..Default::default()
         })
     }
@@ -302,6 +303,7 @@ impl pma_loop::Recorder<pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutp
             t.angle_deg[j].push(s.angle_rad[j].to_degrees());
             t.patient_nm[j].push(torque);
             t.interaction_nm[j].push(s.interaction_nm[j]);
+            t.cuff_force_n[j].push(s.cuff_force_n[j]);
         }
         for (i, (p, f)) in s.pressure_pa.iter().zip(&s.force_n).enumerate() {
             t.pressure_bar[i].push(p / 1e5);

@@ -372,6 +372,63 @@ pub struct PlantSettings {
     /// The cuff torque sensors' errors (default: ideal).
     #[serde(default)]
     pub cuff_sensor: CuffSensorSettings,
+    /// Where the cuffs hold the limb (default: the middle of each frame bar).
+    #[serde(default)]
+    pub cuffs: CuffSettings,
+}
+
+/// `[plant.cuffs]`: where the thigh and shank cuffs hold the limb, on every leg. The
+/// device's torque on the limb is reported as the two cuff forces that give it
+/// ([`crate::cooperative::cuff_forces_n`]). The default is this project's stated design:
+/// each cuff at the middle of its 0.40 m frame bar
+/// ([`crate::exoskeleton::FRAME_COM_M`]).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CuffSettings {
+    /// Distance of the thigh cuff below the hip, along the thigh (m); at most the thigh's
+    /// length.
+    #[serde(default = "default_cuff_below_joint")]
+    pub thigh_below_hip_m: f64,
+    /// Distance of the shank cuff below the knee, along the shank (m).
+    #[serde(default = "default_cuff_below_joint")]
+    pub shank_below_knee_m: f64,
+}
+
+fn default_cuff_below_joint() -> f64 {
+    crate::exoskeleton::FRAME_COM_M
+}
+
+impl Default for CuffSettings {
+    fn default() -> Self {
+        Self {
+            thigh_below_hip_m: default_cuff_below_joint(),
+            shank_below_knee_m: default_cuff_below_joint(),
+        }
+    }
+}
+
+/// Nearest a cuff may sit to its joint (m): closer, a joint torque needs a force beyond
+/// any cuff's (10 N m at 5 cm is 200 N).
+pub const CUFF_BELOW_JOINT_MIN_M: f64 = 0.05;
+
+impl CuffSettings {
+    /// Checks each field's range (the thigh cuff against the thigh's length where the leg
+    /// is built); the error names it.
+    pub fn validate(&self) -> Result<(), LegError> {
+        for (name, v) in [
+            ("plant.cuffs.thigh_below_hip_m", self.thigh_below_hip_m),
+            ("plant.cuffs.shank_below_knee_m", self.shank_below_knee_m),
+        ] {
+            within(
+                name,
+                v,
+                CUFF_BELOW_JOINT_MIN_M,
+                0.6,
+                "must be 0.05..=0.6 m below the joint, along the segment",
+            )?;
+        }
+        Ok(())
+    }
 }
 
 /// `[plant.cuff_sensor]`: what separates the cuff torque sensors' readings (which
@@ -676,6 +733,7 @@ impl Scenario {
         }
         self.plant.encoder.sensor(0).validate()?;
         self.plant.cuff_sensor.validate()?;
+        self.plant.cuffs.validate()?;
         positive("control.cocontraction_pa", self.control.cocontraction_pa)?;
         if self.control.cocontraction_pa > self.plant.valve.pressure_max_pa {
             return Err(invalid(
@@ -822,5 +880,22 @@ mod tests {
             assert!(e.contains(field) && !e.contains('\n'), "{e}");
         }
         assert!(toml::from_str::<CuffSensorSettings>("drift = 1.0").is_err());
+    }
+
+    #[test]
+    fn a_cuff_too_close_to_its_joint_or_too_far_is_refused_naming_the_field() {
+        let ok: CuffSettings = toml::from_str("thigh_below_hip_m = 0.25").unwrap();
+        assert!(ok.validate().is_ok());
+        assert_eq!(ok.shank_below_knee_m, crate::exoskeleton::FRAME_COM_M);
+        for (text, field) in [
+            ("thigh_below_hip_m = 0.01", "plant.cuffs.thigh_below_hip_m"),
+            ("shank_below_knee_m = 0.7", "plant.cuffs.shank_below_knee_m"),
+            ("shank_below_knee_m = nan", "plant.cuffs.shank_below_knee_m"),
+        ] {
+            let s: CuffSettings = toml::from_str(text).unwrap();
+            let e = s.validate().expect_err(text).to_string();
+            assert!(e.contains(field) && !e.contains('\n'), "{e}");
+        }
+        assert!(toml::from_str::<CuffSettings>("ankle_below_knee_m = 0.3").is_err());
     }
 }

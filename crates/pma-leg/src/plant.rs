@@ -156,6 +156,9 @@ pub struct LegState {
     /// the muscles' torque less the frames' own inverse dynamics, the acceleration the
     /// mean over the last period (`crate::cooperative`).
     pub interaction_nm: [f64; 2],
+    /// The thigh and shank cuff forces that put `interaction_nm` into the limb (N,
+    /// perpendicular to their segments, forward positive; [`crate::cooperative::cuff_forces_n`]).
+    pub cuff_force_n: [f64; 2],
     /// The passive ankle's angle (rad, dorsiflexion positive; NaN without one).
     pub ankle_rad: f64,
     /// The orthosis's torque on the ankle (N m, dorsiflexion positive).
@@ -197,6 +200,8 @@ pub struct LegPlant {
     cuff_sensor: CuffSensorSettings,
     /// Each leg's cuff sensors' noise streams (hip, knee).
     cuff_noise: Vec<[GaussianRng; 2]>,
+    /// Where the cuffs hold the limb.
+    cuffs: crate::config::CuffSettings,
 }
 
 /// A sinusoidal load on one joint (N m, flexion positive): a frequency-response test's
@@ -237,6 +242,15 @@ impl LegPlant {
                 PositionSensor::new(scenario.plant.encoder.sensor(2 * leg + 1))?,
             ]);
         }
+        let cuffs = scenario.plant.cuffs;
+        let thigh_m = exo.inertia().thigh_length_m;
+        if cuffs.thigh_below_hip_m > thigh_m {
+            return Err(LegError::Unsupported {
+                name: "plant.cuffs.thigh_below_hip_m".into(),
+                value: format!("{}", cuffs.thigh_below_hip_m),
+                message: format!("must be at most the thigh's length, {thigh_m:.3} m"),
+            });
+        }
         let cuff = scenario.plant.cuff_sensor;
         let cuff_noise = (0..exo.leg_count() as u64)
             .map(|leg| [0, 1].map(|j| GaussianRng::new(cuff.seed.wrapping_add(2 * leg + j))))
@@ -244,6 +258,7 @@ impl LegPlant {
         Ok(Self {
             cuff_sensor: cuff,
             cuff_noise,
+            cuffs,
             exo,
             muscles,
             encoders,
@@ -503,10 +518,17 @@ impl LegPlant {
         let each = |f: &dyn Fn(&MuscleActuator) -> f64| -> [f64; 4] {
             std::array::from_fn(|i| m.get(i).map_or(f64::NAN, f))
         };
+        let interaction_nm = self.cuff_torque_nm(leg, q, qd);
         LegState {
             angle_rad: q,
             velocity_rad_s: qd,
-            interaction_nm: self.cuff_torque_nm(leg, q, qd),
+            interaction_nm,
+            cuff_force_n: crate::cooperative::cuff_forces_n(
+                interaction_nm,
+                q[1],
+                self.exo.inertia().thigh_length_m,
+                &self.cuffs,
+            ),
             pressure_pa: each(&|m| m.pressure()),
             force_n: each(&|m| m.force(q, qd)),
             length_m: each(&|m| m.contraction(q)),

@@ -65,6 +65,8 @@ pub struct LegSample {
     pub patient_parts_nm: PatientTorques,
     /// The torque the device puts into the limb (N m, flexion positive).
     pub interaction_nm: [f64; 2],
+    /// The thigh and shank cuff forces that put it there (N, forward positive).
+    pub cuff_force_n: [f64; 2],
     /// Its foot on the belt, on a treadmill.
     pub foot: Option<FootSample>,
 }
@@ -112,6 +114,7 @@ impl LegSample {
             patient_nm: s.patient.total(),
             patient_parts_nm: s.patient,
             interaction_nm: s.interaction_nm,
+            cuff_force_n: s.cuff_force_n,
             foot: state.ground.and_then(|g| {
                 Some(FootSample {
                     reaction: *g.feet.get(leg)?,
@@ -191,6 +194,14 @@ impl LegSample {
                     "disturbance_hat",
                     "disturbance estimate (m/s^2)",
                 );
+        }
+        for cuff in ["thigh_cuff", "shank_cuff"] {
+            s.push_part(
+                "cuffs",
+                cuff,
+                "force_n",
+                "force on the limb (N, perpendicular to the segment, forward +)",
+            );
         }
         if treadmill {
             s.channels.extend(Self::foot_schema().channels);
@@ -288,6 +299,9 @@ impl LegSample {
             ] {
                 put(v);
             }
+        }
+        for f in self.cuff_force_n {
+            put(f);
         }
         if let Some(f) = self.foot {
             let g = f.reaction;

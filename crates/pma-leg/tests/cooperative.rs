@@ -178,3 +178,25 @@ fn the_clocks_integral_takes_the_patients_cadence_behind_a_stiff_spring() {
     assert!(proportional < 1.03, "{proportional}");
     assert!((1.04..=1.10).contains(&integral), "{integral}");
 }
+
+/// A thigh cuff placed below the knee is refused where the leg is built, naming the field;
+/// the run reports each cuff's force, and the shank cuff's gives the knee's torque back.
+#[test]
+fn the_cuffs_forces_are_reported_and_a_cuff_off_its_thigh_is_refused() {
+    let mut loaded = Scenario::load("gait_active").unwrap();
+    loaded.scenario.plant.cuffs.thigh_below_hip_m = 0.55;
+    let e = LegSim::new(&loaded).err().expect("refused").to_string();
+    assert!(e.contains("plant.cuffs.thigh_below_hip_m"), "{e}");
+    loaded.scenario.plant.cuffs.thigh_below_hip_m = 0.2;
+    loaded.scenario.plant.cuffs.shank_below_knee_m = 0.25;
+    let mut sim = LegSim::new(&loaded).expect("valid");
+    let r = sim.run(4.0, &mut ()).unwrap();
+    let c = &r.cooperation[0];
+    let (knee, shank) = (&c.joints["knee"], &c.cuffs["shank"]);
+    assert!(shank.force_rms_n > 0.0, "{c:?}");
+    assert!(
+        (shank.force_rms_n * 0.25 - knee.interaction_rms_nm).abs()
+            < 1e-9 * knee.interaction_rms_nm.max(1.0),
+        "{c:?}"
+    );
+}

@@ -272,8 +272,9 @@ impl Leg {
         self.array(py, &angles)
     }
 
-    /// The true state at the last reading: ``angle_rad``, ``velocity_rad_s`` and
-    /// ``interaction_nm`` (the torque the device puts into the limb; shape ``(legs, 2)``),
+    /// The true state at the last reading: ``angle_rad``, ``velocity_rad_s``,
+    /// ``interaction_nm`` (the torque the device puts into the limb) and ``cuff_force_n``
+    /// (the thigh and shank cuff forces that put it there; shape ``(legs, 2)``),
     /// ``pressure_pa`` and ``force_n`` (shape ``(legs, 4)``).
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let s = self.run.sup.truth();
@@ -291,6 +292,10 @@ impl Leg {
         d.set_item(
             "interaction_nm",
             self.array(py, &s.legs.map(|l| l.interaction_nm))?,
+        )?;
+        d.set_item(
+            "cuff_force_n",
+            self.array(py, &s.legs.map(|l| l.cuff_force_n))?,
         )?;
         Ok(d)
     }

@@ -38,6 +38,10 @@ def test_the_cuffs_read_the_torque_the_device_puts_into_the_limb():
     np.testing.assert_allclose(cuffs, leg.state()["interaction_nm"], rtol=1e-12)
     # The PD holds the limb up: the device carries part of its weight at the hip.
     assert abs(cuffs[0, 0]) > 0.1, cuffs
+    # The cuff forces give the knee's torque back at the shank cuff, 0.20 m below it.
+    forces = leg.state()["cuff_force_n"]
+    assert forces.shape == (1, 2) and np.all(np.isfinite(forces))
+    np.testing.assert_allclose(-forces[0, 1] * 0.20, cuffs[0, 1], rtol=1e-9)
 
 
 def test_the_trainer_has_two_legs():

@@ -196,7 +196,7 @@ class Leg:
         """The gait reference (rad) at ``t`` (default: now), shape ``(legs, 2)``."""
     def state(self) -> Dict[str, npt.NDArray[np.float64]]:
         """The true state: ``angle_rad``, ``velocity_rad_s``, ``pressure_pa``, ``force_n``,
-        ``interaction_nm``."""
+        ``interaction_nm``, ``cuff_force_n`` (thigh and shank cuffs, N)."""
     @property
     def time(self) -> float:
         """Time of the last reading (s)."""
