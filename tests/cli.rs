@@ -1237,10 +1237,11 @@ fn simulate_draws_the_run_when_asked() {
     let png = std::fs::read(dir.join("leg.png")).expect("leg.png");
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     assert!(png.len() > 50_000, "{} bytes", png.len());
-    // On a treadmill, a fourth row: the ground reaction and the pelvis (the PNG's height,
-    // big-endian at byte 20, grows from 1300 to 1700 pixels).
+    // Seven panels in two columns (joints, error, torques on the limb, cuff forces,
+    // pressures, forces): four rows. On a treadmill, a fifth: the ground reaction and the
+    // pelvis (the PNG's height, big-endian at byte 20, grows from 1700 to 2100 pixels).
     let height = |png: &[u8]| u32::from_be_bytes([png[20], png[21], png[22], png[23]]);
-    assert_eq!(height(&png), 1300);
+    assert_eq!(height(&png), 1700);
     let belt = temp("leg-plot-belt");
     pma_exo_ok(&[
         "simulate",
@@ -1251,7 +1252,7 @@ fn simulate_draws_the_run_when_asked() {
         belt.to_str().unwrap(),
     ]);
     let png = std::fs::read(belt.join("leg.png")).expect("leg.png");
-    assert_eq!(height(&png), 1700);
+    assert_eq!(height(&png), 2100);
     pma_exo_ok(&[
         "pendulum",
         "--spasticity",
@@ -1351,18 +1352,22 @@ fn the_treadmill_experiments_refuse_bad_input_in_one_line() {
 /// naming the option.
 #[test]
 fn compare_modes_adds_rows_whose_clock_follows_the_patient() {
-    let out = pma_exo_ok(&[
-        "compare-modes",
-        "--scenarios",
-        "gait_active",
-        "--duration",
-        "4",
-        "--phase-sync",
-        "2",
-        "--phase-sync-integral",
-        "0.5",
-        "--json",
-    ]);
+    let args = |gain: &'static str, integral: &'static str| {
+        [
+            "compare-modes",
+            "--scenarios",
+            "gait_active",
+            "--duration",
+            "4",
+            "--phase-sync",
+            gain,
+            "--phase-sync-integral",
+            integral,
+        ]
+    };
+    let mut json = args("2", "0.5").to_vec();
+    json.push("--json");
+    let out = pma_exo_ok(&json);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
     let modes: Vec<&str> = v["rows"]
         .as_array()
@@ -1379,19 +1384,6 @@ fn compare_modes_adds_rows_whose_clock_follows_the_patient() {
         modes[7].starts_with("admittance (APRC-NDO), clock following"),
         "{modes:?}"
     );
-    let args = |gain: &'static str, integral: &'static str| {
-        [
-            "compare-modes",
-            "--scenarios",
-            "gait_active",
-            "--duration",
-            "4",
-            "--phase-sync",
-            gain,
-            "--phase-sync-integral",
-            integral,
-        ]
-    };
     assert_one_line_error(&args("25", "0"), "--phase-sync 25");
     assert_one_line_error(&args("0", "0"), "--phase-sync 0");
     assert_one_line_error(&args("2", "2"), "--phase-sync-integral 2");

@@ -175,6 +175,13 @@ impl CooperationMetrics {
     /// The figures so far.
     pub fn report(&self) -> CooperationReport {
         let n = self.n.max(1) as f64;
+        let rms = |sum_sq: f64| {
+            if self.n > 0 {
+                (sum_sq / n).sqrt()
+            } else {
+                f64::NAN
+            }
+        };
         let joints = JOINT_NAMES
             .iter()
             .enumerate()
@@ -182,11 +189,7 @@ impl CooperationMetrics {
                 (
                     (*name).to_owned(),
                     InteractionStats {
-                        interaction_rms_nm: if self.n > 0 {
-                            (self.sum_sq[j] / n).sqrt()
-                        } else {
-                            f64::NAN
-                        },
+                        interaction_rms_nm: rms(self.sum_sq[j]),
                         interaction_peak_nm: self.peak[j],
                         patient_work_j: self.patient_work[j],
                         device_work_j: self.device_work[j],
@@ -201,11 +204,7 @@ impl CooperationMetrics {
                 (
                     (*name).to_owned(),
                     CuffStats {
-                        force_rms_n: if self.n > 0 {
-                            (self.cuff_sum_sq[i] / n).sqrt()
-                        } else {
-                            f64::NAN
-                        },
+                        force_rms_n: rms(self.cuff_sum_sq[i]),
                         force_peak_n: self.cuff_peak[i],
                     },
                 )
