@@ -154,7 +154,8 @@ fn row(scenario: &str, drive: Drive, r: &LegReport) -> Row {
     }
 }
 
-fn run_one(loaded: &LoadedScenario, drive: Drive, duration_s: f64) -> Result<LegReport> {
+/// `loaded` set up to run as `drive` says.
+fn driven(loaded: &LoadedScenario, drive: Drive) -> LoadedScenario {
     let mut loaded = loaded.clone();
     let control = &mut loaded.scenario.control;
     match drive {
@@ -171,7 +172,11 @@ fn run_one(loaded: &LoadedScenario, drive: Drive, duration_s: f64) -> Result<Leg
             control.impedance.phase_sync_integral_per_s2 = integral;
         }
     }
-    let mut sim = LegSim::new(&loaded)?;
+    loaded
+}
+
+fn run_one(loaded: &LoadedScenario, drive: Drive, duration_s: f64) -> Result<LegReport> {
+    let mut sim = LegSim::new(&driven(loaded, drive))?;
     if let Drive::Unhooked = drive {
         sim.release_muscles()?;
     }
@@ -255,27 +260,24 @@ pub fn run(a: Args) -> Result<i32> {
 /// Builds each scenario's synchronised run before any run starts, so that a gain or
 /// integral out of range is one error naming the option.
 fn check_following(scenarios: &[LoadedScenario], following: &[Drive], a: &Args) -> Result<()> {
-    let Some(&Drive::Following(mode, gain, integral)) = following.first() else {
+    let Some(&first) = following.first() else {
         return Ok(());
     };
-    if gain == 0.0 {
+    if a.phase_sync == Some(0.0) {
         anyhow::bail!("--phase-sync 0: must be > 0 (0 leaves the gait on its own clock)");
     }
     for s in scenarios {
-        let mut loaded = s.clone();
-        let control = &mut loaded.scenario.control;
-        control.mode = mode;
-        control.impedance.phase_sync_per_s = gain;
-        control.impedance.phase_sync_integral_per_s2 = integral;
-        match LegSim::new(&loaded) {
+        match LegSim::new(&driven(s, first)) {
             Err(e) if e.to_string().contains("phase_sync_integral") => anyhow::bail!(
                 "--phase-sync-integral {} ({}): {e}",
                 a.phase_sync_integral,
                 s.scenario.name
             ),
-            Err(e) if e.to_string().contains("phase_sync") => {
-                anyhow::bail!("--phase-sync {gain} ({}): {e}", s.scenario.name)
-            }
+            Err(e) if e.to_string().contains("phase_sync") => anyhow::bail!(
+                "--phase-sync {} ({}): {e}",
+                a.phase_sync.unwrap_or_default(),
+                s.scenario.name
+            ),
             Err(e) => return Err(e.into()),
             Ok(_) => {}
         }

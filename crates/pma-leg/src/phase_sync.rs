@@ -20,10 +20,11 @@
 //! device's), so the loop's gain on the patient's phase is `gain` times that part.
 //!
 //! `z` is the loop's integral, `z' = integral · d` (the phase-locked loop of type 2): a
-//! patient whose cadence differs from the reference's by a constant share leaves the
-//! proportional loop a lead of that share over `α gain`, which at a stiff spring (small
-//! `α`) is more lead than the legs show, and the clock takes only part of the difference;
-//! the integral takes all of it and leaves no lead. With the lead's window `W` as a
+//! patient whose cadence differs from the reference's by a constant share needs the
+//! proportional loop to lag them by that share over `α gain`; at a stiff spring (small
+//! `α`) that is a large part of a stride, where the legs' lead no longer grows with the
+//! lag, the loop slips, and the clock takes only part of the difference (measured:
+//! docs/cooperative.md). The integral takes all of it and leaves no lag. With the lead's window `W` as a
 //! first-order lag, the loop's characteristic polynomial is
 //! `W s³ + s² + α gain s + α integral`, stable (Routh-Hurwitz) for
 //! `integral < gain / W`, whatever `α`: [`PhaseSync::new`] refuses more.
