@@ -3,7 +3,8 @@
 //! device does to the patient and how the patient walks (issue 28).
 use crate::say;
 use anyhow::Result;
-use pma_leg::{ControlMode, LegReport, LegSim, LoadedScenario, Scenario};
+use pma_leg::phase_sync::PhaseSync;
+use pma_leg::{ControlMode, LegError, LegReport, LegSim, LoadedScenario, Scenario};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -219,7 +220,7 @@ pub fn run(a: Args) -> Result<i32> {
         .into_iter()
         .flatten()
         .collect();
-    check_following(&scenarios, &following, &a)?;
+    check_following(&scenarios, &a)?;
     let drives: Vec<Drive> = DRIVES
         .iter()
         .copied()
@@ -257,29 +258,26 @@ pub fn run(a: Args) -> Result<i32> {
     Ok(0)
 }
 
-/// Builds each scenario's synchronised run before any run starts, so that a gain or
-/// integral out of range is one error naming the option.
-fn check_following(scenarios: &[LoadedScenario], following: &[Drive], a: &Args) -> Result<()> {
-    let Some(&first) = following.first() else {
+/// Checks `--phase-sync` and `--phase-sync-integral` against each scenario's stride where
+/// the clock is built ([`PhaseSync::new`]), before any run starts: one error naming the
+/// option.
+fn check_following(scenarios: &[LoadedScenario], a: &Args) -> Result<()> {
+    let Some(gain) = a.phase_sync else {
         return Ok(());
     };
-    if a.phase_sync == Some(0.0) {
+    if gain == 0.0 {
         anyhow::bail!("--phase-sync 0: must be > 0 (0 leaves the gait on its own clock)");
     }
     for s in scenarios {
-        match LegSim::new(&driven(s, first)) {
-            Err(e) if e.to_string().contains("phase_sync_integral") => anyhow::bail!(
-                "--phase-sync-integral {} ({}): {e}",
-                a.phase_sync_integral,
-                s.scenario.name
-            ),
-            Err(e) if e.to_string().contains("phase_sync") => anyhow::bail!(
-                "--phase-sync {} ({}): {e}",
-                a.phase_sync.unwrap_or_default(),
-                s.scenario.name
-            ),
-            Err(e) => return Err(e.into()),
-            Ok(_) => {}
+        let stride = s.scenario.gait.reference()?.stride_period_s();
+        if let Err(e) = PhaseSync::new(gain, a.phase_sync_integral, stride, 0.0) {
+            let option = match &e {
+                LegError::Invalid(i) if i.name.contains("integral") => {
+                    format!("--phase-sync-integral {}", a.phase_sync_integral)
+                }
+                _ => format!("--phase-sync {gain}"),
+            };
+            anyhow::bail!("{option} ({}): {e}", s.scenario.name);
         }
     }
     Ok(())

@@ -109,15 +109,46 @@ impl Moments {
     }
 }
 
+/// Running sum of squares and largest magnitude of one signal.
+#[derive(Debug, Clone, Copy, Default)]
+struct Magnitude {
+    sum_sq: f64,
+    peak: f64,
+}
+
+impl Magnitude {
+    fn push(&mut self, x: f64) {
+        self.sum_sq += x * x;
+        self.peak = self.peak.max(x.abs());
+    }
+    /// RMS over `n` samples (NaN before the first).
+    fn rms(&self, n: usize) -> f64 {
+        if n > 0 {
+            (self.sum_sq / n as f64).sqrt()
+        } else {
+            f64::NAN
+        }
+    }
+}
+
+/// `names` mapped to `value(index)`.
+fn by_name<T>(names: &[&str], value: impl Fn(usize) -> T) -> BTreeMap<String, T> {
+    names
+        .iter()
+        .enumerate()
+        .map(|(i, name)| ((*name).to_owned(), value(i)))
+        .collect()
+}
+
 /// Accumulates a leg's [`CooperationReport`] period by period (allocation-free).
 #[derive(Debug, Clone)]
 pub struct CooperationMetrics {
     from_s: f64,
     n: usize,
-    sum_sq: [f64; 2],
-    peak: [f64; 2],
-    cuff_sum_sq: [f64; 2],
-    cuff_peak: [f64; 2],
+    /// The interaction torque at hip and knee (N m).
+    interaction: [Magnitude; 2],
+    /// The thigh and shank cuff forces (N).
+    cuff: [Magnitude; 2],
     patient_work: [f64; 2],
     device_work: [f64; 2],
     tunnel: Tunnel,
@@ -151,10 +182,8 @@ impl CooperationMetrics {
         Self {
             from_s: gait.ramp_s() + gait.stride_period_s(),
             n: 0,
-            sum_sq: [0.0; 2],
-            peak: [0.0; 2],
-            cuff_sum_sq: [0.0; 2],
-            cuff_peak: [0.0; 2],
+            interaction: [Magnitude::default(); 2],
+            cuff: [Magnitude::default(); 2],
             patient_work: [0.0; 2],
             device_work: [0.0; 2],
             tunnel,
@@ -174,42 +203,16 @@ impl CooperationMetrics {
 
     /// The figures so far.
     pub fn report(&self) -> CooperationReport {
-        let n = self.n.max(1) as f64;
-        let rms = |sum_sq: f64| {
-            if self.n > 0 {
-                (sum_sq / n).sqrt()
-            } else {
-                f64::NAN
-            }
-        };
-        let joints = JOINT_NAMES
-            .iter()
-            .enumerate()
-            .map(|(j, name)| {
-                (
-                    (*name).to_owned(),
-                    InteractionStats {
-                        interaction_rms_nm: rms(self.sum_sq[j]),
-                        interaction_peak_nm: self.peak[j],
-                        patient_work_j: self.patient_work[j],
-                        device_work_j: self.device_work[j],
-                    },
-                )
-            })
-            .collect();
-        let cuffs = ["thigh", "shank"]
-            .iter()
-            .enumerate()
-            .map(|(i, name)| {
-                (
-                    (*name).to_owned(),
-                    CuffStats {
-                        force_rms_n: rms(self.cuff_sum_sq[i]),
-                        force_peak_n: self.cuff_peak[i],
-                    },
-                )
-            })
-            .collect();
+        let joints = by_name(&JOINT_NAMES, |j| InteractionStats {
+            interaction_rms_nm: self.interaction[j].rms(self.n),
+            interaction_peak_nm: self.interaction[j].peak,
+            patient_work_j: self.patient_work[j],
+            device_work_j: self.device_work[j],
+        });
+        let cuffs = by_name(&["thigh", "shank"], |i| CuffStats {
+            force_rms_n: self.cuff[i].rms(self.n),
+            force_peak_n: self.cuff[i].peak,
+        });
         CooperationReport {
             joints,
             cuffs,
@@ -262,13 +265,10 @@ impl LegRecorder for CooperationMetrics {
         self.n += 1;
         for j in 0..2 {
             let interaction = s.interaction_nm[j];
-            self.sum_sq[j] += interaction * interaction;
-            self.peak[j] = self.peak[j].max(interaction.abs());
+            self.interaction[j].push(interaction);
             self.patient_work[j] += own[j] * qd[j] * p.dt_s;
             self.device_work[j] += interaction * qd[j] * p.dt_s;
-            let cuff = s.cuff_force_n[j];
-            self.cuff_sum_sq[j] += cuff * cuff;
-            self.cuff_peak[j] = self.cuff_peak[j].max(cuff.abs());
+            self.cuff[j].push(s.cuff_force_n[j]);
         }
         self.counted_s += p.dt_s;
         let inside = self

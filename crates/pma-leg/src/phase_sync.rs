@@ -29,7 +29,7 @@
 //! `W s³ + s² + α gain s + α integral`, stable (Routh-Hurwitz) for
 //! `integral < gain / W`, whatever `α`: [`PhaseSync::new`] refuses more.
 use crate::error::LegError;
-use pma_model::error::within;
+use pma_model::error::{check, within};
 
 /// The clock's rate stays within these (a stride at most 25 % shorter or longer than the
 /// reference's, beyond any patient's stride-to-stride variation).
@@ -104,21 +104,19 @@ impl PhaseSync {
             "must be > 0 s",
         )?;
         let bound = gain_per_s / window_s;
-        if !(integral_per_s2.is_finite() && (0.0..bound).contains(&integral_per_s2))
-            && integral_per_s2 != 0.0
-        {
-            return Err(LegError::Unsupported {
-                name: "control.impedance.phase_sync_integral_per_s2".into(),
-                value: format!("{integral_per_s2}"),
-                message: if gain_per_s > 0.0 {
-                    format!(
-                        "must be >= 0 and below phase_sync_per_s / the stride period = {bound:.4} per s² (beyond it the clock's loop is unstable)"
-                    )
-                } else {
-                    "needs phase_sync_per_s > 0 (the integral alone makes the clock's loop unstable)".into()
-                },
-            });
-        }
+        check(
+            integral_per_s2 == 0.0 || (0.0..bound).contains(&integral_per_s2),
+            "control.impedance.phase_sync_integral_per_s2",
+            integral_per_s2,
+            if gain_per_s > 0.0 {
+                format!(
+                    "must be >= 0 and below phase_sync_per_s / the stride period = {bound:.4} per s² (beyond it the clock's loop is unstable)"
+                )
+            } else {
+                "needs phase_sync_per_s > 0 (the integral alone makes the clock's loop unstable)"
+                    .into()
+            },
+        )?;
         let mut s = Self {
             gain_per_s,
             integral_per_s2,

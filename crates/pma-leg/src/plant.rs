@@ -244,13 +244,13 @@ impl LegPlant {
         }
         let cuffs = scenario.plant.cuffs;
         let thigh_m = exo.inertia().thigh_length_m;
-        if cuffs.thigh_below_hip_m > thigh_m {
-            return Err(LegError::Unsupported {
-                name: "plant.cuffs.thigh_below_hip_m".into(),
-                value: format!("{}", cuffs.thigh_below_hip_m),
-                message: format!("must be at most the thigh's length, {thigh_m:.3} m"),
-            });
-        }
+        pma_model::error::within(
+            "plant.cuffs.thigh_below_hip_m",
+            cuffs.thigh_below_hip_m,
+            crate::config::CUFF_BELOW_JOINT_MIN_M,
+            thigh_m,
+            format!("must be at most the thigh's length, {thigh_m:.3} m"),
+        )?;
         let cuff = scenario.plant.cuff_sensor;
         let cuff_noise = (0..exo.leg_count() as u64)
             .map(|leg| [0, 1].map(|j| GaussianRng::new(cuff.seed.wrapping_add(2 * leg + j))))
