@@ -73,6 +73,14 @@ fn leg(c: &mut Criterion) {
     group.bench_function("closed_loop_x100", |b| {
         b.iter(|| black_box(sim.run(0.1, &mut ()).expect("run")))
     });
+    // The same leg in one physics step with the muscles' damping implicit.
+    let mut implicit = loaded.clone();
+    implicit.scenario.physics_substeps = 1;
+    implicit.scenario.implicit_muscle_damping = true;
+    let mut sim = LegSim::new(&implicit).expect("sim");
+    group.bench_function("closed_loop_implicit_1_step_x100", |b| {
+        b.iter(|| black_box(sim.run(0.1, &mut ()).expect("run")))
+    });
     // The same on the treadmill (gait_treadmill: belt, harness, the other leg, the gait
     // phases' figures).
     let treadmill = Scenario::load("gait_treadmill").expect("gait_treadmill");

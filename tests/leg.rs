@@ -448,3 +448,90 @@ fn cuff_readings_carry_the_sensors_bias_and_noise_around_the_true_torque() {
         assert!((sd - 2.0).abs() < 0.06, "joint {j}: sd {sd}");
     }
 }
+
+/// The leg's joint angles (rad) under 5 s of open-loop valve commands (two out-of-phase
+/// sines about 3 bar per joint, 0.6 Hz at the hip and 0.9 Hz at the knee), in `substeps`
+/// physics steps per period, the muscles' damping explicit or implicit; the joints' limits
+/// as the URDF has them or opened.
+fn open_loop_angles(substeps: u32, implicit: bool, limits: bool) -> Vec<[f64; 2]> {
+    let mut loaded = Scenario::load("gait_training").unwrap();
+    if !limits {
+        loaded = without_limits(loaded);
+    }
+    loaded.scenario.physics_substeps = substeps;
+    loaded.scenario.implicit_muscle_damping = implicit;
+    let mut sim = LegSim::new(&loaded).unwrap();
+    (1..=5000)
+        .map(|k| {
+            let t = f64::from(k) * 1e-3;
+            let (hip, knee) = (
+                1.0e5 * (std::f64::consts::TAU * 0.6 * t).sin(),
+                1.0e5 * (std::f64::consts::TAU * 0.9 * t).sin(),
+            );
+            sim.step_with_commands([3.0e5 + hip, 3.0e5 - hip, 3.0e5 + knee, 3.0e5 - knee]);
+            sim.exo().angles(0)
+        })
+        .collect()
+}
+
+/// Each joint's RMS distance (deg) between two runs of [`open_loop_angles`].
+fn rms_apart_deg(a: &[[f64; 2]], b: &[[f64; 2]]) -> [f64; 2] {
+    std::array::from_fn(|j| {
+        let sum: f64 = a.iter().zip(b).map(|(x, y)| (x[j] - y[j]).powi(2)).sum();
+        (sum / a.len() as f64).sqrt().to_degrees()
+    })
+}
+
+/// Issue 30's lead: with the muscles' damping implicit, one physics step per period is
+/// closer to 32 explicit steps than one explicit step is, and the implicit steps converge;
+/// where the leg reaches its limits (the URDF's), the steps at a limit stay explicit and
+/// one implicit step is still no worse than one explicit step.
+#[test]
+fn one_implicit_step_is_more_accurate_than_one_explicit_step() {
+    for limits in [false, true] {
+        let reference = open_loop_angles(32, false, limits);
+        let error = |substeps, implicit| {
+            rms_apart_deg(&open_loop_angles(substeps, implicit, limits), &reference)
+        };
+        let (implicit_1, implicit_2) = (error(1, true), error(2, true));
+        let (explicit_1, explicit_2) = (error(1, false), error(2, false));
+        eprintln!(
+            "limits {limits}: RMS off 32 explicit steps (hip, knee deg): implicit 1 {implicit_1:.4?}, 2 {implicit_2:.4?}; explicit 1 {explicit_1:.4?}, 2 {explicit_2:.4?}"
+        );
+        for j in 0..2 {
+            assert!(
+                implicit_1[j] < explicit_1[j],
+                "limits {limits}, joint {j}: implicit {} deg, explicit {} deg",
+                implicit_1[j],
+                explicit_1[j]
+            );
+            if !limits {
+                assert!(
+                    implicit_2[j] < 0.6 * implicit_1[j],
+                    "joint {j}: implicit 2 steps {} deg against 1 step {} deg: not converging",
+                    implicit_2[j],
+                    implicit_1[j]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn implicit_muscle_damping_on_the_treadmill_is_refused_naming_the_field() {
+    let (_, text) = pma_leg::config::EMBEDDED_SCENARIOS
+        .iter()
+        .find(|(name, _)| *name == "gait_treadmill")
+        .expect("gait_treadmill");
+    let text = text.replace(
+        "physics_substeps = 1",
+        "physics_substeps = 1\nimplicit_muscle_damping = true",
+    );
+    let e = Scenario::from_toml_str(&text, "t.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("implicit_muscle_damping") && e.contains("t.toml"),
+        "{e}"
+    );
+}

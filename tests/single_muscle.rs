@@ -59,8 +59,6 @@ fn aprc_without_observer_does_not_run_away_when_the_command_turns() {
     assert!(r.stats.mae_m < 2e-3, "MAE {}", r.stats.mae_m);
 }
 
-/// Bench trajectory under a pressure profile that moves the 2 kg load over the sine's
-/// range, with `substeps` per 1 ms period.
 /// With the valve's 20 ms lag in their model, the model-based controllers command the
 /// pressure they want through it: APRC-NDO's RTE on `realistic` drops from 7.3 % to 1.6 %
 /// (paper gains). Without the lag in the model, an NDO with kappa = 15952 chases the
@@ -99,11 +97,16 @@ fn a_known_valve_lag_is_compensated() {
     assert_eq!(out_of_range, 0);
 }
 
-fn open_loop_positions(plant: &PlantConfig, substeps: u32) -> Vec<f64> {
+/// Bench trajectory under a pressure profile that moves the 2 kg load over the sine's
+/// range: in `substeps` trapezoidal steps per 1 ms period, or (`None`) with the exact step
+/// where the valve holds the pressure.
+fn open_loop_positions(plant: &PlantConfig, substeps: Option<u32>) -> Vec<f64> {
     let muscle = plant.true_muscle();
-    let mut bench = MuscleBench::at_rest(plant, 0.015)
-        .expect("bench")
-        .with_substeps(substeps);
+    let bench = MuscleBench::at_rest(plant, 0.015).expect("bench");
+    let mut bench = match substeps {
+        Some(n) => bench.with_exact_step(false).with_substeps(n),
+        None => bench.with_exact_step(true),
+    };
     let r = SineReference::paper();
     (1..=20_000)
         .map(|k| {
@@ -129,8 +132,8 @@ fn bench_converges_under_step_refinement() {
     for name in ["ideal", "realistic"] {
         let plant = PlantConfig::preset(name).unwrap();
         let default = plant.substeps_per_period;
-        let coarse = open_loop_positions(&plant, default);
-        let fine = open_loop_positions(&plant, 10 * default);
+        let coarse = open_loop_positions(&plant, Some(default));
+        let fine = open_loop_positions(&plant, Some(10 * default));
         let err = max_diff(&coarse, &fine);
         assert!(
             err < 1e-6,
@@ -138,7 +141,7 @@ fn bench_converges_under_step_refinement() {
             10 * default
         );
         // And it is a second-order convergence: halving the substeps quadruples the error.
-        let half = open_loop_positions(&plant, default / 2);
+        let half = open_loop_positions(&plant, Some(default / 2));
         let err_half = max_diff(&half, &fine);
         assert!(
             err_half > 3.0 * err,
@@ -151,12 +154,34 @@ fn bench_converges_under_step_refinement() {
     }
 }
 
+/// The trapezoid's error against the exact held-pressure step falls with the square of
+/// its substep: the exact step is the limit the substeps converge to.
+#[test]
+fn trapezoid_converges_to_the_exact_held_pressure_step() {
+    let plant = PlantConfig::preset("ideal").unwrap();
+    let exact = open_loop_positions(&plant, None);
+    let error = |n: u32| max_diff(&open_loop_positions(&plant, Some(n)), &exact);
+    let (e4, e8, e40) = (error(4), error(8), error(40));
+    eprintln!(
+        "the trapezoid off the exact step: 4 substeps {e4:.3e} m, 8 {e8:.3e} m, 40 {e40:.3e} m"
+    );
+    assert!(e40 < 1e-8, "40 substeps: {e40} m off the exact step");
+    assert!(
+        (3.5..4.5).contains(&(e4 / e8)) && (80.0..120.0).contains(&(e4 / e40)),
+        "4, 8, 40 substeps: {e4}, {e8}, {e40} m: not second order towards the exact step"
+    );
+}
+
 #[test]
 fn closed_loop_converges_under_plant_step_refinement() {
     let plant = PlantConfig::preset("mismatch").unwrap();
-    let run = |substeps: u32| {
+    // The exact step against the trapezoid at 40 substeps.
+    let run = |substeps: Option<u32>| {
         let mut p = plant.clone();
-        p.substeps_per_period = substeps;
+        match substeps {
+            Some(n) => p.substeps_per_period = n,
+            None => p.exact_held_pressure_step = true,
+        }
         let mut xs = Vec::with_capacity(20_000);
         run_single(
             &ControllerConfig::AprcNdo(AprcGains::PAPER),
@@ -168,10 +193,7 @@ fn closed_loop_converges_under_plant_step_refinement() {
         .unwrap();
         xs
     };
-    let err = max_diff(
-        &run(plant.substeps_per_period),
-        &run(10 * plant.substeps_per_period),
-    );
+    let err = max_diff(&run(None), &run(Some(10 * plant.substeps_per_period)));
     assert!(err < 1e-6, "closed loop differs by {err} m");
 }
 

@@ -29,11 +29,16 @@ pub struct BenchState {
 /// `m(t) xddot = F(P, x, xdot) - m(t) g`, `F` eq. (1) clamped at zero.
 ///
 /// Integration: with the damping pole `b/m ~ 3000 1/s` at 2 kg, explicit Euler at the
-/// 1 ms control period diverges. Each period is split into `substeps` steps of the
-/// trapezoidal rule, which is A-stable and second order; since the force is affine in
-/// `(x, xdot)` for a given pressure, its implicit equation is solved in closed form.
-/// Where the end-of-step force would be negative the muscle is slack and the step is
-/// redone with zero force.
+/// 1 ms control period diverges. With the exact step on (the plant file's
+/// `exact_held_pressure_step`), where the pressure is held over a period (an instantaneous
+/// valve) and nothing else acts on the load, the muscle is a linear oscillator with
+/// constant coefficients over it, and the period is one exact step ([`held_pressure_step`];
+/// a load step inside the period takes effect at the next one). Otherwise (the default, a
+/// lagging or delayed valve, a force pulse, an obstacle, a muscle slack at either end of
+/// the period) it is split into `substeps` steps of the trapezoidal rule,
+/// which is A-stable and second order; since the force is affine in `(x, xdot)` for a
+/// given pressure, its implicit equation is solved in closed form. Where the end-of-step
+/// force would be negative the muscle is slack and the step is redone with zero force.
 #[derive(Debug, Clone)]
 pub struct MuscleBench {
     muscle: MuscleParams,
@@ -41,6 +46,7 @@ pub struct MuscleBench {
     valve: Valve,
     sensor: PositionSensor,
     substeps: u32,
+    exact: bool,
     period_s: f64,
     x: f64,
     v: f64,
@@ -118,6 +124,7 @@ impl MuscleBench {
             valve: Valve::new(cfg.valve, p0).map_err(wrap)?,
             sensor: PositionSensor::new(cfg.sensor).map_err(wrap)?,
             substeps: cfg.substeps_per_period,
+            exact: cfg.exact_held_pressure_step,
             period_s: PAPER_PERIOD_S,
             x: x0_m,
             v: 0.0,
@@ -159,6 +166,13 @@ impl MuscleBench {
     /// Overrides the substep count (for convergence studies).
     pub fn with_substeps(mut self, substeps: u32) -> Self {
         self.substeps = substeps.max(1);
+        self
+    }
+
+    /// With or without the exact step where the pressure is held (the plant file's
+    /// `exact_held_pressure_step` otherwise).
+    pub fn with_exact_step(mut self, exact: bool) -> Self {
+        self.exact = exact;
         self
     }
 
@@ -214,6 +228,39 @@ impl MuscleBench {
 }
 
 impl MuscleBench {
+    /// One exact step of `dt_s` where its conditions hold (see the struct's doc); `false`
+    /// leaves the bench untouched for the substeps.
+    fn held_step(&mut self, dt_s: f64) -> bool {
+        if !self.valve.params().is_instantaneous() || self.disturbance != Disturbance::None {
+            return false;
+        }
+        let (p, mode) = (self.valve.pressure(), self.valve.mode());
+        let mu = &self.muscle;
+        let m = self.load.mass_at(self.t);
+        let (c, k, b) = (
+            mu.contractile_force(p),
+            mu.stiffness(p),
+            mu.damping(p, mode),
+        );
+        // The equilibrium form divides by the stiffness: below 1e-6 of the step's inertia
+        // (2 N/m at 2 kg and 1 ms) the substeps are the better conditioned.
+        if k * dt_s * dt_s <= 1e-6 * m || b <= 0.0 || c - k * self.x - b * self.v < 0.0 {
+            return false;
+        }
+        let x_eq = (c - m * GRAVITY_M_S2) / k;
+        let (y1, v1) = held_pressure_step(self.x - x_eq, self.v, dt_s, k / m, b / m);
+        let x1 = x_eq + y1;
+        if c - k * x1 - b * v1 < 0.0 {
+            return false;
+        }
+        self.valve.advance(dt_s);
+        self.x = x1;
+        self.v = v1;
+        self.t += dt_s;
+        self.contact_force_n = 0.0;
+        true
+    }
+
     /// The obstacle: set where the load is when it appears, it holds the load there
     /// (inelastic: the velocity towards it is lost) and pushes with what the muscle pulls
     /// beyond the load's weight.
@@ -253,6 +300,9 @@ impl MuscleBench {
 
     /// Advances the bench by `dt_s` with the current command held.
     pub fn advance(&mut self, dt_s: f64) {
+        if self.exact && self.held_step(dt_s) {
+            return;
+        }
         let h = dt_s / f64::from(self.substeps);
         for _ in 0..self.substeps {
             self.substep(h);
@@ -293,6 +343,58 @@ impl MuscleBench {
             external_force_n: self.disturbance.force_n(self.t),
         }
     }
+}
+
+/// The exact solution after `h_s` of `y'' + 2 zeta w y' + w^2 y = 0` from `(y0, v0)`, with
+/// `w2_per_s2` = `w^2` = `k / m` and `damping_per_s` = `2 zeta w` = `b / m` (both > 0):
+/// the muscle at a held pressure about its equilibrium. Returns `(y(h), y'(h))`.
+///
+/// With `s = -b / 2m` and `q = s^2 - k/m`, `y(t) = e^(st) [C y0 + S (v0 - s y0)]` and
+/// `y'(t) = e^(st) [C v0 + S (s v0 - k/m y0)]`, where `C = cosh(sqrt(q) t)` and
+/// `S = sinh(sqrt(q) t) / sqrt(q)` (`cos` and `sin` for `q < 0`); near critical damping
+/// (`|q| t^2 < 0.01`) their series, whose fifth terms are below 1e-13 of the first.
+///
+/// ```
+/// use pma_bench::held_pressure_step;
+/// // A lightly damped oscillator (w = 10 rad/s, b/m = 0.2 1/s) a quarter period after
+/// // rest at 1: near 0, moving at about -w.
+/// let w = 10.0_f64;
+/// let (y, v) = held_pressure_step(1.0, 0.0, std::f64::consts::FRAC_PI_2 / w, w * w, 0.2);
+/// assert!(y.abs() < 0.02 && (v + w).abs() < 0.3);
+/// ```
+pub fn held_pressure_step(
+    y0: f64,
+    v0: f64,
+    h_s: f64,
+    w2_per_s2: f64,
+    damping_per_s: f64,
+) -> (f64, f64) {
+    let s = -0.5 * damping_per_s;
+    let q = s * s - w2_per_s2;
+    let z = q * h_s * h_s;
+    // `ec` = e^(sh) C and `es` = e^(sh) S.
+    let (ec, es) = if z.abs() < 1e-2 {
+        let e = (s * h_s).exp();
+        let c = 1.0 + z * (1.0 / 2.0 + z * (1.0 / 24.0 + z * (1.0 / 720.0 + z / 40_320.0)));
+        let sh =
+            h_s * (1.0 + z * (1.0 / 6.0 + z * (1.0 / 120.0 + z * (1.0 / 5040.0 + z / 362_880.0))));
+        (e * c, e * sh)
+    } else if q > 0.0 {
+        // Overdamped (the muscle: b/m ~ 3000 1/s against k/m ~ 10^4 1/s^2): the two real
+        // modes, both decaying since k > 0.
+        let d = q.sqrt();
+        let (slow, fast) = (((s + d) * h_s).exp(), ((s - d) * h_s).exp());
+        (0.5 * (slow + fast), 0.5 * (slow - fast) / d)
+    } else {
+        let w = (-q).sqrt();
+        let e = (s * h_s).exp();
+        let (sin, cos) = (w * h_s).sin_cos();
+        (e * cos, e * sin / w)
+    };
+    (
+        ec * y0 + es * (v0 - s * y0),
+        ec * v0 + es * (s * v0 - w2_per_s2 * y0),
+    )
 }
 
 /// The bench in the closed loop: the valve takes the command at once (its own lag and
@@ -378,8 +480,28 @@ mod tests {
     fn step_response_matches_the_analytic_overdamped_solution() {
         // Constant pressure, linear ODE m x'' + b x' + k x = c - m g: compare with the
         // closed-form solution of the two real roots.
+        // The exact step, and the trapezoid it replaced at 8 substeps.
+        for (bench, tolerance_m) in [
+            (
+                MuscleBench::at_rest(&ideal(), 0.0)
+                    .unwrap()
+                    .with_exact_step(true),
+                1e-13,
+            ),
+            (
+                MuscleBench::at_rest(&ideal(), 0.0)
+                    .unwrap()
+                    .with_substeps(8),
+                1e-8,
+            ),
+        ] {
+            let worst = worst_against_the_overdamped_solution(bench);
+            assert!(worst < tolerance_m, "worst {worst} m");
+        }
+    }
+
+    fn worst_against_the_overdamped_solution(mut bench: MuscleBench) -> f64 {
         let cfg = ideal();
-        let mut bench = MuscleBench::at_rest(&cfg, 0.0).unwrap().with_substeps(8);
         let mu = cfg.true_muscle();
         let p = 0.9e5;
         bench.apply(p, 1e-3); // the first period switches the valve; from here P is constant
@@ -402,6 +524,66 @@ mod tests {
             let exact = xe + c1 * (r1 * t).exp() + c2 * (r2 * t).exp();
             worst = worst.max((bench.position() - exact).abs());
         }
-        assert!(worst < 1e-8, "worst {worst}");
+        worst
+    }
+
+    /// `(y, y')` after `h` by classical Runge-Kutta in `n` steps: the independent
+    /// reference for the closed form.
+    fn rk4(y0: f64, v0: f64, h: f64, w2: f64, c: f64, n: u32) -> (f64, f64) {
+        let f = |y: f64, v: f64| (v, -w2 * y - c * v);
+        let (mut y, mut v) = (y0, v0);
+        let dt = h / f64::from(n);
+        for _ in 0..n {
+            let k1 = f(y, v);
+            let k2 = f(y + 0.5 * dt * k1.0, v + 0.5 * dt * k1.1);
+            let k3 = f(y + 0.5 * dt * k2.0, v + 0.5 * dt * k2.1);
+            let k4 = f(y + dt * k3.0, v + dt * k3.1);
+            y += dt / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0);
+            v += dt / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1);
+        }
+        (y, v)
+    }
+
+    #[test]
+    fn held_pressure_step_matches_runge_kutta_over_every_damping() {
+        let w2: f64 = 9000.0;
+        let critical = 2.0 * w2.sqrt();
+        // The muscle (over-damped), light damping, either side of critical within and
+        // beyond the series' reach, and critical itself.
+        for (c, h) in [
+            (3200.0, 1e-3),
+            (3200.0, 1e-2),
+            (20.0, 0.05),
+            (critical * (1.0 + 1e-6), 1e-3),
+            (critical * (1.0 - 1e-6), 1e-3),
+            (critical * 1.05, 0.02),
+            (critical * 0.95, 0.02),
+            (critical, 0.01),
+        ] {
+            let (y, v) = held_pressure_step(0.01, -0.3, h, w2, c);
+            let (ry, rv) = rk4(0.01, -0.3, h, w2, c, 200_000);
+            assert!(
+                (y - ry).abs() < 1e-13 && (v - rv).abs() < 1e-11,
+                "b/m {c}, h {h}: ({y}, {v}) against ({ry}, {rv})"
+            );
+        }
+    }
+
+    #[test]
+    fn held_pressure_step_is_continuous_where_the_series_takes_over() {
+        // |q| h^2 = 0.01 at b/m = 2 sqrt(w2 +- 0.01 / h^2), h = 1 ms: just inside and outside.
+        let (w2, h) = (9.0e4_f64, 1e-3);
+        for sign in [1.0, -1.0] {
+            let c = 2.0 * (w2 + sign * 0.01 / (h * h)).sqrt();
+            // 1e-14 of b/m moves |q| h^2 by 2e-13 of itself, across the threshold whatever
+            // the rounding of q, and the result by about 1e-14 of itself.
+            let inside = held_pressure_step(0.01, -0.3, h, w2, c * (1.0 - sign * 1e-14));
+            let outside = held_pressure_step(0.01, -0.3, h, w2, c * (1.0 + sign * 1e-14));
+            let close = |a: f64, b: f64| (a - b).abs() < 1e-13 * a.abs();
+            assert!(
+                close(inside.0, outside.0) && close(inside.1, outside.1),
+                "{inside:?} against {outside:?}"
+            );
+        }
     }
 }

@@ -19,7 +19,7 @@ mod error;
 mod plant;
 mod run;
 
-pub use bench::{BenchState, Disturbance, MuscleBench};
+pub use bench::{held_pressure_step, BenchState, Disturbance, MuscleBench};
 pub use error::SimError;
 pub use plant::{PlantConfig, PRESET_NAMES};
 pub use run::{

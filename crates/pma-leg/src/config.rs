@@ -585,6 +585,13 @@ pub struct Scenario {
     pub period_s: f64,
     /// Physics steps per control period.
     pub physics_substeps: u32,
+    /// The muscles' damping evaluated at the joint rates the physics step ends on (linearly
+    /// implicit), from the leg's own rigid-body model, except while a joint is at its limit:
+    /// one step per period is then more accurate than one explicit step and about as
+    /// accurate as two (`docs/benchmarks.md`). In the air only: on the treadmill the pelvis
+    /// floats, which that model does not have.
+    #[serde(default)]
+    pub implicit_muscle_damping: bool,
     /// Gait reference.
     pub gait: GaitSettings,
     /// Joint damping and friction.
@@ -690,6 +697,12 @@ impl Scenario {
                 "must be 1..=100",
             ));
         }
+        pma_model::error::check(
+            !(self.implicit_muscle_damping && self.treadmill.is_some()),
+            "implicit_muscle_damping",
+            1.0,
+            "is for a leg in the air: on the treadmill the pelvis floats, which the leg's rigid-body model it needs does not have",
+        )?;
         within(
             "gait.stride_period_s",
             self.gait.stride_period_s,

@@ -202,7 +202,72 @@ pub struct LegPlant {
     cuff_noise: Vec<[GaussianRng; 2]>,
     /// Where the cuffs hold the limb.
     cuffs: crate::config::CuffSettings,
+    /// The muscles' damping at the rates each physics step ends on (see `implicit_rates`).
+    implicit_damping: bool,
 }
+
+/// Leg `leg`'s joint rates at the end of a physics step of `h` s in which the muscles'
+/// damping acts on them (linearly implicit Euler): `(M + h D) v1 = M v + h (tau0 +
+/// tau_other - bias)`, `M` and `bias` the leg's mass matrix and its Coriolis-less-gravity
+/// torques (its own rigid-body model, the pelvis fixed), `D` the pulling muscles' `r^2
+/// b(P)`, `tau0` their torques at rest and `tau_other` the patient's and the loads'. With
+/// the muscles' damping taken at these rates rapier's step lands on them, so the damping
+/// pole (`D / M`, thousands per second) no longer limits the step. `None` while a joint is
+/// within a step's travel of its limit (or held there): the limit's force, which the model
+/// does not have, would make the prediction wrong, and the step stays explicit.
+fn implicit_rates(
+    exo: &Exoskeleton,
+    muscles: &[MuscleActuator],
+    leg: usize,
+    tau_other: [f64; 2],
+    h: f64,
+) -> Option<[f64; 2]> {
+    let (q, qd) = (exo.angles(leg), exo.velocities(leg));
+    let near_limit = |j: usize| {
+        let [lo, hi] = exo.limits_rad(leg)[j];
+        let travel = (qd[j].abs() * h).max(LIMIT_MARGIN_RAD);
+        q[j] - lo <= travel || hi - q[j] <= travel
+    };
+    if near_limit(0) || near_limit(1) {
+        return None;
+    }
+    let (mut tau0, mut d) = ([0.0; 2], [0.0; 2]);
+    for m in muscles
+        .iter()
+        .filter(|m| m.leg == leg && m.force_unclamped(q, qd) > 0.0)
+    {
+        let r = m.geometry.moment_arm_m();
+        tau0[m.joint] += r * m.force_unclamped(q, [0.0; 2]);
+        d[m.joint] += r * r * m.model.damping(m.valve.pressure(), m.valve.mode());
+    }
+    let body = exo.inertia();
+    let still = body.inverse_dynamics(q, [0.0; 2], [0.0; 2]);
+    let column = |j: usize| {
+        let mut unit = [0.0; 2];
+        unit[j] = 1.0;
+        let t = body.inverse_dynamics(q, [0.0; 2], unit);
+        [t[0] - still[0], t[1] - still[1]]
+    };
+    let (c0, c1) = (column(0), column(1));
+    let mass = [[c0[0], c1[0]], [c0[1], c1[1]]];
+    let bias = body.inverse_dynamics(q, qd, [0.0; 2]);
+    let a = [
+        [mass[0][0] + h * d[0], mass[0][1]],
+        [mass[1][0], mass[1][1] + h * d[1]],
+    ];
+    let rhs: [f64; 2] = std::array::from_fn(|i| {
+        mass[i][0] * qd[0] + mass[i][1] * qd[1] + h * (tau0[i] + tau_other[i] - bias[i])
+    });
+    let det = a[0][0] * a[1][1] - a[0][1] * a[1][0];
+    Some([
+        (rhs[0] * a[1][1] - a[0][1] * rhs[1]) / det,
+        (a[0][0] * rhs[1] - a[1][0] * rhs[0]) / det,
+    ])
+}
+
+/// Nearest a joint may come to its limit (rad) with the muscles' damping still implicit:
+/// rapier's limit acts from where the step would cross it.
+const LIMIT_MARGIN_RAD: f64 = 1e-3;
 
 /// A sinusoidal load on one joint (N m, flexion positive): a frequency-response test's
 /// excitation, `amplitude_nm sin(2 pi frequency_hz t)` at each substep's time.
@@ -270,6 +335,7 @@ impl LegPlant {
             external_nm: [[0.0; 2]; MAX_LEGS],
             acceleration: [[0.0; 2]; MAX_LEGS],
             external_wave: None,
+            implicit_damping: scenario.implicit_muscle_damping,
         })
     }
 
@@ -418,6 +484,7 @@ impl LegPlant {
         let attached = self.muscles_attached;
         let external = self.external_nm;
         let wave = self.external_wave;
+        let implicit = self.implicit_damping;
         let legs = self.exo.leg_count();
         let h = self.period_s / f64::from(self.exo.substeps());
         let t0 = self.periods as f64 * self.period_s;
@@ -448,8 +515,19 @@ impl LegPlant {
                 if m.force_unclamped(q, qd) <= 0.0 {
                     slack[m.leg][m.index_in_leg()] += h;
                 }
-                if attached {
-                    tau[m.leg][m.joint] += m.torque(q, qd);
+            }
+            if attached {
+                // The rates the muscles' damping sees: the step's end (implicit) or its start.
+                let rates = PerLeg::from_fn(legs, |leg| {
+                    let qd = exo.velocities(leg);
+                    if implicit {
+                        implicit_rates(exo, muscles, leg, tau[leg], h).unwrap_or(qd)
+                    } else {
+                        qd
+                    }
+                });
+                for m in muscles.iter() {
+                    tau[m.leg][m.joint] += m.torque(exo.angles(m.leg), rates[m.leg]);
                 }
             }
             tau

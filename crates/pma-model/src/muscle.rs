@@ -216,6 +216,15 @@ impl MuscleModel {
         }
     }
 
+    /// Damping `b(P)` (N s/m): the force's slope against the contraction rate, the same
+    /// at every rate (both models are affine in it).
+    pub fn damping(&self, pressure_pa: f64, mode: DampingMode) -> f64 {
+        match self {
+            MuscleModel::ThreeElement(p) => p.damping(pressure_pa, mode),
+            MuscleModel::Festo(m) => m.damping(pressure_pa, mode),
+        }
+    }
+
     /// The muscle in eq. (1)'s form: its own parameters, or the Festo map's fit
     /// ([`crate::festo::FestoMuscle::three_element_fit`]).
     pub fn as_three_element(&self) -> MuscleParams {
