@@ -35,10 +35,10 @@ pub struct BenchState {
 /// constant coefficients over it, and the period is one exact step ([`held_pressure_step`];
 /// a load step inside the period takes effect at the next one). Otherwise (the default, a
 /// lagging or delayed valve, a force pulse, an obstacle, a muscle slack at either end of
-/// the period) it is split into `substeps` steps of the trapezoidal rule,
-/// which is A-stable and second order; since the force is affine in `(x, xdot)` for a
-/// given pressure, its implicit equation is solved in closed form. Where the end-of-step
-/// force would be negative the muscle is slack and the step is redone with zero force.
+/// the period) it is split into `substeps` steps of the trapezoidal rule, which is
+/// A-stable and second order; since the force is affine in `(x, xdot)` for a given
+/// pressure, its implicit equation is solved in closed form. Where the end-of-step force
+/// would be negative the muscle is slack and the step is redone with zero force.
 #[derive(Debug, Clone)]
 pub struct MuscleBench {
     muscle: MuscleParams,

@@ -191,6 +191,21 @@ impl LegInertia {
         [hip, knee]
     }
 
+    /// The joint-space mass matrix `M(q)` (kg m^2, `[row][column]`, hip then knee) at angles
+    /// `q` (rad): [`LegInertia::inverse_dynamics`]'s torques for each unit acceleration,
+    /// at rest, less its torques at rest (gravity).
+    pub fn mass_matrix(&self, q: [f64; 2]) -> [[f64; 2]; 2] {
+        let still = self.inverse_dynamics(q, [0.0; 2], [0.0; 2]);
+        let column = |j: usize| {
+            let mut unit = [0.0; 2];
+            unit[j] = 1.0;
+            let t = self.inverse_dynamics(q, [0.0; 2], unit);
+            [t[0] - still[0], t[1] - still[1]]
+        };
+        let (c0, c1) = (column(0), column(1));
+        [[c0[0], c1[0]], [c0[1], c1[1]]]
+    }
+
     /// Joint torques (N m, flexion positive) that move the rigid leg with accelerations
     /// `qdd` (rad/s^2) at angles `q` (rad) and rates `qd` (rad/s): `M(q) qdd + C(q, qd) qd`
     /// minus gravity, the two-link pendulum's Lagrange equations. In absolute link angles
@@ -1331,6 +1346,27 @@ mod tests {
         l.step(|_, _| PerLeg::one([50.0, -20.0]));
         let v = l.velocities(0);
         assert!(v[0] > 0.0 && v[1] < 0.0, "{v:?}");
+    }
+
+    #[test]
+    fn the_mass_matrix_is_symmetric_and_gives_the_kinetic_energy() {
+        let body = *leg(0.0, 2).inertia();
+        for (q, qd) in [
+            ([0.3, 0.8], [1.2, -2.0]),
+            ([-0.1, 0.0], [0.5, 0.7]),
+            ([0.9, 1.3], [-1.5, 3.0]),
+        ] {
+            let m = body.mass_matrix(q);
+            let kinetic = 0.5
+                * (qd[0] * (m[0][0] * qd[0] + m[0][1] * qd[1])
+                    + qd[1] * (m[1][0] * qd[0] + m[1][1] * qd[1]));
+            let from_energy = body.energy(q, qd) - body.energy(q, [0.0; 2]);
+            assert!((m[0][1] - m[1][0]).abs() < 1e-12, "{m:?}");
+            assert!(
+                (kinetic - from_energy).abs() < 1e-12 * from_energy,
+                "{q:?} {qd:?}: 1/2 qd' M qd = {kinetic} J, energy's {from_energy} J"
+            );
+        }
     }
 
     #[test]

@@ -241,15 +241,7 @@ fn implicit_rates(
         d[m.joint] += r * r * m.model.damping(m.valve.pressure(), m.valve.mode());
     }
     let body = exo.inertia();
-    let still = body.inverse_dynamics(q, [0.0; 2], [0.0; 2]);
-    let column = |j: usize| {
-        let mut unit = [0.0; 2];
-        unit[j] = 1.0;
-        let t = body.inverse_dynamics(q, [0.0; 2], unit);
-        [t[0] - still[0], t[1] - still[1]]
-    };
-    let (c0, c1) = (column(0), column(1));
-    let mass = [[c0[0], c1[0]], [c0[1], c1[1]]];
+    let mass = body.mass_matrix(q);
     let bias = body.inverse_dynamics(q, qd, [0.0; 2]);
     let a = [
         [mass[0][0] + h * d[0], mass[0][1]],

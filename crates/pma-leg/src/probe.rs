@@ -273,11 +273,7 @@ pub fn probe_frequency(
 }
 
 /// The limb's inertia about joint `joint` at `pose_rad`, the other joint held: the
-/// diagonal of its mass matrix, from its inverse dynamics.
+/// diagonal of its mass matrix.
 fn limb_inertia(limb: &crate::LegInertia, pose_rad: [f64; 2], joint: usize) -> f64 {
-    let mut unit = [0.0; 2];
-    unit[joint] = 1.0;
-    let with = limb.inverse_dynamics(pose_rad, [0.0; 2], unit);
-    let without = limb.inverse_dynamics(pose_rad, [0.0; 2], [0.0; 2]);
-    with[joint] - without[joint]
+    limb.mass_matrix(pose_rad)[joint][joint]
 }
