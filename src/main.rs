@@ -13,7 +13,7 @@ mod studies;
 
 use commands::{
     compare_leg, compare_modes, fit_gait, identify, impedance, pendulum, rig, simulate, single,
-    size, sweep, tune,
+    size, sweep, tune, valve,
 };
 
 #[derive(Parser)]
@@ -75,6 +75,9 @@ enum Command {
     /// a plant file for `single`, `tune` and the virtual rig, with intervals and a
     /// held-out fit.
     Identify(identify::Args),
+    /// A pressure step of a Festo muscle behind a flow-limited valve (ISO 6358), its
+    /// supply and tube: rise and fall times, peak pressure rates, the datasheet's source.
+    Valve(valve::Args),
     /// The hardware backend: one muscle on a DAQ rig (or the virtual rig).
     Rig {
         #[command(subcommand)]
@@ -179,6 +182,7 @@ fn run(cli: Cli) -> Result<i32> {
         Command::CompareModes(a) => compare_modes::run(a),
         Command::Sweep(a) => sweep::run(a),
         Command::Identify(a) => identify::run(a),
+        Command::Valve(a) => valve::run(a),
         Command::Rig { command } => rig::run(command),
     }
 }

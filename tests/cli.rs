@@ -1389,3 +1389,59 @@ fn compare_modes_adds_rows_whose_clock_follows_the_patient() {
     assert_one_line_error(&args("2", "2"), "--phase-sync-integral 2");
     assert_one_line_error(&args("2", "-1"), "--phase-sync-integral -1");
 }
+
+/// Issue 46: the DMSP-20 behind each shipped valve fills and empties in tens of
+/// milliseconds at a few hundred bar/s at most, not the 3,722 bar/s of the instantaneous
+/// valve; bad valve input is one line naming the file and the field.
+#[test]
+fn valve_steps_a_muscle_behind_a_flow_limited_valve() {
+    let out = pma_exo_ok(&["valve", "mpye-5-1-4", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let r = &v["response"];
+    let rise = r["rise_10_90_s"].as_f64().expect("rise");
+    let fall = r["fall_90_10_s"].as_f64().expect("fall");
+    let rate = r["peak_rise_rate_pa_s"].as_f64().expect("rate");
+    assert!((0.01..0.2).contains(&rise), "{v}");
+    assert!(
+        fall > rise,
+        "exhausting to the atmosphere is slower than filling: {v}"
+    );
+    assert!(rate < 500e5, "{v}");
+    assert!(
+        (r["reached_pa"].as_f64().expect("reached") - 6e5).abs() < 1e3,
+        "{v}"
+    );
+    // A larger valve fills faster.
+    let big = pma_exo_ok(&["valve", "mpye-5-3-8", "--json"]);
+    let b: serde_json::Value = serde_json::from_slice(&big.stdout).expect("json");
+    assert!(
+        b["response"]["rise_10_90_s"].as_f64().expect("rise") < rise,
+        "{b}"
+    );
+
+    let dir = std::env::temp_dir().join(format!("pma-exo-valve-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let file = |name: &str, body: &str| {
+        let p = dir.join(name);
+        std::fs::write(
+            &p,
+            format!("name = \"x\"\nsource = \"test\"\nspool_time_constant_s = 0.002\npressure_band_pa = 30000.0\n{body}"),
+        )
+        .expect("write");
+        p.display().to_string()
+    };
+    let negative = file(
+        "neg.toml",
+        "sonic_conductance_l_per_s_bar = -1.0\ncritical_pressure_ratio = 0.23\n",
+    );
+    assert_one_line_error(&["valve", &negative], "sonic_conductance_l_per_s_bar");
+    assert_one_line_error(&["valve", &negative], "neg.toml");
+    let ratio = file(
+        "b.toml",
+        "sonic_conductance_l_per_s_bar = 6.0\ncritical_pressure_ratio = 1.3\n",
+    );
+    assert_one_line_error(&["valve", &ratio], "critical_pressure_ratio");
+    assert_one_line_error(&["valve", "mpye-9"], "no such valve");
+    assert_one_line_error(&["valve", "--tube-m", "0"], "tube_length_m");
+    std::fs::remove_dir_all(dir).ok();
+}

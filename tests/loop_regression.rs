@@ -64,7 +64,12 @@ mod gains_at_3497363 {
         kp_pa_per_m: 1001584173.4889897,
         ki_pa_per_m_s: 19106305415.976295,
         kd_pa_s_per_m: 24572.817109839347,
-        bias_pa: 156017.25824267318,
+        // 156017.25824267318 at 3497363: a bias with an integral has no effect (the
+        // bumpless start puts the resting pressure into the integral) and is refused now;
+        // without it the same PID commands the same pressures to rounding
+        // (`pid::tests::a_bias_with_an_integral_has_no_effect`), and its pins below are
+        // those of the bias-free run.
+        bias_pa: 0.0,
         estimator_bandwidth_rad_s: 449.08738650222045,
     };
 }
@@ -169,8 +174,8 @@ const BENCH: [(&str, ControllerKind, u64, u64); 18] = [
     (
         "ideal",
         ControllerKind::Pid,
-        0xa5f4a47378c8bc6f,
-        0x19c128c9530faa79,
+        0xe8645abcdf385a22,
+        0x2f6de74107f2b241,
     ),
     (
         "mismatch",
@@ -205,8 +210,8 @@ const BENCH: [(&str, ControllerKind, u64, u64); 18] = [
     (
         "mismatch",
         ControllerKind::Pid,
-        0xc82308a52361cdc9,
-        0x73056c7eb248cfb4,
+        0xd438095aca702767,
+        0xaa42452a14139f37,
     ),
     (
         "realistic",
@@ -241,8 +246,8 @@ const BENCH: [(&str, ControllerKind, u64, u64); 18] = [
     (
         "realistic",
         ControllerKind::Pid,
-        0xa079d9e5dabf6ad5,
-        0x15c63ed353f6aebf,
+        0xc2d5d9487c116625,
+        0x3a8732aa363bf920,
     ),
 ];
 

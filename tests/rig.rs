@@ -115,9 +115,8 @@ fn ideal_converter_config() -> RigConfig {
         .replace("valve_pa_per_v = 1.0e5", "valve_pa_per_v = 65536.0")
         .replace(
             "pressure_rate_max_pa_per_s = 2.0e8",
-            "pressure_rate_max_pa_per_s = 1.0e12",
+            "pressure_rate_max_pa_per_s = 3.0e8",
         )
-        .replace("sensor_stuck_periods = 500", "sensor_stuck_periods = 0")
         .replace("converter_bits = 16", "converter_bits = 0")
         .replace("sensor_noise_rms_m = 3e-6", "sensor_noise_rms_m = 0.0");
     assert_ne!(text, EMBEDDED_VIRTUAL);
@@ -590,6 +589,150 @@ fn the_sensors_documented_span_passes_despite_rounding() {
     std::fs::remove_dir_all(dir).ok();
 }
 
+/// Regression: limits that switch the rig's safety off were accepted.
+/// `sensor_stuck_periods = 0` (or 4294967295) silently disabled the frozen-sensor check
+/// (`--inject sensor-stuck@0.5` ran to the end, exit 0, the controller blind for 2.5 s);
+/// `pressure_rate_max_pa_per_s = 1e308` left the valve unlimited; a ramp, a sweep or a run
+/// of 1e308 s ran until killed. Each is refused in one line naming the field, before the
+/// valve is live.
+#[test]
+fn limits_that_switch_safety_off_are_refused() {
+    let dir = temp_dir("safety-off");
+    let stuck = "sensor_stuck_periods = 500";
+    let rate = "pressure_rate_max_pa_per_s = 2.0e8";
+    let cases: [(&str, String, &str); 8] = [
+        (
+            "stuck 0",
+            EMBEDDED_VIRTUAL.replace(stuck, "sensor_stuck_periods = 0"),
+            "limits.sensor_stuck_periods",
+        ),
+        (
+            "stuck 1",
+            EMBEDDED_VIRTUAL.replace(stuck, "sensor_stuck_periods = 1"),
+            "limits.sensor_stuck_periods",
+        ),
+        (
+            "stuck u32 max",
+            EMBEDDED_VIRTUAL.replace(stuck, "sensor_stuck_periods = 4294967295"),
+            "limits.sensor_stuck_periods",
+        ),
+        (
+            "rate 1e308",
+            EMBEDDED_VIRTUAL.replace(rate, "pressure_rate_max_pa_per_s = 1e308"),
+            "limits.pressure_rate_max_pa_per_s: 1e308",
+        ),
+        (
+            "rate a full flip per period",
+            EMBEDDED_VIRTUAL.replace(rate, "pressure_rate_max_pa_per_s = 6.0e8"),
+            "limits.pressure_rate_max_pa_per_s",
+        ),
+        (
+            "ramp 1e308",
+            EMBEDDED_VIRTUAL.replace("ramp_s = 2.0", "ramp_s = 1e308"),
+            "reference.ramp_s",
+        ),
+        (
+            "ramp of an hour",
+            EMBEDDED_VIRTUAL.replace("ramp_s = 2.0", "ramp_s = 3600.0"),
+            "reference.ramp_s",
+        ),
+        (
+            "a run of 1e308 s",
+            EMBEDDED_VIRTUAL.replace("duration_s = 20.0", "duration_s = 1e308"),
+            "duration_s = 1e308",
+        ),
+    ];
+    for (what, text, needle) in cases {
+        assert_ne!(text, EMBEDDED_VIRTUAL, "{what}: the edit did not apply");
+        let p = config_file(&dir, &what.replace(' ', "_"), &text);
+        assert_refused(&["rig", "check", "--config", &p], needle);
+        assert_refused(
+            &["rig", "run", "--config", &p, "--inject", "sensor-stuck@0.5"],
+            needle,
+        );
+    }
+    // The limits at their edges still run, and the frozen sensor still vents (exit 3).
+    let edge = EMBEDDED_VIRTUAL
+        .replace(stuck, "sensor_stuck_periods = 2")
+        .replace(rate, "pressure_rate_max_pa_per_s = 3.0e8");
+    let p = config_file(&dir, "edge", &edge);
+    let log = dir.join("edge.csv").display().to_string();
+    let out = pma_exo(&[
+        "rig",
+        "run",
+        "--config",
+        &p,
+        "--duration",
+        "2",
+        "--inject",
+        "sensor-stuck@0.5",
+        "--log",
+        &log,
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// Regression: `rig run --controller pid --gains` with `bias_pa = 1e300` or
+/// `kp_pa_per_m = 1e308` ran, exit 0, and a bias anywhere in -1e9..1e9 gave the result
+/// of 0 (the bumpless start put the resting pressure into the integral). Every gain is
+/// checked against the pressure limit before the valve is live; a bias with an integral
+/// is refused as having no effect.
+#[test]
+fn gains_beyond_what_the_muscle_can_take_are_refused() {
+    let dir = temp_dir("gains-bounds");
+    let cases = [
+        ("bias_pa = 1e300", "pid gain `bias_pa` = 1e300"),
+        ("bias_pa = 50000.0", "has no effect"),
+        ("kp_pa_per_m = 1e308", "pid gain `kp_pa_per_m` = 1e308"),
+        ("kd_pa_s_per_m = 1e12", "pid gain `kd_pa_s_per_m`"),
+        (
+            "ki_pa_per_m_s = 0.0\nbias_pa = 7.0e5",
+            "within the command's range",
+        ),
+    ];
+    for (i, (line, needle)) in cases.iter().enumerate() {
+        let path = dir.join(format!("g{i}.toml"));
+        std::fs::write(&path, format!("controller = \"pid\"\n{line}\n")).expect("write");
+        let p = path.display().to_string();
+        assert_refused(
+            &["rig", "run", "--controller", "pid", "--gains", &p],
+            needle,
+        );
+    }
+    // A PD with a bias inside the range runs.
+    let pd = dir.join("pd.toml");
+    std::fs::write(
+        &pd,
+        "controller = \"pid\"\nki_pa_per_m_s = 0.0\nbias_pa = 80000.0\n",
+    )
+    .expect("write");
+    let log = dir.join("pd.csv").display().to_string();
+    let out = pma_exo(&[
+        "rig",
+        "run",
+        "--controller",
+        "pid",
+        "--gains",
+        &pd.display().to_string(),
+        "--duration",
+        "3",
+        "--log",
+        &log,
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::remove_dir_all(dir).ok();
+}
+
 /// Regression: `--inject stall@0` and `--inject sensor-nan@25 --duration 20` ended
 /// "completed", exit 0: a fault that cannot fire tests nothing.
 #[test]
@@ -932,8 +1075,19 @@ fn rig_check_refuses_a_pressure_channel_that_cannot_read_the_limit() {
 /// The shipped virtual rig at `period_s`, its watchdog at 0.2 s.
 fn virtual_at_period(period_s: f64) -> String {
     let watchdog = (0.2 / period_s).round() as u32;
+    // The frozen-sensor check at its 0.5 s, the rate limit at most half the range a period.
+    let stuck = (0.5 / period_s).floor() as u32;
+    let rate = 2.0e8f64.min(0.5 * 6.0e5 / period_s);
     let text = EMBEDDED_VIRTUAL
         .replace("period_s = 0.001", &format!("period_s = {period_s}"))
+        .replace(
+            "sensor_stuck_periods = 500",
+            &format!("sensor_stuck_periods = {stuck}"),
+        )
+        .replace(
+            "pressure_rate_max_pa_per_s = 2.0e8",
+            &format!("pressure_rate_max_pa_per_s = {rate:e}"),
+        )
         .replace(
             "watchdog_periods = 50",
             &format!(

@@ -22,6 +22,10 @@ out = [
 for name, (const, ty) in NAMES.items():
     gains = tomllib.loads((ROOT / "crates" / "pma-control" / "models" / "gains" / f"{name}.toml").read_text())
     gains.pop("controller")
+    if name == "pid":
+        # A PID with an integral takes no bias (the bumpless start holds the resting
+        # pressure in the integral): its files leave it out, the struct needs it.
+        gains.setdefault("bias_pa", 0.0)
     out.append(f"pub const {const}: {ty} = {ty} {{")
     out += [f"    {k}: {float(v)!r}," for k, v in gains.items()]
     out += ["};", ""]

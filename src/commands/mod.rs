@@ -18,6 +18,7 @@ pub mod single;
 pub mod size;
 pub mod sweep;
 pub mod tune;
+pub mod valve;
 
 /// Where a control loop's run goes besides its summary: the time series to CSV, the
 /// figures as JSON, the state to Rerun (`simulate`, `pendulum`, `single`).

@@ -26,23 +26,25 @@ crate::gain_table! {
         proxy_mass: Finite, Log(1e-1, 1e2);
         /// Boundary layer `delta` of eq. (10) (m/s). Not given in the paper; 0.5 mm/s (2 % of
         /// the sine reference's peak velocity) stops adaptation on measurement noise while
-        /// any real proxy slip still raises the gain.
-        boundary_layer_m_s: NonNegative;
-        /// `Gamma_hat(0)`; the paper starts from 0.
-        gain_initial: NonNegative;
+        /// any real proxy slip still raises the gain. At most 1 m/s: faster than the
+        /// muscle moves, where the adaptation would never run.
+        boundary_layer_m_s: NonNegative => At(1.0);
+        /// `Gamma_hat(0)`; the paper starts from 0. At most 1e5, as `gain_max`.
+        gain_initial: NonNegative => At(1e5);
         /// Projection bound `Gamma_max` on the adaptive gain (Ioannou & Sun, Robust
         /// Adaptive Control, 1996, §8.4.2): `Gamma_hat` stays in `[0, Gamma_max]`. Law (10)
         /// alone never decreases `Gamma_hat`, so noise or a valve lag that keep `|S_p|`
         /// above `delta` make it grow without bound. `0` (the default): no bound, the
-        /// paper's law.
-        gain_max: NonNegative;
+        /// paper's law. At most 1e5: two decades above the largest adaptive gain any run
+        /// here reached (430, docs/cooperative.md).
+        gain_max: NonNegative => At(1e5);
         /// `sigma_0` of the switching sigma-modification (Ioannou & Tsakalis, IEEE TAC
         /// 31(11), 1986) added to law (10): `Gamma_hat' = gamma (|S_p| - sigma Gamma_hat)`
         /// with `sigma = 0` below `M0 = Gamma_max / 2`, rising linearly to `sigma_0` at
         /// `Gamma_max` ((m/s) per unit of gain). It pulls the gain back once it has drifted
         /// past `M0` and leaves the ideal law untouched below it. Needs `gain_max > 0`; `0`:
-        /// projection only.
-        leakage_sigma: NonNegative;
+        /// projection only. At most 1.
+        leakage_sigma: NonNegative => At(1.0);
         /// Bandwidth of the kinematic observer that supplies velocity and acceleration
         /// (rad/s). Not part of the paper (its rig differentiated position); 200 rad/s keeps
         /// the velocity lag error at 4.4 um/s on the 0.25 Hz sine (`3 jerk / omega^2`) and

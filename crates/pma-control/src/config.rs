@@ -1,4 +1,4 @@
-use crate::gains::{check_rules, GainSet, GainSpec, Rule, Search};
+use crate::gains::{check_bounds, check_rules, GainSet, GainSpec, Rule, Search};
 use crate::{
     AprcGains, AprcNdo, CommandLimits, Controller, NdoSmc, NdoSmcGains, NominalModel, Pid,
     PidGains, Psmc, PsmcGains, StaGains, SuperTwisting,
@@ -242,6 +242,19 @@ fn check_aprc(g: &AprcGains, kind: ControllerKind) -> Result<(), ConfigError> {
     Ok(())
 }
 
+/// A PID's bias acts only without an integral: with one, the bumpless start puts the
+/// resting pressure into the integral whatever the bias, so the bias cancels exactly.
+fn check_pid(g: &PidGains) -> Result<(), ConfigError> {
+    if g.ki_pa_per_m_s > 0.0 && g.bias_pa != 0.0 {
+        return Err(ConfigError::Invalid(pma_model::Invalid::new(
+            "pid gain `bias_pa`",
+            g.bias_pa,
+            "has no effect with an integral (ki_pa_per_m_s > 0): the bumpless start puts the resting pressure into the integral; remove it, or set ki_pa_per_m_s = 0 for a PD with a bias",
+        )));
+    }
+    Ok(())
+}
+
 impl ControllerConfig {
     /// The gain named `field` (as in gain files), if this controller has it.
     pub fn gain_mut(&mut self, field: &str) -> Option<&mut f64> {
@@ -286,8 +299,17 @@ impl ControllerConfig {
                 Rule::Positive.check(kind.as_str(), "kp + kd", g.kp_pa_per_m + g.kd_pa_s_per_m)?;
                 Ok(())
             }
+            ControllerConfig::Pid(g) => check_pid(g),
             _ => Ok(()),
         }
+    }
+
+    /// [`ControllerConfig::validate`], then every gain against what the muscle behind
+    /// `limits` can take ([`check_bounds`]): the check every controller is built through.
+    pub fn validate_for(&self, limits: &CommandLimits) -> Result<(), ConfigError> {
+        self.validate()?;
+        check_bounds(self.gains(), self.kind().as_str(), limits)?;
+        Ok(())
     }
 
     /// Parses and validates a gain file.
@@ -312,7 +334,7 @@ pub fn build_controller(
     model: NominalModel,
     limits: CommandLimits,
 ) -> Result<Box<dyn Controller>, ConfigError> {
-    config.validate()?;
+    config.validate_for(&limits)?;
     Ok(config.build_unchecked(model, limits))
 }
 

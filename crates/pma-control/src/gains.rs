@@ -50,6 +50,35 @@ impl Search {
     }
 }
 
+/// How large a gain may be before it stops describing a controller the muscle can take.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Bound {
+    /// None written: two decades above the top of the tuner's range (nothing beyond it is
+    /// tuned or tested; a gain there is a typo or a unit slip).
+    Searched,
+    /// At most this value.
+    At(f64),
+    /// A pressure, within the command's range `0..=max` (a bias outside it holds the valve
+    /// at a limit).
+    Pressure,
+    /// At most the pressure limit over this much input: `kp_pa_per_m` over 1 um of error
+    /// (below the displacement sensor's resolution) swings the whole valve range.
+    PressurePer(f64),
+}
+
+impl Bound {
+    /// The largest admissible value under `limits`, for a gain searched over `search`.
+    pub fn max(self, search: Search, limits: &crate::CommandLimits) -> f64 {
+        match (self, search) {
+            (Bound::Searched, Search::Log(_, hi) | Search::Lin(_, hi)) => 100.0 * hi,
+            (Bound::Searched, Search::Fixed) => f64::INFINITY,
+            (Bound::At(v), _) => v,
+            (Bound::Pressure, _) => limits.max_pa,
+            (Bound::PressurePer(input), _) => limits.max_pa / input,
+        }
+    }
+}
+
 /// One gain of a controller.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GainSpec {
@@ -61,6 +90,8 @@ pub struct GainSpec {
     pub rule: Rule,
     /// How the tuner searches it.
     pub search: Search,
+    /// How large it may be.
+    pub bound: Bound,
 }
 
 /// A controller's gains, through its table.
@@ -82,9 +113,55 @@ pub fn check_rules(gains: &dyn GainSet, controller: &str) -> Result<(), Invalid>
     Ok(())
 }
 
+/// Checks every gain of `gains` against its bound under the command `limits`: what the
+/// muscle behind them can take. A pressure gain (`bias_pa`) must lie in the command's
+/// range, a gain in pascals per unit of input must not swing the whole range on less
+/// input than the sensors resolve, and every other gain must stay within two decades of
+/// what the tuner searches (or its written bound).
+pub fn check_bounds(
+    gains: &dyn GainSet,
+    controller: &str,
+    limits: &crate::CommandLimits,
+) -> Result<(), Invalid> {
+    for spec in gains.specs() {
+        let value = gains.get(spec.name).unwrap_or(f64::NAN);
+        let max = spec.bound.max(spec.search, limits);
+        let min = match spec.bound {
+            Bound::Pressure => 0.0,
+            _ => f64::NEG_INFINITY,
+        };
+        if !(value >= min && value <= max) {
+            let why = match spec.bound {
+                Bound::Searched => format!(
+                    "at most {} (two decades above the range the tuner searches and the tests cover)",
+                    pma_model::error::number(max)
+                ),
+                Bound::At(_) => format!("at most {}", pma_model::error::number(max)),
+                Bound::Pressure => format!(
+                    "within the command's range 0..={} Pa (the pressure limit)",
+                    pma_model::error::number(max)
+                ),
+                Bound::PressurePer(input) => format!(
+                    "at most {}: the pressure limit, {} Pa, over {} of input (less than the sensors resolve)",
+                    pma_model::error::number(max),
+                    pma_model::error::number(limits.max_pa),
+                    pma_model::error::number(input)
+                ),
+            };
+            return Err(Invalid::new(
+                format!("{controller} gain `{}`", spec.name),
+                value,
+                format!("must be {why}"),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Defines a gains struct from its table: each field with its documentation, its [`Rule`]
 /// and optionally its [`Search`] range, e.g.
-/// `kp_pa_per_m: NonNegative, Log(1e5, 1e11);`. The struct (serde with defaults and
+/// `kp_pa_per_m: NonNegative, Log(1e5, 1e11) => PressurePer(1e-6);` (the bound after
+/// `=>` is optional, see [`Bound`]). The struct (serde with defaults and
 /// unknown fields refused) and its [`GainSet`] come out of it; `Default` is written by
 /// hand (the paper's or the tuned values).
 #[macro_export]
@@ -94,7 +171,8 @@ macro_rules! gain_table {
         pub struct $name:ident {
             $(
                 $(#[doc = $doc:expr])*
-                $field:ident: $rule:ident $(, $search:ident($lo:expr, $hi:expr))?;
+                $field:ident: $rule:ident $(, $search:ident($lo:expr, $hi:expr))?
+                    $(=> $bound:ident $(($b:expr))?)?;
             )*
         }
     ) => {
@@ -118,6 +196,7 @@ macro_rules! gain_table {
                         doc: concat!($($doc, "\n"),*),
                         rule: $crate::gains::Rule::$rule,
                         search: $crate::gain_table!(@search $($search($lo, $hi))?),
+                        bound: $crate::gain_table!(@bound $($bound $(($b))?)?),
                     },
                 )*
             ];
@@ -146,6 +225,15 @@ macro_rules! gain_table {
     };
     (@search $kind:ident($lo:expr, $hi:expr)) => {
         $crate::gains::Search::$kind($lo, $hi)
+    };
+    (@bound) => {
+        $crate::gains::Bound::Searched
+    };
+    (@bound $kind:ident) => {
+        $crate::gains::Bound::$kind
+    };
+    (@bound $kind:ident($b:expr)) => {
+        $crate::gains::Bound::$kind($b)
     };
 }
 

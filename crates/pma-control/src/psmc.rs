@@ -12,17 +12,17 @@ crate::gain_table! {
     /// deviation from that bias.
     pub struct PsmcGains {
         /// Proportional gain (Pa/m).
-        kp_pa_per_m: NonNegative, Log(1e5, 1e11);
+        kp_pa_per_m: NonNegative, Log(1e5, 1e11) => PressurePer(1e-6);
         /// Integral gain (Pa/(m s)).
-        ki_pa_per_m_s: NonNegative, Log(1e5, 1e12);
+        ki_pa_per_m_s: NonNegative, Log(1e5, 1e12) => PressurePer(1e-9);
         /// Derivative gain (Pa s/m).
-        kd_pa_s_per_m: NonNegative, Log(1e2, 1e7);
+        kd_pa_s_per_m: NonNegative, Log(1e2, 1e7) => PressurePer(1e-3);
         /// Sliding-surface time constant `H` (s).
         h_s: NonNegative, Log(1e-3, 1.0);
         /// Force bound `F` (Pa).
         force_max_pa: Positive, Log(1e3, 6e5);
         /// Bias pressure (Pa).
-        bias_pa: Finite, Lin(0.0, 2e5);
+        bias_pa: NonNegative, Lin(0.0, 2e5) => Pressure;
         /// Kinematic observer bandwidth (rad/s).
         estimator_bandwidth_rad_s: Positive, Log(50.0, 1000.0);
     }

@@ -35,6 +35,6 @@ pub const PID: PidGains = PidGains {
     kp_pa_per_m: 1228049836.6796277,
     ki_pa_per_m_s: 26366270155.216225,
     kd_pa_s_per_m: 2267.703875934215,
-    bias_pa: 76156.58607941808,
     estimator_bandwidth_rad_s: 543.4150358349519,
+    bias_pa: 0.0,
 };

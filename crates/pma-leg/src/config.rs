@@ -375,6 +375,10 @@ pub struct PlantSettings {
     /// Where the cuffs hold the limb (default: the middle of each frame bar).
     #[serde(default)]
     pub cuffs: CuffSettings,
+    /// The pneumatics between each valve and its muscle (default: the `ideal` valve, the
+    /// `[plant.valve]` model): a flow-limited valve, its supply and tube.
+    #[serde(default)]
+    pub pneumatics: pma_model::PneumaticsSettings,
 }
 
 /// `[plant.cuffs]`: where the thigh and shank cuffs hold the limb, on every leg. The
@@ -480,6 +484,86 @@ impl CuffSensorSettings {
 pub const DMSP20_RATED_FORCE_N: f64 = 1500.0;
 
 impl PlantSettings {
+    /// The flow-limited valve `[plant.pneumatics]` names, checked (`None`: the
+    /// `[plant.valve]` model). The lag model's fields with a flow valve are refused: two
+    /// valve models at once would run only one of them.
+    pub fn flow_valve(&self) -> Result<Option<pma_model::ValveSpec>, LegError> {
+        let p = &self.pneumatics;
+        p.validate()
+            .map_err(|e| LegError::from(e.within_section("plant.pneumatics")))?;
+        if p.is_ideal() {
+            return Ok(None);
+        }
+        let spec = pma_model::ValveSpec::load(&p.valve).map_err(|e| LegError::Parse {
+            file: e.file,
+            message: e.message,
+        })?;
+        let v = &self.valve;
+        for (field, value, set) in [
+            (
+                "plant.valve.time_constant_s",
+                v.time_constant_s,
+                v.time_constant_s != 0.0,
+            ),
+            (
+                "plant.valve.dead_time_s",
+                v.dead_time_s,
+                v.dead_time_s != 0.0,
+            ),
+            (
+                "plant.valve.rate_limit_pa_per_s",
+                v.rate_limit_pa_per_s.unwrap_or(f64::NAN),
+                v.rate_limit_pa_per_s.is_some(),
+            ),
+        ] {
+            if set {
+                return Err(LegError::Unsupported {
+                    name: field.into(),
+                    value: pma_model::error::number(value),
+                    message: format!(
+                        "the lag model's fields do not apply to the flow-limited valve plant.pneumatics.valve = \"{}\" (its lag comes from its flow and tube); for the lag model set valve = \"ideal\"",
+                        p.valve
+                    ),
+                });
+            }
+        }
+        Ok(Some(spec))
+    }
+
+    /// The valve of a muscle of `model`: `[plant.valve]`, or the flow-limited valve into
+    /// the muscle's own chamber, its tube's transport delay as the dead time.
+    pub fn valve_of(
+        &self,
+        spec: Option<&pma_model::ValveSpec>,
+        model: &pma_model::MuscleModel,
+    ) -> ValveParams {
+        match spec {
+            None => self.valve,
+            Some(spec) => ValveParams {
+                dead_time_s: self.pneumatics.transport_delay_s(),
+                flow: Some(self.pneumatics.flow(spec, model.chamber())),
+                ..self.valve
+            },
+        }
+    }
+
+    /// The valve model that runs, as outputs name it.
+    pub fn valve_label(&self) -> Result<String, LegError> {
+        Ok(match self.flow_valve()? {
+            None => format!("{} (plant.valve)", self.valve.describe()),
+            Some(spec) => format!(
+                "{} ({}): ISO 6358 C = {} l/(s bar), b = {}, supply {} bar, tube {} m x {} mm",
+                spec.name,
+                self.pneumatics.valve,
+                spec.sonic_conductance_l_per_s_bar,
+                spec.critical_pressure_ratio,
+                self.pneumatics.supply_pressure_pa / 1e5,
+                self.pneumatics.tube_length_m,
+                self.pneumatics.tube_bore_m * 1e3
+            ),
+        })
+    }
+
     /// An eq. (1) muscle's rating and where it comes from: the scenario's, or Table I's own
     /// pull at the valve's limit.
     pub fn three_element_rating(&self) -> (f64, String) {
@@ -739,7 +823,11 @@ impl Scenario {
                 "must be 0..=100 N m",
             )?;
         }
-        self.plant.valve.validate()?;
+        self.plant
+            .valve
+            .validate()
+            .map_err(|e| e.within_section("plant.valve"))?;
+        self.plant.flow_valve()?;
         self.control.impedance.validate()?;
         if let Some(f) = self.plant.muscle_rated_force_n {
             positive("plant.muscle_rated_force_n", f)?;

@@ -503,7 +503,8 @@ impl LegPlant {
             });
             for m in muscles.iter_mut() {
                 let (q, qd) = (exo.angles(m.leg), exo.velocities(m.leg));
-                m.valve.advance(h);
+                m.valve
+                    .advance_at(h, m.contraction(q), m.contraction_rate(qd));
                 if m.force_unclamped(q, qd) <= 0.0 {
                     slack[m.leg][m.index_in_leg()] += h;
                 }

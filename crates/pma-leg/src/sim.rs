@@ -1183,6 +1183,7 @@ fn build_muscles(
     let links: [(&str, [&str; 2]); 2] =
         [("hip", ["pelvis", "thigh"]), ("knee", ["thigh", "shank"])];
     let mut out = Vec::with_capacity(4);
+    let flow_valve = sc.plant.flow_valve()?;
     for (index, g) in geometry.iter().enumerate() {
         let err = |message: String| LegError::Muscle {
             muscle: g.name.clone(),
@@ -1233,7 +1234,7 @@ fn build_muscles(
             model,
             rated_force_n,
             rating,
-            valve: Valve::new(sc.plant.valve, 0.0)?,
+            valve: Valve::new(sc.plant.valve_of(flow_valve.as_ref(), &model), 0.0)?,
         });
     }
     for name in sc.plant.muscle_scale.keys() {

@@ -7,7 +7,7 @@ use thiserror::Error;
 /// not finite, out of its range, or out of its plausible range. `name` is the field as
 /// the user wrote it (`plant.valve.dead_time_s`, `patient.knee.spasms.amplitude_nm`).
 #[derive(Debug, Clone, PartialEq, Error)]
-#[error("{name} = {value} is invalid: {expected}")]
+#[error("{name} = {} is invalid: {expected}", number(*.value))]
 pub struct Invalid {
     /// The field.
     pub name: Cow<'static, str>,
@@ -38,6 +38,17 @@ impl Invalid {
             name: format!("{prefix}.{}", self.name).into(),
             ..self
         }
+    }
+}
+
+/// A number as a person reads it: `{}` within 1e-6..1e15 in magnitude, exponent form
+/// outside (`1e308`, not a 309-digit integer), `NaN`, `inf`.
+pub fn number(value: f64) -> String {
+    let a = value.abs();
+    if value.is_finite() && a != 0.0 && !(1e-6..1e15).contains(&a) {
+        format!("{value:e}")
+    } else {
+        format!("{value}")
     }
 }
 
@@ -112,5 +123,16 @@ mod tests {
         assert_eq!(e.name, "load.x");
         assert!(within("t", 2.0, 0.0, 1.0, "must be 0..=1 s").is_err());
         assert!(non_negative("t", 0.0).is_ok());
+    }
+
+    #[test]
+    fn huge_values_print_in_exponent_form_not_as_309_digits() {
+        assert_eq!(number(1e308), "1e308");
+        assert_eq!(number(-2.5e20), "-2.5e20");
+        assert_eq!(number(3e-9), "3e-9");
+        assert_eq!(number(0.02), "0.02");
+        assert_eq!(number(4294967295.0), "4294967295");
+        let e = within("t", 1e308, 0.0, 1.0, "must be 0..=1 s").unwrap_err();
+        assert_eq!(e.to_string(), "t = 1e308 is invalid: must be 0..=1 s");
     }
 }

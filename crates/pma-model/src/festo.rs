@@ -64,6 +64,20 @@ impl DmspSize {
         }
     }
 
+    /// Inner diameter (m): the number in the name, in millimetres.
+    pub fn inner_diameter_m(self) -> f64 {
+        match self {
+            DmspSize::Dmsp10 => 0.010,
+            DmspSize::Dmsp20 => 0.020,
+            DmspSize::Dmsp40 => 0.040,
+        }
+    }
+
+    /// The air space of this size at nominal length `rest_length_m`.
+    pub fn chamber(self, rest_length_m: f64) -> crate::Chamber {
+        crate::Chamber::dmsp(self.inner_diameter_m(), rest_length_m)
+    }
+
     /// Its name as Festo writes it.
     pub fn name(self) -> &'static str {
         match self {

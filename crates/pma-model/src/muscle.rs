@@ -202,6 +202,18 @@ pub enum MuscleModel {
 }
 
 impl MuscleModel {
+    /// The muscle's air space, for a flow-limited valve: a Festo size's own, or for an
+    /// eq. (1) muscle the paper's rig muscle Table I was identified on, a DMSP-20-200
+    /// (Cao et al. 2020, Sec. IV-A).
+    pub fn chamber(&self) -> crate::Chamber {
+        match self {
+            MuscleModel::ThreeElement(_) => {
+                crate::festo::DmspSize::Dmsp20.chamber(crate::festo::TABLE_I_REST_LENGTH_M)
+            }
+            MuscleModel::Festo(m) => m.size.chamber(m.rest_length_m),
+        }
+    }
+
     /// Force without the slack clamp (N): negative means slack.
     pub fn force_unclamped(
         &self,

@@ -1,4 +1,5 @@
 use crate::error::{non_negative, positive, within, Invalid};
+use crate::pneumatics::{FlowParams, FlowState};
 use crate::DampingMode;
 
 /// Shortest command period the dead-time buffer is sized for (s). Commands sent faster
@@ -28,6 +29,11 @@ pub struct ValveParams {
     /// Transport delay between command and valve response (s).
     #[cfg_attr(feature = "serde", serde(default))]
     pub dead_time_s: f64,
+    /// A flow-limited valve ([`crate::pneumatics`]): the pressure a state of the muscle's
+    /// air, filled and emptied through ISO 6358 orifices. Set from `[plant.pneumatics]`,
+    /// never from the `[plant.valve]` table; `None`: the lag model above.
+    #[cfg_attr(feature = "serde", serde(skip))]
+    pub flow: Option<FlowParams>,
 }
 
 impl ValveParams {
@@ -39,6 +45,7 @@ impl ValveParams {
             time_constant_s: 0.0,
             rate_limit_pa_per_s: None,
             dead_time_s: 0.0,
+            flow: None,
         }
     }
 
@@ -84,7 +91,38 @@ impl ValveParams {
 
     /// Whether the output follows the command instantly.
     pub fn is_instantaneous(&self) -> bool {
-        self.time_constant_s == 0.0 && self.rate_limit_pa_per_s.is_none() && self.dead_time_s == 0.0
+        self.time_constant_s == 0.0
+            && self.rate_limit_pa_per_s.is_none()
+            && self.dead_time_s == 0.0
+            && self.flow.is_none()
+    }
+
+    /// What this valve is, in a few words: `ideal`, `first-order lag 20 ms`, or the flow
+    /// model's conductance and supply.
+    pub fn describe(&self) -> String {
+        if let Some(f) = &self.flow {
+            return format!(
+                "flow-limited (ISO 6358 C = {:.2} l/(s bar), b = {:.2}; supply {:.1} bar; transport delay {:.1} ms)",
+                f.inlet_conductance_m3_s_pa / crate::pneumatics::L_PER_S_BAR,
+                f.inlet_critical_ratio,
+                f.supply_pa / 1e5,
+                self.dead_time_s * 1e3
+            );
+        }
+        if self.is_instantaneous() {
+            return "ideal (instantaneous)".into();
+        }
+        let mut parts = Vec::new();
+        if self.time_constant_s > 0.0 {
+            parts.push(format!("first-order lag {} ms", self.time_constant_s * 1e3));
+        }
+        if let Some(r) = self.rate_limit_pa_per_s {
+            parts.push(format!("rate limit {} bar/s", r / 1e5));
+        }
+        if self.dead_time_s > 0.0 {
+            parts.push(format!("dead time {} ms", self.dead_time_s * 1e3));
+        }
+        parts.join(", ")
     }
 
     /// Clamps a command to the valve's range; NaN becomes 0 (vent), the safe value.
@@ -112,6 +150,8 @@ pub struct Valve {
     target_pa: f64,
     set_point_pa: f64,
     mode: DampingMode,
+    /// The spool's opening of a flow-limited valve (-1..1).
+    opening: f64,
     clock_s: f64,
     pending: Vec<(f64, f64)>,
     pending_head: usize,
@@ -133,6 +173,7 @@ impl Valve {
             target_pa: p,
             set_point_pa: p,
             mode: DampingMode::Inflation,
+            opening: 0.0,
             clock_s: 0.0,
             pending: vec![(0.0, p); capacity],
             pending_head: 0,
@@ -176,8 +217,35 @@ impl Valve {
         }
     }
 
-    /// Advances the valve by `h_s` seconds with the current command held.
+    /// Advances the valve by `h_s` seconds with the current command held, the muscle at
+    /// contraction `x_m` moving at `v_m_s`: a flow-limited valve fills the muscle's
+    /// volume there; the lag model ignores both.
+    pub fn advance_at(&mut self, h_s: f64, x_m: f64, v_m_s: f64) {
+        let Some(flow) = self.params.flow else {
+            return self.advance(h_s);
+        };
+        self.clock_s += h_s;
+        self.release_due_commands();
+        let mut state = FlowState {
+            pressure_pa: self.pressure_pa,
+            opening: self.opening,
+        };
+        flow.advance(&mut state, self.target_pa, h_s, x_m, v_m_s);
+        self.opening = state.opening;
+        self.set_pressure(state.pressure_pa);
+    }
+
+    /// The spool's opening of a flow-limited valve (-1 exhaust .. 1 supply; 0 otherwise).
+    pub fn opening(&self) -> f64 {
+        self.opening
+    }
+
+    /// Advances the valve by `h_s` seconds with the current command held (a flow-limited
+    /// valve as if the muscle rested at its nominal length: use [`Valve::advance_at`]).
     pub fn advance(&mut self, h_s: f64) {
+        if self.params.flow.is_some() {
+            return self.advance_at(h_s, 0.0, 0.0);
+        }
         self.clock_s += h_s;
         if self.params.is_instantaneous() {
             // `command` already set the pressure; nothing evolves in between.

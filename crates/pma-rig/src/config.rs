@@ -8,7 +8,7 @@ use pma_control::{
     ChirpReference, ControllerConfig, ControllerKind, NominalModel, NominalSpec, SineReference,
     SmoothStart, Trajectory,
 };
-use pma_model::error::{check, finite, non_negative, positive, within};
+use pma_model::error::{check, finite, positive, within};
 use pma_model::Invalid;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -175,6 +175,26 @@ fn default_overrun_share() -> f64 {
 /// Longest watchdog timeout a configuration may ask for (s): a valve left at its last
 /// command for longer than this is not supervised.
 pub const WATCHDOG_MAX_S: f64 = 0.25;
+
+/// Largest command step the rate limit may allow in one period, as a fraction of the
+/// pressure limit: at most half the range, so that a full 0 -> max flip takes at least
+/// two periods and the limit is never a field that says "on" while limiting nothing.
+pub const RATE_STEP_MAX_FRACTION: f64 = 0.5;
+
+/// Fewest periods of identical readings that count as a frozen sensor: one repeat is what a
+/// quantised converter gives whenever the muscle moves less than a step in a period.
+pub const SENSOR_STUCK_MIN_PERIODS: u32 = 2;
+
+/// Longest a frozen reading may go undetected (s): the shipped 500 periods of 1 ms. Beyond
+/// it the controller drives the muscle blind, its position window unchecked.
+pub const SENSOR_STUCK_MAX_S: f64 = 0.5;
+
+/// Longest run a rig configuration may ask for (s): a day. A longer one is a typo (a
+/// `duration_s = 1e308` ran until killed, its log filling the disk).
+pub const RIG_DURATION_MAX_S: f64 = 86_400.0;
+
+/// Longest blend from rest into the reference (s).
+pub const RAMP_MAX_S: f64 = 60.0;
 
 /// Shortest and longest control period of a rig (s): the controllers are discretised for
 /// periods of 0.1-10 ms (the paper ran at 1 ms).
@@ -555,7 +575,13 @@ impl RigConfig {
             self.period_s,
             "must be 0.0001..=0.01 s (the controllers are discretised for 0.1-10 ms; the paper ran at 1 ms)",
         )?;
-        positive("duration_s", self.duration_s)?;
+        within(
+            "duration_s",
+            self.duration_s,
+            self.period_s,
+            RIG_DURATION_MAX_S,
+            "must be one period up to 86400 s (a day at the rig)",
+        )?;
         if self.device.driver == Driver::Comedi && self.device.path.is_empty() {
             return Err(RigError::Missing {
                 field: "device.path",
@@ -619,10 +645,7 @@ impl RigConfig {
                 ),
             });
         }
-        positive(
-            "limits.pressure_rate_max_pa_per_s",
-            l.pressure_rate_max_pa_per_s,
-        )?;
+        self.rate_limit_check()?;
         finite("limits.position_min_m", l.position_min_m)?;
         finite("limits.position_max_m", l.position_max_m)?;
         check(
@@ -682,6 +705,46 @@ impl RigConfig {
             l.overrun_max_share,
             "must be > 0 and at most 0.5",
         )?;
+        self.stuck_check()
+    }
+
+    /// The rate limit must bind: a command may cross at most half the pressure range in
+    /// one period. Above that no step the valve range allows is ever limited, and the
+    /// field would switch the limit off while saying it is on.
+    fn rate_limit_check(&self) -> Result<(), RigError> {
+        let l = &self.limits;
+        let per_period_pa = l.pressure_rate_max_pa_per_s * self.period_s;
+        if !(l.pressure_rate_max_pa_per_s.is_finite() && l.pressure_rate_max_pa_per_s > 0.0)
+            || per_period_pa > RATE_STEP_MAX_FRACTION * l.pressure_max_pa
+        {
+            return Err(RigError::Field {
+                field: "limits.pressure_rate_max_pa_per_s",
+                message: format!(
+                    "{} must be > 0 and at most {} (half of limits.pressure_max_pa, {} bar, per period of {} s): a faster limit never binds and leaves the valve unlimited",
+                    pma_model::error::number(l.pressure_rate_max_pa_per_s),
+                    pma_model::error::number(RATE_STEP_MAX_FRACTION * l.pressure_max_pa / self.period_s),
+                    l.pressure_max_pa / 1e5,
+                    self.period_s
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// The frozen-sensor check cannot be switched off, nor set so long that the
+    /// controller drives blind for longer than [`SENSOR_STUCK_MAX_S`].
+    fn stuck_check(&self) -> Result<(), RigError> {
+        let l = &self.limits;
+        let blind_s = f64::from(l.sensor_stuck_periods) * self.period_s;
+        if l.sensor_stuck_periods < SENSOR_STUCK_MIN_PERIODS || blind_s > SENSOR_STUCK_MAX_S {
+            return Err(RigError::Field {
+                field: "limits.sensor_stuck_periods",
+                message: format!(
+                    "{} periods of {} s must be at least {SENSOR_STUCK_MIN_PERIODS} periods and at most {SENSOR_STUCK_MAX_S} s: 0 would switch the frozen-sensor check off, and a longer one lets the controller drive blind",
+                    l.sensor_stuck_periods, self.period_s
+                ),
+            });
+        }
         Ok(())
     }
 
@@ -734,6 +797,19 @@ impl RigConfig {
         Ok(())
     }
 
+    /// A ramp into the reference is a blend of seconds: one of [`RAMP_MAX_S`] or more never
+    /// reaches, in any run worth making, the trajectory it was set up to track.
+    fn ramp_check(&self, ramp_s: f64) -> Result<(), Invalid> {
+        within(
+            "reference.ramp_s",
+            ramp_s,
+            0.0,
+            RAMP_MAX_S,
+            "must be 0..=60 s (a blend from rest into the reference; slower motion belongs in the reference itself)",
+        )
+        .map(|_| ())
+    }
+
     /// The lowest and highest position of the reference's trajectory (m).
     pub fn reference_span_m(&self) -> (f64, f64) {
         match self.reference {
@@ -762,7 +838,7 @@ impl RigConfig {
                 finite("reference.amplitude_m", amplitude_m)?;
                 frequency("reference.frequency_hz", frequency_hz)?;
                 finite("reference.offset_m", offset_m)?;
-                non_negative("reference.ramp_s", ramp_s)?;
+                self.ramp_check(ramp_s)?;
             }
             ReferenceConfig::Chirp {
                 amplitude_m,
@@ -776,12 +852,18 @@ impl RigConfig {
                 finite("reference.offset_m", offset_m)?;
                 frequency("reference.f0_hz", f0_hz)?;
                 frequency("reference.f1_hz", f1_hz)?;
-                positive("reference.sweep_s", sweep_s)?;
-                non_negative("reference.ramp_s", ramp_s)?;
+                within(
+                    "reference.sweep_s",
+                    sweep_s,
+                    f64::MIN_POSITIVE,
+                    RIG_DURATION_MAX_S,
+                    "must be > 0 and at most 86400 s",
+                )?;
+                self.ramp_check(ramp_s)?;
             }
             ReferenceConfig::Hold { position_m, ramp_s } => {
                 finite("reference.position_m", position_m)?;
-                non_negative("reference.ramp_s", ramp_s)?;
+                self.ramp_check(ramp_s)?;
             }
         }
         Ok(())

@@ -696,9 +696,22 @@ mod tests {
 
     /// The virtual rig of the shipped configuration at `period_s`.
     fn virtual_daq_at(period_s: f64) -> (VirtualDaq, RigConfig) {
+        // The frozen-sensor check at its 0.5 s, the rate limit at most half the range a
+        // period (the configuration's ranges at this period).
         let text = crate::config::EMBEDDED_VIRTUAL
             .replace("period_s = 0.001", &format!("period_s = {period_s}"))
-            .replace("watchdog_periods = 50", "watchdog_periods = 20");
+            .replace("watchdog_periods = 50", "watchdog_periods = 20")
+            .replace(
+                "sensor_stuck_periods = 500",
+                &format!("sensor_stuck_periods = {}", (0.5 / period_s).floor()),
+            )
+            .replace(
+                "pressure_rate_max_pa_per_s = 2.0e8",
+                &format!(
+                    "pressure_rate_max_pa_per_s = {:e}",
+                    2.0e8f64.min(3.0e5 / period_s)
+                ),
+            );
         let cfg = RigConfig::from_toml_str(&text, "virtual.toml").expect("config");
         (VirtualDaq::new(&cfg, &[]).expect("virtual rig"), cfg)
     }

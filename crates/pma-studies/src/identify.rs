@@ -335,6 +335,7 @@ fn valve(q: &Params, pressure_max_pa: f64) -> ValveParams {
         time_constant_s: q[TAU],
         rate_limit_pa_per_s: None,
         dead_time_s: q[THETA],
+        flow: None,
     }
 }
 
