@@ -43,7 +43,8 @@ enum Command {
     /// Tune a controller's gains with the firefly algorithm on the sine (IAE objective).
     Tune(tune::Args),
     /// Tune a controller's gains on a leg scenario with the same firefly search
-    /// (objective: hip + knee RMS error plus 0.01 deg per bar/s of command variation).
+    /// (objective: hip + knee RMS error, on a treadmill the worst foot's stance-phase RMS,
+    /// plus 0.01 deg per bar/s of command variation).
     TuneLeg(tune::LegArgs),
     /// APRC-NDO, PSMC, NDO-SMC, STA and PID (leg gains tuned with one budget) on the
     /// patient scenarios: tracking, spasm deviation and recovery, pressure rates, safety.

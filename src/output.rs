@@ -65,6 +65,19 @@ impl Staged {
     /// its target is replaced, not the link.
     fn new(path: &Path, keep_extension: bool) -> Result<Self> {
         let context = || format!("cannot create `{}`", path.display());
+        // Found now, not at the rename after the run: a path ending in `/` names a
+        // directory, never the file the output is.
+        if path
+            .as_os_str()
+            .to_string_lossy()
+            .ends_with(std::path::MAIN_SEPARATOR)
+        {
+            bail!(
+                "cannot create `{}`: a file's path cannot end in `{}`",
+                path.display(),
+                std::path::MAIN_SEPARATOR
+            );
+        }
         let (path, replaced) = match std::fs::metadata(path) {
             Ok(meta) if !meta.is_file() => {
                 let file = std::fs::OpenOptions::new()
@@ -198,10 +211,31 @@ pub fn write_via_temp<E: std::fmt::Display>(
     path: &Path,
     write: impl FnOnce(&Path) -> std::result::Result<(), E>,
 ) -> Result<()> {
+    stage(path, write)?.commit()
+}
+
+/// [`write_via_temp`] without the rename: the file written beside `path`, to be committed
+/// with the command's other outputs ([`StagedPath::commit`] on each once all are written,
+/// so that a command whose second file fails leaves the first as it was too).
+pub fn stage<E: std::fmt::Display>(
+    path: &Path,
+    write: impl FnOnce(&Path) -> std::result::Result<(), E>,
+) -> Result<StagedPath> {
     let staged = StagedPath::create(path)?;
     write(&staged.write_path())
-        .map_err(|e| anyhow::anyhow!("cannot write `{}`: {e}", path.display()))?;
-    staged.commit()
+        .map_err(|e| anyhow::anyhow!("cannot write `{}`: {}", path.display(), plain(&e)))?;
+    Ok(staged)
+}
+
+/// A writer's error as one plain line: the operating system's message where a drawing
+/// library wraps it in its debug form (`backend error: Drawing backend error:
+/// ImageError(IoError(Custom { .., error: "No space left on device (os error 28)" }))`).
+fn plain(e: &impl std::fmt::Display) -> String {
+    let text = e.to_string();
+    text.find("error: \"")
+        .map(|start| &text[start + 8..])
+        .and_then(|rest| rest.find('"').map(|end| rest[..end].to_owned()))
+        .unwrap_or(text)
 }
 
 /// Says on stderr that `path` was written (every output file of a command is named once).
@@ -273,7 +307,8 @@ pub fn write_file(path: &Path, text: &str) -> Result<()> {
 /// later rows are dropped.
 pub struct CsvOut {
     path: PathBuf,
-    writer: csv::Writer<BufWriter<Staged>>,
+    /// `None` only after a write that lost it, with `error` set.
+    writer: Option<csv::Writer<BufWriter<Staged>>>,
     error: Option<anyhow::Error>,
     rows: u64,
 }
@@ -293,7 +328,7 @@ impl CsvOut {
             .with_context(|| format!("cannot write `{}`", path.display()))?;
         Ok(Self {
             path: path.to_path_buf(),
-            writer,
+            writer: Some(writer),
             error: None,
             rows: 0,
         })
@@ -311,12 +346,47 @@ impl CsvOut {
         if self.error.is_some() {
             return;
         }
-        if let Err(e) = self.writer.serialize(values) {
+        let Some(writer) = &mut self.writer else {
+            return;
+        };
+        if let Err(e) = writer.serialize(values) {
             self.error = Some(
                 anyhow::Error::new(e).context(format!("cannot write `{}`", self.path.display())),
             );
         } else {
             self.rows += 1;
+        }
+    }
+
+    /// A `# ` line after the rows so far (how a run ended: a collapse the trainer stopped).
+    pub fn comment(&mut self, text: &str) {
+        if self.error.is_some() {
+            return;
+        }
+        // The csv writer holds the file: one more record of a single field, its text made
+        // a comment by its first character (commas and quotes kept out, so that it is not
+        // quoted), in a writer that accepts a record of another length.
+        let line: String = format!("# {text}")
+            .chars()
+            .map(|c| if c == ',' || c == '"' { ';' } else { c })
+            .collect();
+        let Some(taken) = self.writer.take() else {
+            return;
+        };
+        let r = match taken.into_inner() {
+            Ok(inner) => {
+                let mut flexible = csv::WriterBuilder::new()
+                    .flexible(true)
+                    .has_headers(false)
+                    .from_writer(inner);
+                let r = flexible.write_record([line.as_str()]);
+                self.writer = Some(flexible);
+                r.map_err(anyhow::Error::new)
+            }
+            Err(e) => Err(anyhow::Error::new(e.into_error())),
+        };
+        if let Err(e) = r {
+            self.error = Some(e.context(format!("cannot write `{}`", self.path.display())));
         }
     }
 
@@ -327,8 +397,10 @@ impl CsvOut {
             return Err(e);
         }
         let context = || format!("cannot write `{}`", self.path.display());
-        let staged = self
-            .writer
+        let Some(writer) = self.writer.take() else {
+            anyhow::bail!("cannot write `{}`", self.path.display());
+        };
+        let staged = writer
             .into_inner()
             .map_err(|e| anyhow::Error::new(e.into_error()))
             .with_context(context)?

@@ -925,6 +925,8 @@ pub struct LegTrace {
     pub legs: usize,
     /// The gait's stride period (s; 0: not a gait, the whole run is drawn).
     pub stride_s: f64,
+    /// When the trainer's safety stopped a collapse (s), marked on every panel.
+    pub collapse_s: Option<f64>,
 }
 
 /// The treadmill's side of a leg run, every 10th period as [`LegTrace`].
@@ -946,6 +948,8 @@ struct LinePanel<'a> {
     lines: Vec<(String, &'a [f64], RGBColor, bool)>,
     marks: Vec<(f64, String)>,
     spasms: Vec<(f64, f64)>,
+    /// A moment marked by a vertical line and its label (a collapse the trainer stopped).
+    event: Option<(f64, String)>,
 }
 
 /// `y` raised at the top by the height of an upper-right legend of `entries` rows, so that
@@ -989,6 +993,24 @@ fn draw_line_panel(area: &Area, t: &[f64], x: Range<f64>, panel: &LinePanel) -> 
             [(t0.max(x.start), y.start), (t1.min(x.end), y.end)],
             RGBColor(255, 200, 120).mix(0.35).filled(),
         )))?;
+    }
+    if let Some((at, label)) = &panel.event {
+        // The run ends on the event: its last sample may lie a period before it.
+        if *at >= x.start && *at <= x.end + 0.01 * (x.end - x.start) {
+            let at = at.min(x.end);
+            chart.draw_series(std::iter::once(PathElement::new(
+                [(at, y.start), (at, y.end)],
+                RED.stroke_width(2),
+            )))?;
+            chart.draw_series(std::iter::once(Text::new(
+                label.clone(),
+                (
+                    x.start + (x.end - x.start) * 0.005,
+                    y.start + 0.06 * (y.end - y.start),
+                ),
+                (FONT, SMALL_TICK_PX).into_font().color(&RED),
+            )))?;
+        }
     }
     for (value, label) in &panel.marks {
         chart.draw_series(DashedLineSeries::new(
@@ -1090,6 +1112,9 @@ fn time_window(t: &[f64], stride_s: f64) -> (usize, Range<f64>, Option<String>) 
 /// last [`TIME_VIEW_STRIDES`], each panel's caption saying so.
 pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawResult {
     let (first, x, caption) = time_window(&tr.t_s, tr.stride_s);
+    let event = tr
+        .collapse_s
+        .map(|t| (t, format!("collapse at {t:.2} s: the trainer stopped")));
     let spasms = |j: Option<usize>| -> Vec<(f64, f64)> {
         tr.spasms
             .iter()
@@ -1123,6 +1148,7 @@ pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawRe
         ],
         marks: Vec::new(),
         spasms: spasms(Some(j)),
+        event: event.clone(),
     };
     let mut panels = vec![
         joint_panel(0, "hip"),
@@ -1135,6 +1161,7 @@ pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawRe
             ],
             marks: Vec::new(),
             spasms: spasms(None),
+            event: event.clone(),
         },
     ];
     // The torques on the limb: the device's always, the patient's unless passive (zero
@@ -1161,6 +1188,7 @@ pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawRe
         lines: torques,
         marks: Vec::new(),
         spasms: spasms(None),
+        event: event.clone(),
     });
     panels.push(LinePanel {
         y_desc: "cuff force on the limb (N, forward +)",
@@ -1178,6 +1206,7 @@ pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawRe
             .collect(),
         marks: Vec::new(),
         spasms: spasms(None),
+        event: event.clone(),
     });
     panels.push(LinePanel {
         y_desc: "pressure (bar)",
@@ -1187,12 +1216,14 @@ pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawRe
             (0.0, "vented".into()),
         ],
         spasms: spasms(None),
+        event: event.clone(),
     });
     panels.push(LinePanel {
         y_desc: "force (N)",
         lines: muscle_lines(tr, &tr.force_n, first),
         marks: vec![(tr.rated_force_n, "rated force".into())],
         spasms: spasms(None),
+        event: event.clone(),
     });
     if let Some(g) = &tr.ground {
         let mut lines: Vec<(String, &[f64], RGBColor, bool)> = g
@@ -1221,12 +1252,14 @@ pub fn leg_run(path: &Path, title: &str, setting: &str, tr: &LegTrace) -> DrawRe
             lines,
             marks: vec![(g.unsupported_n, "(1 - bws) m g".into())],
             spasms: spasms(None),
+            event: event.clone(),
         });
         panels.push(LinePanel {
             y_desc: "pelvis height (m)",
             lines: vec![("pelvis".into(), tail(&g.pelvis_m, first), colour(2), false)],
             marks: Vec::new(),
             spasms: spasms(None),
+            event: event.clone(),
         });
     }
     let row_count = panels.len().div_ceil(2);
@@ -1590,6 +1623,7 @@ pub fn pendulum_run(
                 (m.rest_deg, format!("rest {:.1} deg", m.rest_deg)),
             ],
             spasms: Vec::new(),
+            event: None,
         },
         LinePanel {
             y_desc: "patient knee torque (N m, flexion +)",
@@ -1601,6 +1635,7 @@ pub fn pendulum_run(
             )],
             marks: vec![(0.0, String::new())],
             spasms: Vec::new(),
+            event: None,
         },
     ];
     for (area, panel) in rows.iter().zip(&panels) {
@@ -1743,6 +1778,7 @@ pub fn error_grid(
                 .collect(),
             marks: Vec::new(),
             spasms: Vec::new(),
+            event: None,
         };
         draw_line_panel(&area, t, whole_run(t), &panel)?;
     }

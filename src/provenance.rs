@@ -24,6 +24,10 @@ pub struct Provenance {
     pub gains: Option<String>,
     /// Patient: per joint `passive` or its parts (spasticity, spasms, effort, stiffness).
     pub patient: Option<String>,
+    /// The valve model that ran (leg runs): `ideal`, a first-order lag, or a flow-limited
+    /// valve with its supply and tube.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub valve: Option<String>,
     /// The seed of each random part that ran (noise, spasms, a bootstrap), by part.
     pub seeds: Seeds,
 }
@@ -58,6 +62,9 @@ impl Seeds {
             if let Some(s) = p.spasms.as_ref().filter(|s| s.rate_per_min > 0.0) {
                 seeds = seeds.with(&format!("{joint} spasms"), s.seed);
             }
+        }
+        if let Some(a) = &sc.patient.active {
+            seeds = seeds.with("patient's strides", a.seed);
         }
         seeds
     }
@@ -128,6 +135,7 @@ impl Provenance {
         push("controller", &self.controller);
         push("gains", &self.gains);
         push("patient", &self.patient);
+        push("valve", &self.valve);
         if !self.seeds.0.is_empty() {
             let seeds: Vec<String> = self
                 .seeds

@@ -339,7 +339,17 @@ pub fn patient_name(loaded: &LoadedScenario) -> String {
             parts.join(" + ")
         }
     };
-    format!("hip {}, knee {}", joint(&p.hip), joint(&p.knee))
+    let walks = match &p.active {
+        Some(a) => {
+            let strength = match a.strength_by_leg {
+                Some([r, l]) => format!("strength right {r}, left {l}"),
+                None => format!("strength {}", a.strength()),
+            };
+            format!(", walking on their own ({strength})")
+        }
+        None => String::new(),
+    };
+    format!("hip {}, knee {}{walks}", joint(&p.hip), joint(&p.knee))
 }
 
 /// The controller of every muscle: a gain file, or the scenario's gains for the controller

@@ -461,7 +461,39 @@ impl Recorder<SupervisedLeg, PerLeg<LegOutput>> for VizRecorder {
         }
         self.previous_t_s = p.t_s;
     }
+
+    /// A run that ended on a fault says so on the events log; a collapse the trainer
+    /// stopped also as a marker on the trainer's pelvis series ([`COLLAPSE_MARKER_PATH`]).
+    fn end(&mut self, end: &pma_loop::End<pma_control::Fault<pma_leg::LegError>>, t_s: f64) {
+        let pma_loop::End::Fault { error, .. } = end else {
+            return;
+        };
+        let collapse = matches!(
+            error,
+            pma_control::Fault::Backend(pma_leg::LegError::Collapse { .. })
+        );
+        let text = if collapse {
+            error.to_string().replace("daq-error: ", "")
+        } else {
+            format!("fault `{}`: {error}; muscles vented", error.name())
+        };
+        let r = self
+            .viz
+            .event(t_s, self.step, EVENTS_PATH, &text, "ERROR")
+            .and_then(|()| match collapse {
+                true => {
+                    self.viz
+                        .series_marker(t_s, self.step, COLLAPSE_MARKER_PATH, "collapse", 0.0)
+                }
+                false => Ok(()),
+            })
+            .map_err(anyhow::Error::from);
+        self.keep(r);
+    }
 }
+
+/// A collapse the trainer stopped, as a cross at its time.
+pub const COLLAPSE_MARKER_PATH: &str = "trainer/collapse";
 
 /// The rig's end (fault or vent) as a cross beside the position series, at the last
 /// reading.

@@ -287,7 +287,7 @@ fn a_log_that_cannot_identify_anything_is_a_one_line_error() {
     run(&foreign, "not a pma-exo rig log");
     one_line_error(
         &["identify", &s(excite_log()), "--load-kg", "-1", "--out", &o],
-        "load_kg",
+        "--load-kg",
     );
     // A fit below the threshold writes nothing.
     one_line_error(

@@ -544,3 +544,73 @@ fn help_names_the_leg_gains_directory_and_the_leg_grids() {
     assert!(sweep.contains("leg runs"), "{sweep}");
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// Issue 49: `simulate --plot DIR` over an earlier run's figures, on a filesystem that fills
+/// after the first: the first figure was already replaced when the second failed, leaving
+/// one new and one old. Both are written beside their paths first and renamed together,
+/// and the error is one plain line (not plotters' debug form). Needs a small tmpfs: the
+/// test says so and passes where it cannot mount one (not root, no tmpfs).
+#[test]
+fn plots_are_replaced_together_or_not_at_all_on_a_disk_that_fills() {
+    let dir = std::env::temp_dir().join(format!("pma-exo-fullplot-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let d = dir.to_str().expect("utf-8");
+    // 800 kB: room for gait_training's first figure (about 600 kB), not for both (1 MB).
+    let mounted = std::process::Command::new("mount")
+        .args(["-t", "tmpfs", "-o", "size=800k", "tmpfs", d])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !mounted {
+        eprintln!("no tmpfs could be mounted here: the full-disk case is not checked");
+        std::fs::remove_dir_all(&dir).ok();
+        return;
+    }
+    std::fs::write(dir.join("leg.png"), "old").expect("old leg");
+    std::fs::write(dir.join("strides.png"), "old").expect("old strides");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_pma-exo"))
+        .args(["simulate", "gait_training", "--duration", "4", "--plot", d])
+        .output()
+        .expect("run");
+    let leg = std::fs::read_to_string(dir.join("leg.png")).unwrap_or_default();
+    let strides = std::fs::read_to_string(dir.join("strides.png")).unwrap_or_default();
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .expect("dir")
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".part"))
+        .collect();
+    std::process::Command::new("umount").arg(d).status().ok();
+    std::fs::remove_dir_all(&dir).ok();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("No space left on device") && !err.contains("ImageError"),
+        "{err}"
+    );
+    assert_eq!((leg.as_str(), strides.as_str()), ("old", "old"));
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
+/// Issue 49: `--csv f1.txt/` (a path that names a directory) was found at the rename after
+/// a 60 s run, which was lost. Every output path is now prepared before the run: the
+/// command fails at once, in one line naming the path, and writes nothing.
+#[test]
+fn an_output_path_ending_in_a_slash_is_refused_before_the_run() {
+    let dir = temp("slash");
+    for args in [
+        &["simulate", "--duration", "60", "--csv", "f1.txt/"][..],
+        &["single", "--duration", "600", "--csv", "f1.txt/"][..],
+    ] {
+        let out = pma_exo(&dir, args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(
+            err.contains("f1.txt/") && err.contains("cannot end in"),
+            "{err}"
+        );
+    }
+    assert_eq!(std::fs::read_dir(&dir).expect("dir").count(), 0);
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -35,7 +35,11 @@ fn simulate_draws_every_leg_over_the_gait_cycle() {
             .output()
             .expect("run pma-exo");
         let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(out.status.success(), "{scenario}: {stderr}");
+        // Drawn whatever the verdict (exit 4: the patient did not walk within the criteria).
+        assert!(
+            matches!(out.status.code(), Some(0 | 4)),
+            "{scenario}: {stderr}"
+        );
         for file in ["leg.png", "strides.png"] {
             assert!(stderr.contains(&format!("wrote {}", dir.join(file).display())));
         }

@@ -580,3 +580,37 @@ fn sweep_merge_with_missing_shards_writes_nothing() {
     assert!(!merged.exists());
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// Issue 49: a sweep over the two-legged trainer wrote `"hip_rms_deg": null` (the joints
+/// are `right/hip`, `left/hip`), then could not read its own `runs.jsonl` ("line 1 is not
+/// a run record"), so neither a resumed sweep nor `sweep merge` worked. Each record now
+/// has the legs' figures and each leg's, and whether the patient walked; the sweep reads
+/// its lines back, resumes and merges.
+#[test]
+fn a_sweep_over_the_two_legged_trainer_resumes_and_merges() {
+    let dir = temp("trainer");
+    let file = write_sweep(
+        &dir,
+        "name = \"trainer\"\nduration_s = 4.0\n[[leg]]\nscenarios = [\"gait_treadmill\"]\ncontrollers = [\"pid\", \"aprc-ndo\"]\ngains = [\"leg\"]\n",
+    );
+    let out = dir.join("out");
+    let o = out.display().to_string();
+    ok(&["sweep", &file, "--out", &o]);
+    let lines = sorted_lines(&out.join("runs.jsonl"));
+    assert_eq!(lines.len(), 2, "{lines:?}");
+    for l in &lines {
+        let v: serde_json::Value = serde_json::from_str(l).expect("json");
+        assert!(v["hip_rms_deg"].as_f64().is_some(), "{v}");
+        let legs = v["legs"].as_object().expect("legs");
+        assert_eq!(legs.len(), 2, "{v}");
+        assert!(legs["left"]["knee_rms_deg"].as_f64().is_some(), "{v}");
+        assert!(v["walking"].is_boolean(), "{v}");
+    }
+    // Resumed: nothing rerun, the lines read back.
+    ok(&["sweep", &file, "--out", &o]);
+    assert_eq!(sorted_lines(&out.join("runs.jsonl")), lines);
+    let merged = dir.join("merged").display().to_string();
+    ok(&["sweep", "merge", &o, "--out", &merged]);
+    assert!(dir.join("merged/summary.json").is_file());
+    std::fs::remove_dir_all(dir).ok();
+}

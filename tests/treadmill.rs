@@ -22,6 +22,56 @@ fn json_of(args: &[&str]) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).expect("JSON")
 }
 
+/// Runs `pma-exo` with `args`, which must end with a verdict (exit 0: walked; 4: did not),
+/// and parses its stdout as JSON.
+fn judged(args: &[&str]) -> serde_json::Value {
+    let out = pma_exo(args);
+    assert!(
+        matches!(out.status.code(), Some(0 | 4)),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("JSON")
+}
+
+/// Whether a judged run walked.
+fn walked(v: &serde_json::Value) -> bool {
+    v["walking"]["walking"].as_bool().expect("a verdict")
+}
+
+/// The trainer as it was before issue 46's real valves: the instantaneous valve at 6 bar,
+/// no pressure sensors fed back (the pressure-set modes' figures were found there; behind
+/// the MPYE they do not hold the patient: docs/treadmill.md).
+const IDEAL_VALVE: [(&str, &str); 4] = [
+    ("valve = \"mpye-5-1-4\"", "valve = \"ideal\""),
+    ("pressure_max_pa = 5.0e5", "pressure_max_pa = 6.0e5"),
+    ("pressure_feedback = true", "pressure_feedback = false"),
+    ("gain_set = \"treadmill\"", "gain_set = \"treadmill-ideal\""),
+];
+
+/// `base` (a treadmill scenario's text) as the trainer was before issue 46's real valves:
+/// [`IDEAL_VALVE`]'s edits and the APRC-NDO gains tuned there (the scenario's own gains).
+fn ideal_valve(base: &str) -> String {
+    let mut text = IDEAL_VALVE.iter().fold(base.to_owned(), |t, (from, to)| {
+        assert!(t.contains(from), "{from} not in the scenario");
+        t.replacen(from, to, 1)
+    });
+    let start = text.find("[control.gains]").expect("[control.gains]");
+    let end = start
+        + text[start..]
+            .find("estimator_bandwidth_rad_s")
+            .expect("the gains' last line");
+    let end = end + text[end..].find('\n').expect("a line") + 1;
+    let gains: String =
+        include_str!("../crates/pma-leg/models/gains/treadmill-ideal/aprc-ndo.toml")
+            .lines()
+            .filter(|l| !l.starts_with('#') && !l.starts_with("controller"))
+            .map(|l| format!("{l}\n"))
+            .collect();
+    text.replace_range(start..end, &format!("[control.gains]\n{gains}"));
+    text
+}
+
 fn temp_dir(name: &str) -> std::path::PathBuf {
     let d = std::env::temp_dir().join(format!("pma-exo-trainer-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
@@ -400,7 +450,7 @@ fn size_recommends_muscles_the_two_legs_then_run_on() {
             "physics_substeps = 1\nmuscle_geometry = \"m.toml\"",
         )],
     );
-    let run = json_of(&[
+    let run = judged(&[
         "simulate",
         scenario.to_str().unwrap(),
         "--duration",
@@ -423,8 +473,11 @@ fn size_recommends_muscles_the_two_legs_then_run_on() {
 fn the_controllers_walk_both_legs_finite_and_within_their_limits() {
     // 8 s of gait_treadmill per controller, each on its gains tuned on the two legs within
     // the muscles' rating (the 60 s figures are in docs/treadmill.md).
+    // Behind the MPYE-5-1/4 valves (issue 46): every controller holds both legs up for
+    // these 8 s (no collapse), within the joints' limits and the muscles' rating; whether
+    // each tracks within the verdict's 2 deg over 60 s is docs/treadmill.md's table.
     for c in ["aprc-ndo", "psmc", "ndo-smc", "sta", "pid"] {
-        let v = json_of(&[
+        let v = judged(&[
             "simulate",
             "gait_treadmill",
             "--controller",
@@ -436,13 +489,30 @@ fn the_controllers_walk_both_legs_finite_and_within_their_limits() {
         assert!(v["finite"].as_bool().unwrap(), "{c}");
         let (rms, over) = worst_rms_and_force(&v);
         let beyond = worst(&v["safety"]["joints"], "max_beyond_deg");
-        eprintln!("{c}: worst RMS {rms:.2} deg, peak force / rating {over:.2}, beyond the URDF limits {beyond:.2} deg");
+        eprintln!("{c}: worst RMS {rms:.2} deg, peak force / rating {over:.2}, beyond the URDF limits {beyond:.2} deg, walked {}", walked(&v));
+        assert!(v["walking"]["collapse"].is_null(), "{c}: {}", v["walking"]);
         assert!(beyond < 1.0, "{c}: {beyond} deg beyond a limit");
         assert!(over <= 1.0, "{c}: {over} of the rating");
-        // Every controller tracks within 1.5 deg over these 8 s (and over 60 s:
-        // docs/treadmill.md).
+    }
+    // Behind the instantaneous valve, on the gains tuned there, every controller tracked
+    // within 1.5 deg over these 8 s (the figures before issue 46).
+    let dir = temp_dir("controllers-ideal");
+    let ideal = edited(&ideal_valve(SCENARIO), &dir, "ideal.toml", &[]);
+    for c in ["aprc-ndo", "psmc", "ndo-smc", "sta", "pid"] {
+        let v = json_of(&[
+            "simulate",
+            ideal.to_str().unwrap(),
+            "--controller",
+            c,
+            "--duration",
+            "8",
+            "--json",
+        ]);
+        let (rms, over) = worst_rms_and_force(&v);
+        assert!(over <= 1.0, "{c}: {over} of the rating");
         assert!(rms < 1.5, "{c}: {rms} deg RMS");
     }
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// The largest `key` over the entries of the JSON object `o` (joints or muscles).
@@ -450,7 +520,9 @@ fn worst(o: &serde_json::Value, key: &str) -> f64 {
     o.as_object()
         .unwrap()
         .values()
-        .map(|m| m[key].as_f64().unwrap())
+        // `null` (a figure the run could not give: it collapsed within its first stride)
+        // counts as NaN, which `max` skips.
+        .map(|m| m[key].as_f64().unwrap_or(f64::NAN))
         .fold(0.0, f64::max)
 }
 
@@ -468,10 +540,13 @@ fn without_support_aprc_ndo_pid_psmc_and_sta_walk_from_an_in_step_start() {
     // gait_treadmill_unsupported: 0 % support from the first instant, started in step.
     // APRC-NDO, PID, PSMC and STA walk it (60 s in docs/treadmill.md); NDO-SMC, tuned at
     // 30 %, lets a knee buckle at about 10 s (documented, not pinned).
+    // Behind the instantaneous valve, on the gains tuned there (before issue 46).
+    let dir = temp_dir("unsupported-ideal");
+    let ideal = edited(&ideal_valve(UNSUPPORTED), &dir, "ideal.toml", &[]);
     for c in ["aprc-ndo", "pid", "psmc", "sta"] {
         let v = json_of(&[
             "simulate",
-            "gait_treadmill_unsupported",
+            ideal.to_str().unwrap(),
             "--controller",
             c,
             "--duration",
@@ -484,12 +559,31 @@ fn without_support_aprc_ndo_pid_psmc_and_sta_walk_from_an_in_step_start() {
         assert!(rms < 1.5, "{c}: {rms} deg RMS");
         assert!(over <= 1.0, "{c}: {over} of the rating");
     }
+    // Behind the MPYE-5-1/4 valves no controller walks the patient without support (a
+    // finding of issue 46, docs/treadmill.md): each run says so, exit 4, no NaN.
+    for c in ["aprc-ndo", "pid"] {
+        let out = pma_exo(&[
+            "simulate",
+            "gait_treadmill_unsupported",
+            "--controller",
+            c,
+            "--duration",
+            "8",
+        ]);
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert_eq!(out.status.code(), Some(4), "{c}: {text}");
+        assert!(
+            text.contains("walking: NO") && !text.contains("NaN"),
+            "{c}: {text}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// The worst joint's RMS error (deg) and muscle's peak force over its rating of `path` in
 /// impedance mode for `duration_s`, the run asserted finite.
-fn impedance_run(path: &std::path::Path, duration_s: &str) -> (f64, f64) {
-    let v = json_of(&[
+fn impedance_run(path: &std::path::Path, duration_s: &str) -> (f64, f64, bool) {
+    let v = judged(&[
         "simulate",
         path.to_str().unwrap(),
         "--mode",
@@ -499,7 +593,8 @@ fn impedance_run(path: &std::path::Path, duration_s: &str) -> (f64, f64) {
         "--json",
     ]);
     assert!(v["finite"].as_bool().unwrap(), "{}", path.display());
-    worst_rms_and_force(&v)
+    let (rms, force) = worst_rms_and_force(&v);
+    (rms, force, walked(&v))
 }
 
 #[test]
@@ -509,19 +604,22 @@ fn impedance_mode_walks_the_passive_patient_from_85_percent_support_on_the_dmsp_
     // 80 % the first swing lags and the knees sink (40 deg RMS in 8 s against 4.9).
     let dir = temp_dir("impedance-support");
     let rms_at = |support: &str| {
-        let path = scenario_with(
+        let support_edit = format!("bws_fraction = {support}");
+        let path = edited(
+            &ideal_valve(SCENARIO),
             &dir,
             &format!("bws-{support}.toml"),
-            &[("bws_fraction = 0.3", &format!("bws_fraction = {support}"))],
+            &[("bws_fraction = 0.3", support_edit.as_str())],
         );
         impedance_run(&path, "8")
     };
-    let (walks, walks_force) = rms_at("0.85");
-    let (sinks, _) = rms_at("0.8");
+    let (walks, walks_force, _) = rms_at("0.85");
+    let (sinks, _, sank_walking) = rms_at("0.8");
     eprintln!("worst RMS at 85 %: {walks:.2} deg; at 80 %: {sinks:.2} deg");
     assert!(walks < 8.0, "85 %: {walks} deg RMS");
     assert!(walks_force <= 1.0, "85 %: {walks_force} of the rating");
-    assert!(sinks > 20.0, "80 %: {sinks} deg RMS");
+    // At 80 % the knees sink: the trainer's safety stops the run and says so.
+    assert!(!sank_walking && sinks > 5.0, "80 %: {sinks} deg RMS");
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -539,14 +637,20 @@ fn impedance_mode_learning_the_stance_walks_the_passive_patient_down_to_30_perce
         "body_mass_kg = 75.0",
         "body_mass_kg = 75.0\n\n[control.impedance.learning]\ngain = 1.0\nforgetting = 0.95",
     );
-    let run =
-        |name: &str, edits: &[(&str, &str)]| impedance_run(&scenario_with(&dir, name, edits), "32");
-    let (learned, force) = run("learning.toml", &[lowered, learning]);
-    let (unlearned, _) = run("without.toml", &[lowered]);
+    let ideal = ideal_valve(SCENARIO);
+    let run = |name: &str, edits: &[(&str, &str)]| {
+        impedance_run(&edited(&ideal, &dir, name, edits), "32")
+    };
+    let (learned, force, _) = run("learning.toml", &[lowered, learning]);
+    let (unlearned, _, unlearned_walked) = run("without.toml", &[lowered]);
     eprintln!("worst RMS with learning {learned:.2} deg, without {unlearned:.2} deg");
     assert!(learned < 3.0, "with learning: {learned} deg RMS");
     assert!(force <= 1.0, "with learning: {force} of the rating");
-    assert!(unlearned > 20.0, "without learning: {unlearned} deg RMS");
+    // Without it the legs are lost at the start: the trainer's safety stops the run.
+    assert!(
+        !unlearned_walked && unlearned > 5.0,
+        "without learning: {unlearned} deg RMS"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -572,15 +676,18 @@ fn peak_fore_aft_n(csv_path: &std::path::Path, from_s: f64, to_s: f64) -> f64 {
 
 #[test]
 fn regression_a_standing_start_up_dragged_the_feet_and_buckled_unsupported_knees() {
-    // The bug this pins: started standing, the legs straight while the belt comes up to
-    // speed, the belt drags both standing feet (up to 582 N fore-aft each); without support
-    // the stance knee's extensor reached 6 bar at 0.7 s and both legs sank into a crouch
-    // under every controller. Started in step, the feet move with the belt: after the
+    // The bug this pins (behind the instantaneous valve it was found with): started
+    // standing, the legs straight while the belt comes up to speed, the belt drags both
+    // standing feet (up to 582 N fore-aft each); without support the stance knee's extensor
+    // reached 6 bar at 0.7 s and both legs sank into a crouch under every controller. Started in step, the feet move with the belt: after the
     // first 0.1 s (the rest pose settling fore-aft, 298 N at 6 ms) the start-up's largest
     // fore-aft reaction was 103 N, and the knees walk.
     let dir = temp_dir("unsupported-start");
+    // Behind the instantaneous valve, on the gains tuned there (before issue 46).
+    let unsupported = ideal_valve(UNSUPPORTED);
+    let in_step = edited(&unsupported, &dir, "in-step.toml", &[]);
     let standing = edited(
-        UNSUPPORTED,
+        &unsupported,
         &dir,
         "standing-start.toml",
         &[("start_up = \"in_step\"", "start_up = \"standing\"")],
@@ -588,11 +695,11 @@ fn regression_a_standing_start_up_dragged_the_feet_and_buckled_unsupported_knees
     let ramp_s = 1.7535;
     let mut seen = Vec::new();
     for (name, path) in [
-        ("in step", "gait_treadmill_unsupported"),
+        ("in step", in_step.to_str().unwrap()),
         ("standing", standing.to_str().unwrap()),
     ] {
         let csv_path = dir.join(format!("{}.csv", name.replace(' ', "-")));
-        let v = json_of(&[
+        let v = judged(&[
             "simulate",
             path,
             "--controller",
@@ -608,11 +715,20 @@ fn regression_a_standing_start_up_dragged_the_feet_and_buckled_unsupported_knees
         eprintln!(
             "pid, started {name}: worst RMS {rms:.2} deg, start-up fore-aft peak {drag:.0} N"
         );
-        seen.push((rms, drag));
+        seen.push((rms, drag, walked(&v)));
     }
-    let [(walk_rms, walk_drag), (buckle_rms, buckle_drag)] = [seen[0], seen[1]];
-    assert!(walk_rms < 1.5 && walk_drag < 200.0, "{seen:?}");
-    assert!(buckle_rms > 10.0 && buckle_drag > 400.0, "{seen:?}");
+    let [(walk_rms, walk_drag, walks), (buckle_rms, buckle_drag, buckles_walking)] =
+        [seen[0], seen[1]];
+    assert!(walks && walk_rms < 1.5 && walk_drag < 200.0, "{seen:?}");
+    // The crouch: now stopped by the trainer's safety as it happens.
+    // The standing start drags the feet at least twice as hard as the in-step one before
+    // the knees give (582 N over the whole start-up before issue 46; now the run stops at
+    // the collapse, 258 N against 88 N in step).
+    let _ = buckle_rms;
+    assert!(
+        !buckles_walking && buckle_drag > 2.0 * walk_drag,
+        "{seen:?}"
+    );
 }
 
 #[test]
@@ -632,8 +748,8 @@ fn a_foot_sunk_through_the_belt_ends_the_run() {
 }
 
 /// `simulate PATH --mode admittance --duration S --json`'s worst joint RMS (deg).
-fn admittance_rms(path: &std::path::Path, duration_s: &str) -> f64 {
-    let v = json_of(&[
+fn admittance_rms(path: &std::path::Path, duration_s: &str) -> (f64, bool) {
+    let v = judged(&[
         "simulate",
         path.to_str().unwrap(),
         "--mode",
@@ -643,7 +759,7 @@ fn admittance_rms(path: &std::path::Path, duration_s: &str) -> f64 {
         "--json",
     ]);
     assert!(v["finite"].as_bool().unwrap(), "{}", path.display());
-    worst_rms_and_force(&v).0
+    (worst_rms_and_force(&v).0, walked(&v))
 }
 
 #[test]
@@ -656,8 +772,9 @@ fn admittance_with_phase_sync_walks_a_patient_on_their_own_timing_which_a_fixed_
     let dir = temp_dir("phase-sync");
     let with_sync = |gain: &str| {
         let path = dir.join(format!("sync-{gain}.toml"));
+        let base = ideal_valve(SCENARIO);
         let text = format!(
-            "{SCENARIO}\n[control.impedance]\npatient_moment_share = 1.0\nphase_sync_per_s = {gain}\n\
+            "{base}\n[control.impedance]\npatient_moment_share = 1.0\nphase_sync_per_s = {gain}\n\
              [control.impedance.hip]\nstiffness_nm_per_rad = 300.0\n\
              [control.impedance.knee]\nstiffness_nm_per_rad = 300.0\n\
              [patient.active]\nseed = 1\nown_torque = \"walking\"\n"
@@ -665,10 +782,11 @@ fn admittance_with_phase_sync_walks_a_patient_on_their_own_timing_which_a_fixed_
         std::fs::write(&path, text).unwrap();
         admittance_rms(&path, "45")
     };
-    let (fixed, synced) = (with_sync("0.0"), with_sync("2.0"));
+    let ((fixed, fixed_walked), (synced, _)) = (with_sync("0.0"), with_sync("2.0"));
     eprintln!("worst RMS over 45 s: fixed clock {fixed:.2} deg, synchronised {synced:.2} deg");
     assert!(synced < 2.0, "synchronised: {synced} deg RMS");
-    assert!(fixed > 10.0, "fixed clock: {fixed} deg RMS");
+    // On the fixed clock the legs are lost: the trainer's safety stops the run.
+    assert!(!fixed_walked, "fixed clock: {fixed} deg RMS");
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -702,4 +820,129 @@ fn leaving_moments_or_timing_to_the_patient_is_refused_where_no_mode_yields() {
     .unwrap();
     assert_refused(&path, "control.impedance.phase_sync_integral_per_s2");
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The APRC-NDO gains the two-leg trainer shipped with before issue 46, tuned behind an
+/// instantaneous valve.
+const IDEAL_VALVE_APRC_NDO: &str = "controller = \"aprc-ndo\"\nc1_per_s = 158.50604313312132\nc2_per_s2 = 25074.401950314685\nkp_per_s2 = 45663.18740199615\nki_per_s3 = 1.4235616774752866\nkd_per_s = 118.55387732701718\nkappa_per_s = 86.42181482869607\ngamma = 91.74323744394668\nproxy_mass = 4.1135834969172755\nestimator_bandwidth_rad_s = 574.8866122356712\n";
+
+/// Issue 46: the trainer with the gains it shipped with for an instantaneous valve, behind
+/// a 30 ms first-order lag: the patient's knees buckle. The trainer's safety stops the run while it happens: one line on stderr naming
+/// the collapse and when, exit 4, `walking: false` with its reasons in the JSON, the CSV
+/// closed by a `# ended at` line, and no `NaN` in the text summary.
+#[test]
+fn a_collapse_is_stopped_while_it_happens_and_said_in_one_line() {
+    let dir = temp_dir("collapse");
+    let path = scenario_with(
+        &dir,
+        "lag30.toml",
+        &[
+            ("valve = \"mpye-5-1-4\"", "valve = \"ideal\""),
+            (
+                "pressure_max_pa = 5.0e5",
+                "pressure_max_pa = 5.0e5\ntime_constant_s = 0.030",
+            ),
+            ("pressure_feedback = true", "pressure_feedback = false"),
+        ],
+    );
+    let p = path.to_str().unwrap();
+    // The APRC-NDO gains the trainer shipped with for its instantaneous valve (756c24e).
+    let gains = dir.join("ideal-valve-gains.toml");
+    std::fs::write(&gains, IDEAL_VALVE_APRC_NDO).unwrap();
+    let g = gains.to_str().unwrap();
+    let csv = dir.join("run.csv");
+    let out = pma_exo(&[
+        "simulate",
+        p,
+        "--controller",
+        "aprc-ndo",
+        "--gains",
+        g,
+        "--duration",
+        "20",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(4), "{err}\n{text}");
+    let last = err.trim_end().lines().last().unwrap_or_default();
+    assert!(
+        last.starts_with("the patient did not walk: collapse at "),
+        "{err}"
+    );
+    assert!(!text.contains("NaN"), "{text}");
+    assert!(text.contains("walking: NO"), "{text}");
+    let csv_text = std::fs::read_to_string(&csv).expect("csv");
+    assert!(csv_text
+        .trim_end()
+        .lines()
+        .last()
+        .unwrap_or_default()
+        .starts_with("# ended at "));
+    let json = pma_exo(&[
+        "simulate",
+        p,
+        "--controller",
+        "aprc-ndo",
+        "--gains",
+        g,
+        "--duration",
+        "20",
+        "--json",
+    ]);
+    assert_eq!(json.status.code(), Some(4));
+    let v: serde_json::Value = serde_json::from_slice(&json.stdout).expect("json");
+    let w = &v["walking"];
+    assert_eq!(w["walking"], false, "{w}");
+    let t = w["collapse"]["t_s"].as_f64().expect("collapse time");
+    assert!(t < 20.0, "{w}");
+    assert!(
+        v["duration_s"].as_f64().expect("duration") < 20.0,
+        "the run stopped at the collapse"
+    );
+    assert!(!w["reasons"].as_array().expect("reasons").is_empty());
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// Issue 49: a fixed-length list with extra entries was accepted and the extras dropped
+/// (`range_deg = [-15, 15, 999]`, an 8-entry `cos_deg`, `bws_release_s = [0, 1, 5]`,
+/// `patient_moment_share_by_leg = [1.0, 0.4, 7]`, `bias_nm = [1, 2, 3]`); too short was
+/// refused. Both are refused now, in one line naming the list's length.
+#[test]
+fn a_fixed_length_list_of_another_length_is_refused() {
+    let dir = temp_dir("lengths");
+    let cos = "cos_deg = [0.97954, 0.19363, -0.79599, -0.09332, -0.17796, -0.13624, -0.08498]";
+    let cases: &[(&str, &str, &str)] = &[
+        (
+            "body_mass_kg = 75.0",
+            "body_mass_kg = 75.0\n\n[treadmill.ankle]\nrange_deg = [-15, 15, 999]",
+            "exactly 2",
+        ),
+        (
+            cos,
+            &format!("{}, 0.1]", cos.trim_end_matches(']')),
+            "exactly 7",
+        ),
+        (
+            "bws_fraction = 0.3",
+            "bws_fraction = 0.3\nbws_start_fraction = 0.6\nbws_release_s = [0, 1, 5]",
+            "exactly 2",
+        ),
+        (
+            "[plant.pneumatics]",
+            "[plant.cuff_sensor]\nbias_nm = [1, 2, 3]\n\n[plant.pneumatics]",
+            "exactly 2",
+        ),
+        (
+            "[plant.pneumatics]",
+            "[plant.cuff_sensor]\nbias_nm = [1]\n\n[plant.pneumatics]",
+            "exactly 2",
+        ),
+    ];
+    for (i, (from, to, needle)) in cases.iter().enumerate() {
+        let path = scenario_with(&dir, &format!("l{i}.toml"), &[(from, to)]);
+        assert_refused(&path, needle);
+    }
+    std::fs::remove_dir_all(dir).ok();
 }

@@ -78,12 +78,7 @@ pub fn run(a: Args) -> Result<i32> {
         .iter()
         .map(|c| c.configs.len() as f64 * a.duration / c.loaded.scenario.period_s)
         .sum::<f64>();
-    crate::output::check_wall_time(
-        "this comparison",
-        periods,
-        super::simulate::LEG_PERIOD_S,
-        a.yes,
-    )?;
+    super::check_leg_comparison(periods, a.yes)?;
     let mut inputs = Vec::new();
     for (arg, loaded) in a.scenarios.iter().zip(&scenarios) {
         inputs.extend(super::scenario_inputs(arg, loaded, None));
@@ -96,6 +91,7 @@ pub fn run(a: Args) -> Result<i32> {
             .map(|p| ("--out", p.as_path()))
             .collect::<Vec<_>>(),
     )?;
+    let created = !a.out.is_dir();
     crate::output::create_dir(&a.out)?;
     let json_file = OutFile::create(&a.out.join("compare-leg.json"))?;
     let md_file = OutFile::create(&a.out.join("compare-leg.md"))?;
@@ -103,10 +99,21 @@ pub fn run(a: Args) -> Result<i32> {
     let bar = crate::output::follow_progress(&DONE, runs as u64, "runs");
     let loaded: Vec<pma_leg::LoadedScenario> = cases.iter().map(|c| c.loaded.clone()).collect();
     let configs: Vec<Vec<ControllerConfig>> = cases.iter().map(|c| c.configs.clone()).collect();
+    let stop = crate::output::stop_flag()?;
     let mut rows = super::with_threads(a.threads, || {
-        compare(&loaded, &configs, a.duration, Some(&DONE))
+        compare(&loaded, &configs, a.duration, Some(&DONE), &stop)
     })??;
     drop(bar);
+    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        // The staged files are dropped unwritten: nothing of a partial comparison is kept,
+        // and a directory this command made is removed with them.
+        drop((json_file, md_file));
+        if created {
+            std::fs::remove_dir(&a.out).ok();
+        }
+        eprintln!("interrupted: nothing written (a comparison of runs cut short compares nothing)");
+        return Ok(crate::output::INTERRUPTED);
+    }
     // Each scenario as the command line names it (two files may carry one inner name),
     // each row by its controller or its mode. The rows come case by case, a row per
     // configuration.
@@ -329,7 +336,7 @@ pub fn report(rows: &[CompareRow], duration_s: f64) -> String {
         if of_it.iter().any(|r| r.treadmill.is_some()) {
             let _ = write!(
                 md,
-                "\nOn the treadmill:\n\n| controller | hip RMS stance / swing (deg) | knee RMS stance / swing (deg) | GRF loading peak (BW) | loading rate (BW/s) | stance (reference) | slip per stride (mm) | scuffs per stride | heel-strike deviation hip / knee, max (deg) | recovery hip / knee, max (s) | not recovered hip / knee |\n|---|---|---|---|---|---|---|---|---|---|---|\n"
+                "\nOn the treadmill:\n\n| controller | hip RMS stance / swing (deg) | knee RMS stance / swing (deg) | GRF loading peak (BW) | loading rate (BW/s) | stance (reference) | slip per stride (mm) | scuffs per stride | heel-strike deviation hip / knee, max (deg) | recovery hip / knee, max (s) | not recovered hip / knee | walked |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n"
             );
             for r in &of_it {
                 if let Some(t) = &r.treadmill {
@@ -371,9 +378,10 @@ fn patient_row(r: &CompareRow) -> String {
 
 /// A run's row of gait phases on the treadmill.
 fn treadmill_row(controller: &str, t: &pma_studies::compare::TreadmillRow) -> String {
-    let pair = |v: [f64; 2], digits: usize| format!("{:.digits$} / {:.digits$}", v[0], v[1]);
+    let f = pma_leg::verdict::figure;
+    let pair = |v: [f64; 2], digits: usize| format!("{} / {}", f(v[0], digits), f(v[1], digits));
     format!(
-        "| {controller} | {} | {} | {:.2} | {:.1} | {:.3} ({:.3}) | {:.1} | {:.2} | {} | {} | {} / {} |",
+        "| {controller} | {} | {} | {:.2} | {:.1} | {:.3} ({:.3}) | {:.1} | {:.2} | {} | {} | {} / {} | {} |",
         pair(t.hip_stance_swing_rms_deg, 3),
         pair(t.knee_stance_swing_rms_deg, 3),
         t.peak_grf_bw,
@@ -385,6 +393,11 @@ fn treadmill_row(controller: &str, t: &pma_studies::compare::TreadmillRow) -> St
         pair(t.heel_strike_max_deviation_deg, 2),
         pair(t.heel_strike_max_recovery_s, 3),
         t.heel_strikes_unrecovered[0],
-        t.heel_strikes_unrecovered[1]
+        t.heel_strikes_unrecovered[1],
+        match (t.walking, t.collapse_s) {
+            (true, _) => "yes".to_owned(),
+            (false, Some(at)) => format!("no: collapse at {at:.2} s"),
+            (false, None) => "no".to_owned(),
+        }
     )
 }

@@ -42,6 +42,9 @@ pub struct Args {
     /// Print JSON instead of tables.
     #[arg(long)]
     json: bool,
+    /// Run even if it would take over an hour.
+    #[arg(long)]
+    yes: bool,
 }
 
 /// How a run drives the leg.
@@ -176,12 +179,18 @@ fn driven(loaded: &LoadedScenario, drive: Drive) -> LoadedScenario {
     loaded
 }
 
-fn run_one(loaded: &LoadedScenario, drive: Drive, duration_s: f64) -> Result<LegReport> {
+fn run_one(
+    loaded: &LoadedScenario,
+    drive: Drive,
+    duration_s: f64,
+    stop: &std::sync::atomic::AtomicBool,
+) -> Result<LegReport> {
     let mut sim = LegSim::new(&driven(loaded, drive))?;
     if let Drive::Unhooked = drive {
         sim.release_muscles()?;
     }
-    Ok(sim.run(duration_s, &mut ())?)
+    let settings = sim.settings(duration_s)?.with_stop_flag(stop);
+    Ok(sim.run_with(&settings, &mut ())?)
 }
 
 /// Runs `compare-modes`.
@@ -234,11 +243,21 @@ pub fn run(a: Args) -> Result<i32> {
     let jobs: Vec<(usize, Drive)> = (0..scenarios.len())
         .flat_map(|i| drives.iter().map(move |d| (i, *d)))
         .collect();
+    let periods: f64 = jobs
+        .iter()
+        .map(|(i, _)| a.duration / scenarios[*i].scenario.period_s)
+        .sum();
+    super::check_leg_comparison(periods, a.yes)?;
+    let stop = crate::output::stop_flag()?;
     let reports = super::with_threads(a.threads, || {
         jobs.par_iter()
-            .map(|(i, d)| run_one(&scenarios[*i], *d, a.duration))
+            .map(|(i, d)| run_one(&scenarios[*i], *d, a.duration, &stop))
             .collect::<Result<Vec<_>>>()
     })??;
+    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        eprintln!("interrupted: no row is kept (a comparison of runs cut short compares nothing)");
+        return Ok(crate::output::INTERRUPTED);
+    }
     let rows: Vec<Row> = jobs
         .iter()
         .zip(&reports)

@@ -50,6 +50,11 @@ pub fn check_min_fit(percent: f64) -> Result<()> {
 
 /// Runs `identify`.
 pub fn run(a: Args) -> Result<i32> {
+    if let Some(m) = a.load_kg {
+        if !(m.is_finite() && (0.05..=pma_model::MAX_LOAD_KG).contains(&m)) {
+            anyhow::bail!("--load-kg = {m} is invalid: must be 0.05..=600 kg");
+        }
+    }
     let inputs: Vec<(&str, &std::path::Path)> =
         a.logs.iter().map(|l| ("log", l.as_path())).collect();
     output::refuse_input_as_output(&inputs, &[("--out", &a.out)])?;

@@ -95,6 +95,16 @@ pub fn run(a: Args) -> Result<i32> {
     let loaded = Scenario::load(&a.scenario)?;
     let sc = &loaded.scenario;
     let sim = LegSim::new(&loaded)?;
+    // The pose within the joints' limits, checked (in degrees) before anything runs.
+    for (j, name) in JOINT_NAMES.iter().enumerate() {
+        let [lo, hi] = sim.exo().limits_rad(0)[j].map(f64::to_degrees);
+        if !(lo..=hi).contains(&pose_deg[j]) {
+            anyhow::bail!(
+                "--pose-deg: the {name} at {} deg is outside its limits, {lo:.1}..={hi:.1} deg (the URDF's)",
+                pose_deg[j]
+            );
+        }
+    }
     let inertia = *sim.exo().inertia();
     let gait = sc.gait.reference()?;
     let pose_rad = pose_deg.map(f64::to_radians);

@@ -20,6 +20,12 @@ pub mod sweep;
 pub mod tune;
 pub mod valve;
 
+/// Refuses leg runs of `periods` control periods in all estimated to take over an hour,
+/// unless `yes` (the comparisons' estimate-and-refuse, as `simulate`'s).
+pub fn check_leg_comparison(periods: f64, yes: bool) -> Result<()> {
+    crate::output::check_wall_time("this comparison", periods, simulate::LEG_PERIOD_S, yes)
+}
+
 /// Where a control loop's run goes besides its summary: the time series to CSV, the
 /// figures as JSON, the state to Rerun (`simulate`, `pendulum`, `single`).
 #[derive(clap::Args, Clone, Default)]
@@ -189,6 +195,14 @@ where
         self.row[0] = p.t_s;
         sample.values(&mut self.row[1..]);
         self.out.row(&self.row);
+    }
+
+    /// A run that ended on a fault (a collapse the trainer stopped) closes its rows with a
+    /// `# ended at T s: WHY` line.
+    fn end(&mut self, end: &pma_loop::End<B::Error>, t_s: f64) {
+        if let pma_loop::End::Fault { error, .. } = end {
+            self.out.comment(&format!("ended at {t_s} s: {error}"));
+        }
     }
 }
 

@@ -36,7 +36,10 @@ pub struct Args {
     /// reference by co-contraction, `[control.impedance]`), `path` (a tunnel around the
     /// reference's path, `[control.path]`) or `transparent`; the last three run no
     /// --controller.
-    #[arg(long = "mode", value_name = "position|impedance|path|transparent")]
+    #[arg(
+        long = "mode",
+        value_name = "position|impedance|admittance|path|transparent"
+    )]
     control_mode: Option<Mode>,
     /// Run even if it would take over an hour.
     #[arg(long)]
@@ -90,6 +93,7 @@ pub fn run(a: Args) -> Result<i32> {
         controller: Some(controller_label(&loaded, &config)),
         gains: Some(gain_source(a.controller, a.gains.as_deref())),
         patient: Some(patient_name(&loaded)),
+        valve: Some(sc.plant.valve_label()?),
         seeds: Seeds::of_scenario(sc),
         ..Provenance::of_this_run()
     };
@@ -164,13 +168,22 @@ pub fn run(a: Args) -> Result<i32> {
     let stop = output::stop_flag()?;
     let settings = settings.with_stop_flag(&stop);
     let mut recorders = (csv, viz, progress, trace, cycles);
-    let report = sim.run_with(&settings, &mut recorders);
+    let outcome = sim.run_until_fault(&settings, &mut recorders);
     bar.finish_and_clear();
-    let report = report?;
+    let (report, fault) = outcome?;
+    // A supervisor's fault fails the run; a collapse the trainer stopped is its result.
+    if let Some(f) = fault.as_ref().filter(|f| f.name != "collapse") {
+        return Err(pma_leg::LegError::Supervisor(f.message.clone()).into());
+    }
     let (csv, viz, _, trace, cycles) = recorders;
     if let (Some((path, strides_path)), Some(mut trace), Some(cycles)) =
         (&plot_files, trace, cycles)
     {
+        trace.0.collapse_s = report
+            .walking
+            .as_ref()
+            .and_then(|w| w.collapse.as_ref())
+            .map(|c| c.t_s);
         trace.0.muscles = names.clone();
         trace.0.legs = sim.leg_count();
         trace.0.stride_s = sc.gait.stride_period_s;
@@ -212,19 +225,22 @@ pub fn run(a: Args) -> Result<i32> {
         } else {
             title.clone()
         };
-        output::write_via_temp(path, |tmp| {
+        let leg = output::stage(path, |tmp| {
             crate::plot::leg_run(tmp, &leg_title, &provenance.command, &trace.0)
         })?;
-        output::wrote(path);
         let figure = crate::plot::StrideFigure {
             cycles: &cycles,
             norm_grf: norm,
             treadmill: sc.treadmill.is_some(),
         };
         let title = format!("{title}, over the gait cycle");
-        output::write_via_temp(strides_path, |tmp| {
+        let strides = output::stage(strides_path, |tmp| {
             crate::plot::strides_run(tmp, &title, &provenance.command, &figure)
         })?;
+        // Both figures, or neither: an earlier run's pair is never left half replaced.
+        leg.commit()?;
+        output::wrote(path);
+        strides.commit()?;
         output::wrote(strides_path);
     }
     let non_finite =
@@ -244,8 +260,18 @@ pub fn run(a: Args) -> Result<i32> {
         );
         return Ok(INTERRUPTED);
     }
-    Ok(0)
+    match &report.walking {
+        Some(v) if !v.walking => {
+            eprintln!("{}", v.line());
+            Ok(DID_NOT_WALK)
+        }
+        _ => Ok(0),
+    }
 }
+
+/// Exit status of a treadmill run that completed but in which the patient did not walk
+/// (a collapse the trainer stopped, or a criterion of `pma_leg::verdict` missed).
+pub const DID_NOT_WALK: i32 = 4;
 
 /// The adult data's vertical ground reaction at the scenario's speed, scaled by the
 /// body-weight support, for a treadmill on the adult reference (Fukuchi et al. 2018).
@@ -328,9 +354,9 @@ fn print_summary(r: &LegReport) -> Result<()> {
     );
     for (name, j) in &r.joints {
         say!(
-            "  {name:5} tracking error after the first stride: RMS {:.3} deg, max {:.3} deg",
-            j.rms_deg,
-            j.max_deg
+            "  {name:5} tracking error after the first stride: RMS {} deg, max {} deg",
+            fig(j.rms_deg, 3),
+            fig(j.max_deg, 3)
         );
     }
     for (name, m) in &r.muscles {
@@ -342,74 +368,102 @@ fn print_summary(r: &LegReport) -> Result<()> {
         );
     }
     say!(
-        "  co-contraction (mean pressure): {:.3} bar in the second stride, {:.3} bar in the last; command variation {:.1} bar/s",
-        r.cocontraction_pa.start / 1e5,
-        r.cocontraction_pa.end / 1e5,
-        r.command_variation_bar_per_s
+        "  co-contraction (mean pressure): {} bar in the second stride, {} bar in the last; command variation {} bar/s",
+        fig(r.cocontraction_pa.start / 1e5, 3),
+        fig(r.cocontraction_pa.end / 1e5, 3),
+        fig(r.command_variation_bar_per_s, 1)
     );
     print_patient(r)?;
     if let Some(t) = &r.treadmill {
         print_treadmill(t)?;
     }
-    print_safety(&r.safety)
+    print_safety(&r.safety)?;
+    if let Some(v) = &r.walking {
+        print_verdict(v)?;
+    }
+    Ok(())
+}
+
+/// `value` with `decimals`, `-` where the run could not give it.
+fn fig(value: f64, decimals: usize) -> String {
+    pma_leg::verdict::figure(value, decimals)
+}
+
+/// The treadmill run's verdict: walked, or each criterion it missed.
+fn print_verdict(v: &pma_leg::WalkingVerdict) -> Result<()> {
+    if v.walking {
+        say!(
+            "  walking: yes (every foot at least {} strides, stance RMS within {} deg, belt load within {:.0} %, every muscle within {}x its rating)",
+            v.strides_expected,
+            v.criteria.stance_rms_max_deg,
+            100.0 * v.criteria.belt_load_tolerance,
+            v.criteria.force_over_rating_max
+        );
+    } else {
+        say!("  walking: NO");
+        for r in &v.reasons {
+            say!("    - {r}");
+        }
+    }
+    Ok(())
 }
 
 /// The treadmill's figures: the belt's load, the harness, then each foot's phases, ground
 /// reaction, slip and heel strikes.
 fn print_treadmill(t: &pma_leg::TreadmillReport) -> Result<()> {
     say!(
-        "  treadmill: {} leg(s), belt {:.3} m/s, body-weight support {:.0} % (body weight BW = {:.0} N; the system weighs {:.2} BW); the belt carries {:.3} BW on average (a virtual other leg {:.3} BW) against {:.3} BW expected",
+        "  treadmill: {} leg(s), belt {} m/s, body-weight support {:.0} % (body weight BW = {:.0} N; the system weighs {:.2} BW); the belt carries {} BW on average (a virtual other leg {} BW) against {:.3} BW expected",
         t.legs,
-        t.belt_speed_m_s,
+        fig(t.belt_speed_m_s, 3),
         100.0 * t.bws_fraction,
         t.body_weight_n,
         t.system_weight_bw,
-        t.mean_belt_load_bw,
-        t.mean_other_leg_bw,
+        fig(t.mean_belt_load_bw, 3),
+        fig(t.mean_other_leg_bw, 3),
         t.expected_belt_load_bw
     );
     say!(
-        "    pelvis: vertical excursion {:.1} mm, fore-aft {:.1} mm; the harness holds it fore-aft with {:.0} N on average ({:.0}..{:.0})",
-        1e3 * t.pelvis_excursion_m,
-        1e3 * t.pelvis_fore_aft_excursion_m,
-        t.harness_fore_aft_n.mean,
-        t.harness_fore_aft_n.min,
-        t.harness_fore_aft_n.max
+        "    pelvis: vertical excursion {} mm, fore-aft {} mm; the harness holds it fore-aft with {} N on average ({}..{})",
+        fig(1e3 * t.pelvis_excursion_m, 1),
+        fig(1e3 * t.pelvis_fore_aft_excursion_m, 1),
+        fig(t.harness_fore_aft_n.mean, 0),
+        fig(t.harness_fore_aft_n.min, 0),
+        fig(t.harness_fore_aft_n.max, 0)
     );
     for (side, f) in &t.feet {
         say!(
-            "    {side} foot: {} strides, {} scuffs in swing; vertical GRF loading peak {:.2} BW ({:.2}..{:.2}), loading rate {:.1} BW/s ({:.1}..{:.1}), mean {:.3} BW; stance {:.1} % ({:.1}..{:.1}) against the reference's {:.1} %; slip {:.1} mm per stride; deepest {:.1} mm; ankle {:.1}..{:.1} deg",
+            "    {side} foot: {} strides, {} scuffs in swing; vertical GRF loading peak {} BW ({}..{}), loading rate {} BW/s ({}..{}), mean {} BW; stance {} % ({}..{}) against the reference's {:.1} %; slip {} mm per stride; deepest {:.1} mm; ankle {}..{} deg",
             f.strides,
             f.scuffs,
-            f.peak_grf_bw.mean,
-            f.peak_grf_bw.min,
-            f.peak_grf_bw.max,
-            f.loading_rate_bw_s.mean,
-            f.loading_rate_bw_s.min,
-            f.loading_rate_bw_s.max,
-            f.mean_grf_bw,
-            100.0 * f.stance_fraction.mean,
-            100.0 * f.stance_fraction.min,
-            100.0 * f.stance_fraction.max,
+            fig(f.peak_grf_bw.mean, 2),
+            fig(f.peak_grf_bw.min, 2),
+            fig(f.peak_grf_bw.max, 2),
+            fig(f.loading_rate_bw_s.mean, 1),
+            fig(f.loading_rate_bw_s.min, 1),
+            fig(f.loading_rate_bw_s.max, 1),
+            fig(f.mean_grf_bw, 3),
+            fig(100.0 * f.stance_fraction.mean, 1),
+            fig(100.0 * f.stance_fraction.min, 1),
+            fig(100.0 * f.stance_fraction.max, 1),
             100.0 * f.reference_stance_fraction,
-            1e3 * f.slip_per_stride_m.mean,
+            fig(1e3 * f.slip_per_stride_m.mean, 1),
             f.max_penetration_mm,
-            f.ankle_range_deg[0],
-            f.ankle_range_deg[1]
+            fig(f.ankle_range_deg[0], 1),
+            fig(f.ankle_range_deg[1], 1)
         );
         for (joint, p) in &f.tracking {
             let Some(h) = f.heel_strikes.get(joint) else {
                 continue;
             };
             say!(
-                "      {joint:5} RMS error in stance {:.3} deg, in swing {:.3} deg; {} heel strikes: deviation {:.2} deg (max {:.2}), back within 1 deg after {:.3} s (max {:.3}; {} not within {} s), pressure rate up to {:.0} bar/s",
-                p.stance_rms_deg,
-                p.swing_rms_deg,
+                "      {joint:5} RMS error in stance {} deg, in swing {} deg; {} heel strikes: deviation {} deg (max {}), back within 1 deg after {} s (max {}; {} not within {} s), pressure rate up to {:.0} bar/s",
+                fig(p.stance_rms_deg, 3),
+                fig(p.swing_rms_deg, 3),
                 h.count,
-                h.deviation_deg.mean,
-                h.deviation_deg.max,
-                h.recovery_s.mean,
-                h.recovery_s.max,
+                fig(h.deviation_deg.mean, 2),
+                fig(h.deviation_deg.max, 2),
+                fig(h.recovery_s.mean, 3),
+                fig(h.recovery_s.max, 3),
                 h.not_recovered,
                 pma_leg::stance::HEEL_STRIKE_FOLLOW_S,
                 h.peak_pressure_rate_bar_s

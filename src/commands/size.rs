@@ -78,9 +78,16 @@ pub fn run(a: Args) -> Result<i32> {
         &super::scenario_inputs(&a.scenario, &loaded, None),
         &outputs,
     )?;
+    // The operator's stop before any output exists: a signal never leaves a `.part`
+    // behind (the staged files are dropped unwritten), and every stage below checks it.
+    let stop = output::stop_flag()?;
     let out_file = a.out.as_deref().map(OutFile::create).transpose()?;
     let sc = &loaded.scenario;
     let run = SizeRun::of(&loaded, &args)?;
+    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        eprintln!("interrupted: nothing written");
+        return Ok(output::INTERRUPTED);
+    }
     if let Some(path) = &a.csv {
         write_csv(path, &run.demand)?;
     }

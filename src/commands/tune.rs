@@ -287,9 +287,43 @@ pub struct LegArgs {
     /// Worker threads (default: one per core); the result does not depend on it.
     #[arg(long)]
     threads: Option<usize>,
+    /// Degrees of objective per bar/s of command variation (0.01: a chattering valve
+    /// must not buy tracking accuracy; more for a valve that cannot follow a chatter).
+    #[arg(long, default_value_t = pma_studies::leg_tune::VARIATION_WEIGHT_DEG_PER_BAR_S, allow_negative_numbers = true)]
+    variation_weight: f64,
+    /// Runs of a local polish after the firefly search (a compass search around its best,
+    /// in parallel); with it the search also starts from the scenario's own gains and
+    /// never ends worse than them. 0 (default): the plain search the shipped in-air gains
+    /// came from.
+    #[arg(long, default_value_t = 0)]
+    polish: usize,
+    /// The share of each muscle's rating its peak force may reach (0-1; 0.9 keeps a
+    /// tenth free).
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    max_rating: f64,
     /// Run even if it would take over an hour.
     #[arg(long)]
     yes: bool,
+}
+
+/// The objective's weights from `--variation-weight` and `--max-rating`, checked.
+fn leg_objective(a: &LegArgs) -> Result<pma_studies::leg_tune::LegObjective> {
+    if !(a.variation_weight.is_finite() && (0.0..=10.0).contains(&a.variation_weight)) {
+        bail!(
+            "--variation-weight = {} is invalid: must be 0..=10 deg per bar/s",
+            a.variation_weight
+        );
+    }
+    if !(a.max_rating.is_finite() && a.max_rating > 0.0 && a.max_rating <= 1.0) {
+        bail!(
+            "--max-rating = {} is invalid: must be > 0 and at most 1 (the rating itself)",
+            a.max_rating
+        );
+    }
+    Ok(pma_studies::leg_tune::LegObjective {
+        variation_weight_deg_per_bar_s: a.variation_weight,
+        rating_max: a.max_rating,
+    })
 }
 
 /// The scenario and the `--also` ones, each checked for the run's duration.
@@ -308,6 +342,7 @@ fn tuning_scenarios(a: &LegArgs) -> Result<Vec<pma_leg::LoadedScenario>> {
 pub fn run_leg(a: LegArgs) -> Result<i32> {
     check_duration(a.duration)?;
     let evaluations = evaluations(a.population, a.generations)?;
+    let weigh = leg_objective(&a)?;
     let scenarios = tuning_scenarios(&a)?;
     let periods: f64 = scenarios
         .iter()
@@ -330,10 +365,15 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
         progress: Some(&EVALUATED),
         ..Default::default()
     };
-    let _bar = output::follow_progress(&EVALUATED, evaluations as u64, "runs");
+    let _bar = output::follow_progress(&EVALUATED, evaluations as u64 + a.polish as u64, "runs");
     let stop = output::stop_flag()?;
+    let budget = pma_studies::leg_tune::LegBudget {
+        firefly: opts,
+        polish_evaluations: a.polish,
+        progress: Some(&EVALUATED),
+    };
     let found = super::with_threads(a.threads, || {
-        pma_studies::leg_tune::tune(&scenarios, a.controller, &opts, a.duration, &stop)
+        pma_studies::leg_tune::tune(&scenarios, a.controller, &budget, a.duration, &weigh, &stop)
     })??;
     if interrupted(&stop, a.out.as_deref()) {
         return Ok(output::INTERRUPTED);
@@ -352,9 +392,10 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
     }
     if t.objective >= pma_studies::leg_tune::OVER_RATING {
         bail!(
-            "every one of the {} runs pulled a muscle past its rating (the best to {:.2} times it): no gains to report",
+            "every one of the {} runs pulled a muscle past {} of its rating (the best to {:.2} times it): no gains to report",
             t.evaluations,
-            1.0 + (t.objective - pma_studies::leg_tune::OVER_RATING) / 100.0
+            a.max_rating,
+            a.max_rating + (t.objective - pma_studies::leg_tune::OVER_RATING) / 100.0
         );
     }
     let also = if a.also.is_empty() {
@@ -362,8 +403,24 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
     } else {
         format!(" --also {}", a.also.join(","))
     };
+    let mut weights = if weigh == pma_studies::leg_tune::LegObjective::default() {
+        String::new()
+    } else {
+        format!(
+            " --variation-weight {} --max-rating {}",
+            a.variation_weight, a.max_rating
+        )
+    };
+    if a.polish > 0 {
+        weights.push_str(&format!(" --polish {}", a.polish));
+    }
+    let rating = if a.max_rating < 1.0 {
+        format!("within {} of its rating", a.max_rating)
+    } else {
+        "within its rating".into()
+    };
     let text = format!(
-        "# Tuned by `pma-exo tune-leg {}{also} --controller {} --population {} --generations {} --duration {} --seed {}`\n# ({} runs, objective {:.4}: hip RMS + knee RMS in deg + 0.01 x bar/s, the worst of the scenarios, every muscle within its rating)\n{}",
+        "# Tuned by `pma-exo tune-leg {}{also} --controller {} --population {} --generations {} --duration {} --seed {}{weights}`\n# ({} runs, objective {:.4}: {} + {} x bar/s, the worst of the scenarios, every muscle {rating})\n{}",
         a.scenario,
         a.controller,
         a.population,
@@ -372,12 +429,18 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
         a.seed,
         t.evaluations,
         t.objective,
+        if scenarios.iter().any(|l| l.scenario.treadmill.is_some()) {
+            "the worst foot's stance-phase RMS of hip + knee in deg"
+        } else {
+            "hip RMS + knee RMS in deg"
+        },
+        a.variation_weight,
         t.config.to_toml_string()
     );
     write_gain_file(out, &text)?;
     eprintln!(
-        "{}: objective {:.4} after {} runs",
-        a.controller, t.objective, t.evaluations
+        "{}: objective {:.4} after {} runs (the scenario's own gains: {:.4})",
+        a.controller, t.objective, t.evaluations, t.start_objective
     );
     Ok(0)
 }

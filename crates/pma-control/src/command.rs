@@ -61,6 +61,14 @@ impl CommandState {
         self.pressure_hat = p_next;
     }
 
+    /// A pressure sensor's reading replaces the nominal valve's estimate of the pressure
+    /// the last command has made (the observer's input).
+    pub fn sensed(&mut self, pressure_pa: f64) {
+        if pressure_pa.is_finite() {
+            self.pressure_hat = pressure_pa;
+        }
+    }
+
     /// Inverts the nominal model for a desired acceleration: the pressure `u` with
     /// `f(x, v; mode) + b(x, v; mode) u = accel`, clamped and recorded.
     ///

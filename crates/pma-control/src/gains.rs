@@ -79,6 +79,21 @@ impl Bound {
     }
 }
 
+impl Search {
+    /// Where `value` lies in the range, in `[0, 1]` (clamped to the range); `None` for a
+    /// fixed gain or a value the scale cannot place (not finite, not positive on a log
+    /// scale).
+    pub fn unmap(self, value: f64) -> Option<f64> {
+        let u = match self {
+            Search::Fixed => return None,
+            Search::Log(lo, hi) if value > 0.0 => (value.ln() - lo.ln()) / (hi.ln() - lo.ln()),
+            Search::Log(..) => return None,
+            Search::Lin(lo, hi) => (value - lo) / (hi - lo),
+        };
+        u.is_finite().then(|| u.clamp(0.0, 1.0))
+    }
+}
+
 /// One gain of a controller.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GainSpec {
@@ -240,6 +255,19 @@ macro_rules! gain_table {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn unmap_inverts_map_within_the_range() {
+        for s in [Search::Log(1e2, 1e6), Search::Lin(-1.0, 3.0)] {
+            for u in [0.0, 0.3, 1.0] {
+                let v = s.map(u).unwrap();
+                assert!((s.unmap(v).unwrap() - u).abs() < 1e-12);
+            }
+        }
+        assert_eq!(Search::Log(1.0, 10.0).unmap(1e6), Some(1.0));
+        assert_eq!(Search::Log(1.0, 10.0).unmap(-1.0), None);
+        assert_eq!(Search::Fixed.unmap(1.0), None);
+    }
 
     #[test]
     fn search_ranges_map_their_ends() {

@@ -201,4 +201,12 @@ pub trait Controller: Send {
     /// its damping mode or its anti-windup) must remember this one instead; when it is
     /// the command itself, nothing changes.
     fn applied(&mut self, applied_pa: f64);
+    /// The muscle's pressure as a sensor reads it this period, before [`Controller::update`]
+    /// (where the plant has pressure sensors and the run feeds them back). A controller
+    /// with a disturbance observer takes it as the observer's input instead of its
+    /// nominal valve's estimate: behind a valve that lags, the lag is then not mistaken
+    /// for a disturbance and compensated again. The others ignore it.
+    fn pressure_sensed(&mut self, pressure_pa: f64) {
+        let _ = pressure_pa;
+    }
 }

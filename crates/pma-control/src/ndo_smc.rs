@@ -75,6 +75,10 @@ impl Controller for NdoSmc {
         self.cmd.applied(applied_pa);
     }
 
+    fn pressure_sensed(&mut self, pressure_pa: f64) {
+        self.cmd.sensed(pressure_pa);
+    }
+
     fn update(&mut self, r: &RefSample, m: &Measurement, dt: f64) -> ControlOutput {
         self.observer.update(m.position_m, dt);
         let (x, v, a) = self.observer.state();

@@ -109,6 +109,7 @@ pub struct MuscleGeometry {
     /// URDF link along which the muscle body lies (one of the joint's two links).
     pub body_link: String,
     /// Anchor of the muscle body in `body_link`'s frame (m).
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub anchor_m: [f64; 3],
     /// Pulley radius at the joint (m): the moment arm.
     pub pulley_radius_m: f64,
@@ -446,7 +447,7 @@ pub struct CuffSensorSettings {
     pub noise_rms_nm: f64,
     /// Constant offset of the hip's and the knee's readings (N m): a sensor not tared, or
     /// its drift. Default 0.
-    #[serde(default)]
+    #[serde(deserialize_with = "pma_model::error::exact::array", default)]
     pub bias_nm: [f64; 2],
     /// Seed of the noise (leg `l`'s joint `j` draws from `seed + 2 l + j`).
     #[serde(default)]
@@ -616,6 +617,13 @@ pub struct ControlSettings {
     /// 0 (the default, the paper) takes each pressure to equal its command.
     #[serde(default)]
     pub nominal_valve_time_constant_s: f64,
+    /// Each muscle's pressure sensor feeds its controller's disturbance observer
+    /// (`Controller::pressure_sensed`) instead of the observer's own estimate of what the
+    /// last command made of the pressure: behind a valve that lags, the lag is then not
+    /// taken for a disturbance and compensated a second time. Default off (the paper's
+    /// controllers see position only).
+    #[serde(default)]
+    pub pressure_feedback: bool,
     /// The supervisor's rate limit on every muscle's pressure command (Pa/s). The default,
     /// 6 bar per 1 ms period, binds on nothing the valve's range allows: the shipped
     /// scenarios' controllers step a knee muscle by up to 4.6 bar in one period (`docs/
@@ -760,6 +768,19 @@ impl Scenario {
                 duration_s,
                 two_strides_s,
             });
+        }
+        if let Some(t) = &self.treadmill {
+            let [_, until] = t.bws_release_s;
+            if t.bws_start_fraction.is_some_and(|f| f != t.bws_fraction) && until > duration_s {
+                return Err(LegError::Unsupported {
+                    name: "treadmill.bws_release_s".into(),
+                    value: format!("[{}, {until}]", t.bws_release_s[0]),
+                    message: format!(
+                        "the support is lowered until {until} s, after the run's {duration_s} s: it never reaches bws_fraction = {} within it (run longer, or release sooner)",
+                        t.bws_fraction
+                    ),
+                });
+            }
         }
         Ok(())
     }

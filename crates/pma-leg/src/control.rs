@@ -8,7 +8,9 @@ use crate::gait::{GaitReference, GaitSample, JointSample};
 use crate::impedance::{ControlMode, ExpectedMoments, ImpedanceLaw, StanceLoad};
 use crate::legs::PerLeg;
 use crate::phase_sync::PhaseSync;
-use crate::plant::{reading_angles, reading_cuff_nm, LegReading, MuscleActuator};
+use crate::plant::{
+    reading_angles, reading_cuff_nm, reading_pressures_pa, LegReading, MuscleActuator,
+};
 use pma_control::{
     build_controller, CommandLimits, Controller, ControllerConfig, Diagnostics, Measurement,
     NominalModel, RefSample,
@@ -109,6 +111,9 @@ pub struct LegControllers {
     stance_load: Option<StanceLoad>,
     /// The moments the plan leaves to a walking patient (impedance and admittance modes).
     expected: Option<ExpectedMoments>,
+    /// Whether the muscles' pressure sensors feed the controllers' observers
+    /// (`control.pressure_feedback`).
+    pressure_feedback: bool,
 }
 
 fn joint(g: &GaitSample, joint: usize) -> &JointSample {
@@ -201,6 +206,7 @@ impl LegControllers {
             admittance,
             stance_load: None,
             expected: None,
+            pressure_feedback: sc.control.pressure_feedback,
         })
     }
 
@@ -400,6 +406,9 @@ impl LegControllers {
             let measured = Measurement {
                 position_m: lever.contraction(angles[lever.joint]),
             };
+            if self.pressure_feedback {
+                c.pressure_sensed(reading_pressures_pa(reading)[i]);
+            }
             let o = c.update(&r, &measured, dt_s);
             out.length_ref_m[i] = r.position_m;
             out.pressure_cmd_pa[i] = o.pressure_cmd_pa;

@@ -101,6 +101,15 @@ pub enum LegError {
         /// What.
         what: String,
     },
+    /// The patient collapsed on the treadmill: the trainer's safety stopped the run (the
+    /// belt stops, the harness takes the weight, every muscle vents; docs/safety.md).
+    #[error("the patient collapsed at {t_s:.2} s: {what}; the trainer stopped the belt, the harness took the weight and the muscles vented")]
+    Collapse {
+        /// Time (s).
+        t_s: f64,
+        /// What gave way.
+        what: String,
+    },
     /// A controller gain set is invalid.
     #[error(transparent)]
     Controller(#[from] pma_control::ConfigError),

@@ -58,15 +58,43 @@ pub const TREADMILL_GAINS: [(ControllerKind, &str); 5] = [
     ),
 ];
 
+/// The two-leg treadmill's gain files from before issue 46, tuned behind an instantaneous
+/// valve (the pressure-set modes' and the ideal valve's figures were found with them).
+pub const TREADMILL_IDEAL_GAINS: [(ControllerKind, &str); 5] = [
+    (
+        ControllerKind::AprcNdo,
+        include_str!("../models/gains/treadmill-ideal/aprc-ndo.toml"),
+    ),
+    (
+        ControllerKind::Psmc,
+        include_str!("../models/gains/treadmill-ideal/psmc.toml"),
+    ),
+    (
+        ControllerKind::NdoSmc,
+        include_str!("../models/gains/treadmill-ideal/ndo-smc.toml"),
+    ),
+    (
+        ControllerKind::Sta,
+        include_str!("../models/gains/treadmill-ideal/sta.toml"),
+    ),
+    (
+        ControllerKind::Pid,
+        include_str!("../models/gains/treadmill-ideal/pid.toml"),
+    ),
+];
+
 /// Which shipped gains a scenario's controllers take (its own APRC-NDO gains aside).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum GainSet {
-    /// Tuned on the in-air leg (`gait_training`).
+    /// Tuned on the in-air leg (`gait_training`); `in_air` is read as `in-air`.
     #[default]
+    #[serde(alias = "in_air")]
     InAir,
-    /// Tuned on the two-leg treadmill (`gait_treadmill`).
+    /// Tuned on the two-leg treadmill (`gait_treadmill`) behind its MPYE-5-1/4 valves.
     Treadmill,
+    /// Tuned on the two-leg treadmill behind an instantaneous valve (before issue 46).
+    TreadmillIdeal,
 }
 
 impl GainSet {
@@ -75,6 +103,7 @@ impl GainSet {
         match self {
             GainSet::InAir => "in-air",
             GainSet::Treadmill => "treadmill",
+            GainSet::TreadmillIdeal => "treadmill-ideal",
         }
     }
 
@@ -82,6 +111,10 @@ impl GainSet {
         match self {
             GainSet::InAir => (&LEG_GAINS, "crates/pma-leg/models/gains"),
             GainSet::Treadmill => (&TREADMILL_GAINS, "crates/pma-leg/models/gains/treadmill"),
+            GainSet::TreadmillIdeal => (
+                &TREADMILL_IDEAL_GAINS,
+                "crates/pma-leg/models/gains/treadmill-ideal",
+            ),
         }
     }
 

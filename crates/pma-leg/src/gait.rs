@@ -237,8 +237,10 @@ impl FromStr for GaitSpeed {
 #[serde(deny_unknown_fields)]
 pub struct FourierSeries {
     /// `a0, a1..a6` (deg).
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub cos_deg: [f64; HARMONICS + 1],
     /// `0, b1..b6` (deg).
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub sin_deg: [f64; HARMONICS + 1],
 }
 

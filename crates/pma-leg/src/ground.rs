@@ -157,6 +157,7 @@ pub struct AnkleSettings {
     /// Rest angle (deg, dorsiflexion positive).
     pub rest_deg: f64,
     /// Stops `[plantarflexion, dorsiflexion]` (deg, dorsiflexion positive).
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub range_deg: [f64; 2],
 }
 
@@ -260,7 +261,7 @@ pub struct TreadmillSettings {
     #[serde(default)]
     pub bws_start_fraction: Option<f64>,
     /// When the start's support is lowered, `[from, to]` (s from the start). Default [0, 0].
-    #[serde(default)]
+    #[serde(deserialize_with = "pma_model::error::exact::array", default)]
     pub bws_release_s: [f64; 2],
     /// Constant force (default) or spring.
     #[serde(default)]

@@ -303,7 +303,7 @@ pub struct ImpedanceSettings {
     /// The share per leg on a two-leg trainer, `[right, left]`, instead of
     /// `patient_moment_share`: less left to a patient's weak side (as
     /// `patient.active.strength_by_leg` makes one).
-    #[serde(default)]
+    #[serde(deserialize_with = "pma_model::error::exact::option", default)]
     pub patient_moment_share_by_leg: Option<[f64; 2]>,
     /// Gain (1/s) of the trainer's gait clock on the legs' measured lead over the
     /// reference ([`crate::phase_sync`]): the reference's timing follows a patient who

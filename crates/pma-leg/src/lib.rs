@@ -28,6 +28,7 @@ pub mod safety;
 pub mod sim;
 pub mod sizing;
 pub mod stance;
+pub mod verdict;
 
 pub use config::{LoadedScenario, MuscleGeometry, Scenario, Side};
 pub use control::{LegControllers, LegOutput, TrainerControllers, Vented};
@@ -44,3 +45,4 @@ pub use sim::{
     balanced_pressures, FootSample, GroundSample, LegFault, LegSample, LegSim, TrainerSample,
 };
 pub use stance::{FootMetrics, FootReport, TreadmillReport};
+pub use verdict::{WalkingCriteria, WalkingVerdict};

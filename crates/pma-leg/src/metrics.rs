@@ -255,6 +255,9 @@ pub struct LegReport {
     /// The gait's clock where it follows the legs' lead (`phase_sync_per_s`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub phase_sync: Option<crate::phase_sync::PhaseSyncReport>,
+    /// On a treadmill: whether the patient walked, and if not why.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub walking: Option<crate::verdict::WalkingVerdict>,
 }
 
 /// Accumulates the [`LegReport`] figures period by period.
@@ -397,6 +400,7 @@ impl LegMetrics {
             treadmill: None,
             cooperation: Vec::new(),
             phase_sync: None,
+            walking: None,
         }
     }
 }

@@ -122,8 +122,15 @@ pub type SupervisedLeg = pma_control::Supervised<LegPlant>;
 /// flexion positive) and its two cuff torque sensors (N m, the torque the device puts
 /// into the limb at hip and knee, flexion positive, [`LegState::interaction_nm`] as an
 /// ideal sensor reads it). Position mode and the pressure-set modes read only the angles;
-/// admittance mode also the cuffs.
-pub type LegReading = [f64; 4];
+/// admittance mode also the cuffs. Then the four muscles' pressure sensors (Pa gauge, in
+/// the geometry file's order), which the controllers' observers read where
+/// `control.pressure_feedback` is on.
+pub type LegReading = [f64; 8];
+
+/// The muscles' pressures of a leg's reading (Pa, the geometry file's order).
+pub fn reading_pressures_pa(r: &LegReading) -> [f64; 4] {
+    [r[4], r[5], r[6], r[7]]
+}
 
 /// The joint angles of a leg's reading (rad).
 pub fn reading_angles(r: &LegReading) -> [f64; 2] {
@@ -204,7 +211,17 @@ pub struct LegPlant {
     cuffs: crate::config::CuffSettings,
     /// The muscles' damping at the rates each physics step ends on (see `implicit_rates`).
     implicit_damping: bool,
+    /// On a treadmill, the pelvis's height when the run started (m): the collapse guard's
+    /// reference.
+    standing_height_m: Option<f64>,
 }
+
+/// How far the pelvis may sink below its height at the start of a run before the
+/// trainer's safety counts a collapse (m): five times the 18 mm the nominal trainer's
+/// pelvis moves in a stride (`simulate gait_treadmill`), and a third of the 284 mm a
+/// collapsing patient sank (issue 46). A gait trainer's harness catches the patient
+/// there: Lokomat-type body-weight support units hold a fall within a few centimetres.
+pub const COLLAPSE_PELVIS_DROP_M: f64 = 0.10;
 
 /// Leg `leg`'s joint rates at the end of a physics step of `h` s in which the muscles'
 /// damping acts on them (linearly implicit Euler): `(M + h D) v1 = M v + h (tau0 +
@@ -328,6 +345,7 @@ impl LegPlant {
             acceleration: [[0.0; 2]; MAX_LEGS],
             external_wave: None,
             implicit_damping: scenario.implicit_muscle_damping,
+            standing_height_m: None,
         })
     }
 
@@ -542,9 +560,15 @@ impl LegPlant {
             self.cuff_torque_nm(leg, self.exo.angles(leg), self.exo.velocities(leg))
         });
         let exo = &self.exo;
+        let muscles = &self.muscles;
         let encoders = &mut self.encoders;
         let (sensor, noise) = (&self.cuff_sensor, &mut self.cuff_noise);
         PerLeg::from_fn(legs, |leg| {
+            let pressure = |i: usize| {
+                muscles
+                    .get(leg * MUSCLES_PER_LEG + i)
+                    .map_or(f64::NAN, |m| m.pressure())
+            };
             let q = exo.angles(leg);
             let cuff = |j: usize, rng: &mut GaussianRng| {
                 let drawn = if sensor.noise_rms_nm > 0.0 {
@@ -560,6 +584,10 @@ impl LegPlant {
                 encoders[leg][1].measure(q[1]),
                 cuff(0, hip_rng),
                 cuff(1, knee_rng),
+                pressure(0),
+                pressure(1),
+                pressure(2),
+                pressure(3),
             ]
         })
     }
@@ -696,6 +724,38 @@ impl LegPlant {
         self.check_ground()
     }
 
+    /// On a treadmill: the trainer's safety, which stops the run as a gait trainer stops
+    /// its belt when the patient's pelvis sinks [`COLLAPSE_PELVIS_DROP_M`] below where it
+    /// stood at the start.
+    fn check_collapse(&self) -> Result<(), LegError> {
+        let (Some(start), Some(z)) = (self.standing_height_m, self.exo.pelvis_height_m()) else {
+            return Ok(());
+        };
+        let drop = start - z;
+        if drop > COLLAPSE_PELVIS_DROP_M {
+            let legs = self.exo.leg_count();
+            let knees: Vec<String> = (0..legs)
+                .map(|leg| {
+                    format!(
+                        "{} {:.0} deg",
+                        leg_label(legs, leg, "knee"),
+                        self.exo.angles(leg)[1].to_degrees()
+                    )
+                })
+                .collect();
+            return Err(LegError::Collapse {
+                t_s: self.time(),
+                what: format!(
+                    "the pelvis sank {:.0} mm below where it stood (limit {:.0} mm; {})",
+                    drop * 1e3,
+                    COLLAPSE_PELVIS_DROP_M * 1e3,
+                    knees.join(", ")
+                ),
+            });
+        }
+        Ok(())
+    }
+
     /// On a treadmill: the pelvis finite and no foot deeper in the belt than its spheres
     /// are wide (Hertz contact means nothing past that: the model has failed).
     fn check_ground(&self) -> Result<(), LegError> {
@@ -768,6 +828,7 @@ impl Backend for LegPlant {
         }
         let reading = self.readings();
         let state = self.state();
+        self.standing_height_m = self.exo.pelvis_height_m();
         Ok(Started {
             t_s: self.time(),
             reading,
@@ -782,6 +843,7 @@ impl Backend for LegPlant {
     fn wait(&mut self) -> Result<u32, LegError> {
         self.advance();
         self.check_physics()?;
+        self.check_collapse()?;
         Ok(1)
     }
 

@@ -785,6 +785,19 @@ impl LegSim {
         let (interrupted, fault) = match outcome.end {
             pma_loop::End::Completed => (false, None),
             pma_loop::End::Stopped => (true, None),
+            // The trainer's safety stopped a collapsing patient: a result, not a failure
+            // of the simulation.
+            pma_loop::End::Fault {
+                error: pma_control::Fault::Backend(LegError::Collapse { t_s, what }),
+                ..
+            } => (
+                false,
+                Some(LegFault {
+                    name: "collapse",
+                    t_s,
+                    message: what,
+                }),
+            ),
             pma_loop::End::Fault {
                 error: pma_control::Fault::Backend(e),
                 ..
@@ -821,6 +834,18 @@ impl LegSim {
         report.treadmill = ground.report(feet.iter().map(|f| f.inner.report()).collect());
         report.cooperation = cooperation.iter().map(|c| c.inner.report()).collect();
         report.phase_sync = self.controllers.phase_sync().map(|s| s.report());
+        let planned_s = if interrupted {
+            ran_s
+        } else {
+            settings.duration_s()
+        };
+        report.walking = crate::verdict::judge(
+            &report,
+            planned_s,
+            sc.gait.stride_period_s,
+            fault.as_ref(),
+            crate::verdict::WalkingCriteria::default(),
+        );
         Ok((report, fault))
     }
 }
@@ -1115,21 +1140,29 @@ pub const CUFF_TORQUE_FULL_SCALE_NM: f64 = 1000.0;
 /// sensor they do not read: the reading is the frames' model's, meaningless on a URDF
 /// whose links are lighter than the frames.)
 fn supervisor_limits(sc: &Scenario, exo: &Exoskeleton) -> SupervisorLimits {
-    const NAMES: [[&str; 4]; 2] = [
+    const NAMES: [[&str; 8]; 2] = [
         [
             "hip angle",
             "knee angle",
             "hip cuff torque",
             "knee cuff torque",
+            "muscle 1 pressure",
+            "muscle 2 pressure",
+            "muscle 3 pressure",
+            "muscle 4 pressure",
         ],
         [
             "left hip angle",
             "left knee angle",
             "left hip cuff torque",
             "left knee cuff torque",
+            "left muscle 1 pressure",
+            "left muscle 2 pressure",
+            "left muscle 3 pressure",
+            "left muscle 4 pressure",
         ],
     ];
-    let mut windows = Vec::with_capacity(4 * exo.leg_count());
+    let mut windows = Vec::with_capacity(8 * exo.leg_count());
     for leg in 0..exo.leg_count() {
         let limits = exo.limits_rad(leg);
         let names = NAMES[leg.min(1)];
@@ -1147,12 +1180,22 @@ fn supervisor_limits(sc: &Scenario, exo: &Exoskeleton) -> SupervisorLimits {
         } else {
             f64::INFINITY
         };
-        for name in &names[2..] {
+        for name in &names[2..4] {
             windows.push(ReadingWindow {
                 name,
                 unit: "N m",
                 min: -full_scale,
                 max: full_scale,
+            });
+        }
+        // A pressure sensor reads from vacuum to the valve's limit and 10 % beyond (a
+        // reading above it: a valve stuck open or a wrong supply, as on the rig).
+        for name in &names[4..] {
+            windows.push(ReadingWindow {
+                name,
+                unit: "Pa",
+                min: -pma_model::pneumatics::ATMOSPHERE_PA,
+                max: 1.1 * sc.plant.valve.pressure_max_pa,
             });
         }
     }

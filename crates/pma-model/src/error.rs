@@ -136,3 +136,35 @@ mod tests {
         assert_eq!(e.to_string(), "t = 1e308 is invalid: must be 0..=1 s");
     }
 }
+
+/// Serde helpers for fixed-length arrays in files: serde's own `[T; N]` reads the first
+/// `N` entries of a longer list and drops the rest, so `range_deg = [-15, 15, 999]` was
+/// accepted as `[-15, 15]`. These refuse a list of any other length, naming it.
+#[cfg(feature = "serde")]
+pub mod exact {
+    use serde::de::{Deserialize, Deserializer, Error};
+
+    /// `[T; N]` from a list of exactly `N` entries
+    /// (`#[serde(deserialize_with = "pma_model::error::exact::array")]`).
+    pub fn array<'de, D, T, const N: usize>(d: D) -> Result<[T; N], D::Error>
+    where
+        D: Deserializer<'de>,
+        T: Deserialize<'de>,
+    {
+        let v: Vec<T> = Vec::deserialize(d)?;
+        let n = v.len();
+        v.try_into().map_err(|_| {
+            D::Error::invalid_length(n, &format!("a list of exactly {N} entries").as_str())
+        })
+    }
+
+    /// `Option<[T; N]>`, the list when present of exactly `N` entries (with
+    /// `#[serde(default, deserialize_with = "pma_model::error::exact::option")]`).
+    pub fn option<'de, D, T, const N: usize>(d: D) -> Result<Option<[T; N]>, D::Error>
+    where
+        D: Deserializer<'de>,
+        T: Deserialize<'de>,
+    {
+        array(d).map(Some)
+    }
+}

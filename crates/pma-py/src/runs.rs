@@ -132,10 +132,16 @@ pub fn simulate<'py>(
     let (columns, report) = interruptible(py, "the run", |stop| {
         let settings = settings.with_stop_flag(stop);
         let mut columns = Columns::new(&schema, TrainerSample::of, periods);
-        let report = sim.run_with(&settings, &mut columns);
+        let report = sim.run_until_fault(&settings, &mut columns);
         (columns, report)
     })?;
-    let report = report.map_err(leg_err)?;
+    // As the CLI: a collapse the trainer's safety stopped is a result (`walking: false`),
+    // any other fault an error.
+    let report = match report.map_err(leg_err)? {
+        (report, None) => report,
+        (report, Some(f)) if f.name == "collapse" => report,
+        (_, Some(f)) => return Err(leg_err(pma_leg::LegError::Supervisor(f.message))),
+    };
     if !report.finite {
         return Err(crate::PmaError::new_err(format!(
             "the simulation (scenario {}) went non-finite",

@@ -47,7 +47,8 @@ def cli_run(cli, tmp_path_factory):
     def run(args):
         out = tmp_path_factory.mktemp("cli") / "run.csv"
         code, stdout, stderr = cli([*args, "--json", "--csv", str(out)])
-        assert code == 0, stderr
+        # 4: a treadmill run in which the patient did not walk, judged and reported as any.
+        assert code in (0, 4), stderr
         report = json.loads(stdout)
         report.pop("provenance")
         text = out.read_text()

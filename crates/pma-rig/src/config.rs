@@ -363,10 +363,10 @@ pub struct VirtualConfig {
     pub sensor_latency_s: f64,
     /// The analog input's range (V): optional, and if given it must be the range the
     /// simulated board (a PCI-6052E) has at `signals.position`'s range index.
-    #[serde(default)]
+    #[serde(deserialize_with = "pma_model::error::exact::option", default)]
     pub input_range_v: Option<[f64; 2]>,
     /// The analog output's range (V), likewise for `signals.valve`.
-    #[serde(default)]
+    #[serde(deserialize_with = "pma_model::error::exact::option", default)]
     pub output_range_v: Option<[f64; 2]>,
 }
 

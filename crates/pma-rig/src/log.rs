@@ -239,7 +239,7 @@ type LogWriter = csv::Writer<BufWriter<Hashing>>;
 fn create_new(path: &Path) -> Result<File, RigError> {
     if let Ok(meta) = std::fs::metadata(path) {
         let what = if meta.is_file() {
-            "exists: a rig log is never overwritten (move it, or pass another --log)"
+            "exists: a rig log is never overwritten (move it, or name another file: `rig run --log`, `rig excite --out`)"
         } else {
             "is not a regular file: a rig log must be a new file that keeps what it records"
         };

@@ -82,12 +82,16 @@ pub struct TreadmillRow {
     pub heel_strike_max_recovery_s: [f64; 2],
     /// Heel strikes not recovered within the follow-up, hip and knee.
     pub heel_strikes_unrecovered: [usize; 2],
+    /// Whether the patient walked (`pma_leg::verdict`).
+    pub walking: bool,
+    /// When the trainer's safety stopped a collapse (s), if it did.
+    pub collapse_s: Option<f64>,
 }
 
 impl TreadmillRow {
     /// The row of a run's treadmill figures: over every foot, the mean of each foot's
     /// figure (tracking, loading, stance, slip) and the worst of the heel strikes.
-    fn of(t: &pma_leg::TreadmillReport) -> Self {
+    fn of(t: &pma_leg::TreadmillReport, verdict: Option<&pma_leg::WalkingVerdict>) -> Self {
         let feet: Vec<&pma_leg::FootReport> = t.feet.values().collect();
         let mean = |f: &dyn Fn(&pma_leg::FootReport) -> f64| {
             feet.iter().map(|r| f(r)).sum::<f64>() / feet.len().max(1) as f64
@@ -127,6 +131,8 @@ impl TreadmillRow {
                     .map(|h| h.not_recovered)
                     .sum()
             }),
+            walking: verdict.is_some_and(|v| v.walking),
+            collapse_s: verdict.and_then(|v| v.collapse.as_ref()).map(|c| c.t_s),
         }
     }
 }
@@ -192,7 +198,10 @@ impl CompareRow {
                 .values()
                 .map(|l| l.time_beyond_normal_range_s)
                 .sum(),
-            treadmill: report.treadmill.as_ref().map(TreadmillRow::of),
+            treadmill: report
+                .treadmill
+                .as_ref()
+                .map(|t| TreadmillRow::of(t, report.walking.as_ref())),
             finite: report.finite,
         }
     }
@@ -206,6 +215,7 @@ pub fn compare(
     controllers: &[Vec<ControllerConfig>],
     duration_s: f64,
     progress: Option<&std::sync::atomic::AtomicUsize>,
+    stop: &std::sync::atomic::AtomicBool,
 ) -> Result<Vec<CompareRow>, LegError> {
     let pairs: Vec<(&LoadedScenario, &ControllerConfig)> = scenarios
         .iter()
@@ -216,7 +226,13 @@ pub fn compare(
         .par_iter()
         .map(|(loaded, config)| {
             let mut sim = LegSim::with_controller(loaded, config)?;
-            let report = sim.run(duration_s, &mut ())?;
+            let settings = sim.settings(duration_s)?.with_stop_flag(stop);
+            // A patient who collapses is a row (the verdict says so); another fault fails.
+            let report = match sim.run_until_fault(&settings, &mut ())? {
+                (report, None) => report,
+                (report, Some(f)) if f.name == "collapse" => report,
+                (_, Some(f)) => return Err(LegError::Supervisor(f.message)),
+            };
             if let Some(n) = progress {
                 n.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             }

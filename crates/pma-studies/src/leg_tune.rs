@@ -1,6 +1,6 @@
 //! Gains for the leg, found by the same firefly search as the bench's baselines
 //! (`crate::tune`): a controller's search space, one gain set shared by the four muscles.
-use crate::tune::{firefly, FireflyOptions};
+use crate::tune::{firefly_from, polish, FireflyOptions};
 use pma_control::{ControllerConfig, ControllerKind};
 use pma_leg::gains::base_config;
 use pma_leg::{LegSim, LoadedScenario};
@@ -16,12 +16,36 @@ pub const FAILED_RUN: f64 = 1000.0;
 /// any tracking figure, below a failed run, so the search climbs back within the rating.
 pub const OVER_RATING: f64 = 100.0;
 
-/// Objective of a run of `config` on every muscle: hip RMS + knee RMS (deg, after the
-/// first stride; the legs' mean on a two-leg trainer) plus [`VARIATION_WEIGHT_DEG_PER_BAR_S`]
-/// times the command variation. Gains that pull any muscle past its rated force track
+/// What a tuning weighs: command activity against tracking, and the share of each
+/// muscle's rating its force may reach.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LegObjective {
+    /// Deg of objective per bar/s of command variation.
+    pub variation_weight_deg_per_bar_s: f64,
+    /// Largest peak force over rating a run may reach before it is rejected.
+    pub rating_max: f64,
+}
+
+impl Default for LegObjective {
+    /// [`VARIATION_WEIGHT_DEG_PER_BAR_S`], the full rating.
+    fn default() -> Self {
+        Self {
+            variation_weight_deg_per_bar_s: VARIATION_WEIGHT_DEG_PER_BAR_S,
+            rating_max: 1.0,
+        }
+    }
+}
+
+/// Objective of a run of `config` on every muscle: its [`tracking_deg`] plus `weigh`'s
+/// weight times the command variation. Gains that pull any muscle past its rated force track
 /// nothing a user may run: such a run scores [`OVER_RATING`] plus 100 times the largest
 /// excess (peak force / rating - 1), and a failed or non-finite run [`FAILED_RUN`].
-pub fn objective(loaded: &LoadedScenario, config: &ControllerConfig, duration_s: f64) -> f64 {
+pub fn objective(
+    loaded: &LoadedScenario,
+    config: &ControllerConfig,
+    duration_s: f64,
+    weigh: &LegObjective,
+) -> f64 {
     let run = || -> Option<f64> {
         let mut sim = LegSim::with_controller(loaded, config).ok()?;
         let r = sim.run(duration_s, &mut ()).ok()?;
@@ -32,16 +56,37 @@ pub fn objective(loaded: &LoadedScenario, config: &ControllerConfig, duration_s:
             .map(|m| m.peak_over_rated)
             .fold(0.0, f64::max);
         // Every leg's mean for each joint (one leg: its own).
-        let v = if worst > 1.0 {
-            OVER_RATING + 100.0 * (worst - 1.0)
+        let v = if worst > weigh.rating_max {
+            OVER_RATING + 100.0 * (worst - weigh.rating_max)
         } else {
-            r.joint_rms_deg("hip")
-                + r.joint_rms_deg("knee")
-                + VARIATION_WEIGHT_DEG_PER_BAR_S * r.command_variation_bar_per_s
+            tracking_deg(&r) + weigh.variation_weight_deg_per_bar_s * r.command_variation_bar_per_s
         };
         (r.finite && v.is_finite()).then_some(v)
     };
     run().unwrap_or(FAILED_RUN)
+}
+
+/// The tracking a tuning minimises (deg): hip RMS + knee RMS after the first stride (the
+/// legs' mean on a two-leg trainer); on a treadmill the worst foot's stance-phase RMS of
+/// the hip plus that of the knee, what a walking verdict holds the trainer to
+/// (`pma_leg::verdict`).
+pub fn tracking_deg(r: &pma_leg::LegReport) -> f64 {
+    match &r.treadmill {
+        Some(t) => {
+            let worst = |joint: &str| {
+                t.feet
+                    .values()
+                    .filter_map(|f| f.tracking.get(joint))
+                    .map(|p| p.stance_rms_deg)
+                    .fold(
+                        0.0,
+                        |m: f64, v| if v.is_nan() { f64::INFINITY } else { m.max(v) },
+                    )
+            };
+            worst("hip") + worst("knee")
+        }
+        None => r.joint_rms_deg("hip") + r.joint_rms_deg("knee"),
+    }
 }
 
 /// A tuning's outcome.
@@ -53,6 +98,9 @@ pub struct LegTuning {
     pub objective: f64,
     /// Runs made.
     pub evaluations: usize,
+    /// The objective of the gains it started from (the scenario's own, placed in the
+    /// search box): the search never ends worse than them.
+    pub start_objective: f64,
 }
 
 /// The worst of [`objective`] over `scenarios` (a robust tuning: gains that hold one
@@ -61,10 +109,11 @@ pub fn worst_objective(
     scenarios: &[LoadedScenario],
     config: &ControllerConfig,
     duration_s: f64,
+    weigh: &LegObjective,
 ) -> f64 {
     scenarios
         .iter()
-        .map(|s| objective(s, config, duration_s))
+        .map(|s| objective(s, config, duration_s, weigh))
         .fold(f64::NEG_INFINITY, f64::max)
 }
 
@@ -99,16 +148,36 @@ pub fn common_base(
     }
 }
 
+/// The budget of a tuning: the firefly search's, then a local polish of its best.
+#[derive(Debug, Clone, Copy)]
+pub struct LegBudget<'a> {
+    /// The global search.
+    pub firefly: FireflyOptions,
+    /// Evaluations of the compass search that polishes the best point ([`polish`]; 0:
+    /// none).
+    pub polish_evaluations: usize,
+    /// Counts every evaluation, for a progress bar.
+    pub progress: Option<&'a std::sync::atomic::AtomicUsize>,
+}
+
+/// First step of the polish, in the unit cube (a twentieth of each gain's range).
+pub const POLISH_STEP: f64 = 0.05;
+
 /// Tunes `kind`'s gains, shared by every muscle, on the scenarios together (the worst of
 /// their objectives, [`worst_objective`]); `Ok(None)` if `kind` has no search space. The
-/// scenarios must give the controller the same base settings.
+/// scenarios must give the controller the same base settings. With a polish the search
+/// starts with a firefly at the scenario's own gains (placed in the box), keeps the best of
+/// each firefly and polishes the best point: it never ends on gains worse than those it
+/// started from.
 pub fn tune(
     scenarios: &[LoadedScenario],
     kind: ControllerKind,
-    opts: &FireflyOptions,
+    budget: &LegBudget<'_>,
     duration_s: f64,
+    weigh: &LegObjective,
     stop: &std::sync::atomic::AtomicBool,
 ) -> Result<Option<LegTuning>, TuneError> {
+    let opts = &budget.firefly;
     let base = common_base(scenarios, kind)?;
     let space = kind.search_space();
     if space.is_empty() {
@@ -122,13 +191,33 @@ pub fn tune(
         c.validate().ok()?;
         Some(c)
     };
-    let (u, best, evaluations) = firefly(space.len(), opts, stop, |u| {
-        at(u).map_or(FAILED_RUN, |c| worst_objective(scenarios, &c, duration_s))
-    });
+    let cost = |u: &[f64]| {
+        at(u).map_or(FAILED_RUN, |c| {
+            worst_objective(scenarios, &c, duration_s, weigh)
+        })
+    };
+    let start: Option<Vec<f64>> = space
+        .iter()
+        .map(|spec| spec.search.unmap(base.gains().get(spec.name)?))
+        .collect();
+    let start_objective = start.as_deref().map_or(FAILED_RUN, cost);
+    // Without a polish, the plain search (the one the shipped in-air gains came from, so
+    // that their files' commands still give them).
+    let first = start.as_deref().filter(|_| budget.polish_evaluations > 0);
+    let (u, best, evaluations) = firefly_from(space.len(), opts, first, stop, cost);
+    let (u, best, polished) = polish(
+        (&u, best),
+        POLISH_STEP,
+        budget.polish_evaluations,
+        stop,
+        budget.progress,
+        cost,
+    );
     Ok(Some(LegTuning {
         config: at(&u).unwrap_or(base),
         objective: best,
-        evaluations,
+        evaluations: evaluations + polished,
+        start_objective,
     }))
 }
 
@@ -145,15 +234,24 @@ mod tests {
     fn a_robust_objective_is_the_worst_of_its_scenarios() {
         let both = [loaded("gait_training"), loaded("gait_spastic")];
         let config = common_base(&both, ControllerKind::AprcNdo).expect("one base");
-        let each: Vec<f64> = both.iter().map(|s| objective(s, &config, 3.2)).collect();
+        let each: Vec<f64> = both
+            .iter()
+            .map(|s| objective(s, &config, 3.2, &LegObjective::default()))
+            .collect();
         assert!(
             each.iter().all(|v| v.is_finite() && *v < OVER_RATING),
             "{each:?}"
         );
         // The spastic leg is harder to track: the worst is not simply the first.
         assert!(each[1] > each[0], "{each:?}");
-        assert_eq!(worst_objective(&both, &config, 3.2), each[1]);
-        assert_eq!(worst_objective(&both[..1], &config, 3.2), each[0]);
+        assert_eq!(
+            worst_objective(&both, &config, 3.2, &LegObjective::default()),
+            each[1]
+        );
+        assert_eq!(
+            worst_objective(&both[..1], &config, 3.2, &LegObjective::default()),
+            each[0]
+        );
     }
 
     #[test]
@@ -162,8 +260,13 @@ mod tests {
         let r = tune(
             &[],
             ControllerKind::Pid,
-            &FireflyOptions::default(),
+            &LegBudget {
+                firefly: FireflyOptions::default(),
+                polish_evaluations: 0,
+                progress: None,
+            },
             3.2,
+            &LegObjective::default(),
             &stop,
         );
         assert_eq!(r, Err(TuneError::NoScenario));

@@ -16,12 +16,16 @@ pub struct Population {
     /// Seed.
     pub seed: u64,
     /// Factor on each Table I parameter, drawn independently per parameter.
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub muscle_scale: [f64; 2],
     /// Load mass (kg).
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub load_kg: [f64; 2],
     /// Valve time constant (s).
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub valve_lag_s: [f64; 2],
     /// Sensor noise (m RMS).
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub noise_rms_m: [f64; 2],
 }
 

@@ -150,6 +150,54 @@ pub fn firefly_from(
     (pos[best].clone(), cost[best], evals)
 }
 
+/// A local polish of `start` (cost `start_cost`) in the unit cube, after a global search
+/// has found it: a compass search that tries `start +- step` along every axis (the
+/// `2 dims` points evaluated in parallel), moves to the best if it is better, halves the
+/// step otherwise, from `step0` until `budget` evaluations are spent or the step falls
+/// below 1e-4. Returns the point, its cost and the evaluations made; never a point worse
+/// than `start`.
+pub fn polish(
+    start: (&[f64], f64),
+    step0: f64,
+    budget: usize,
+    stop: &AtomicBool,
+    progress: Option<&AtomicUsize>,
+    objective: impl Fn(&[f64]) -> f64 + Sync,
+) -> (Vec<f64>, f64, usize) {
+    let (mut best, mut best_cost) = (start.0.to_vec(), start.1);
+    let dims = best.len();
+    let mut step = step0;
+    let mut evals = 0;
+    while evals + 2 * dims <= budget && step >= 1e-4 && dims > 0 {
+        if stop.load(Ordering::Relaxed) {
+            break;
+        }
+        let candidates: Vec<Vec<f64>> = (0..2 * dims)
+            .map(|k| {
+                let mut u = best.clone();
+                let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+                u[k / 2] = (u[k / 2] + sign * step).clamp(0.0, 1.0);
+                u
+            })
+            .collect();
+        let costs = evaluate_all(&candidates, stop, &objective, progress);
+        evals += candidates.len();
+        let (k, c) = costs
+            .iter()
+            .copied()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap_or((0, f64::INFINITY));
+        if c < best_cost {
+            best = candidates[k].clone();
+            best_cost = c;
+        } else {
+            step *= 0.5;
+        }
+    }
+    (best, best_cost, evals)
+}
+
 /// What [`tune`] minimises: the IAE of eq. (52) on the paper's sine over `duration_s`,
 /// optionally subject to a budget on command activity.
 ///

@@ -302,7 +302,7 @@ impl Walker {
         };
         let s = &self.settings;
         std::array::from_fn(|j| {
-            s.strength
+            s.strength()
                 * (own[j]
                     + s.stiffness_nm_per_rad[j] * (aim[j] - q[j])
                     + s.damping_nm_s_per_rad[j] * (aim_v[j] - qd[j]))

@@ -125,10 +125,13 @@ pub struct SpasmSettings {
     #[serde(default)]
     pub rate_per_min: f64,
     /// Range of their peak torque `[low, high]` (N m).
-    #[serde(default)]
+    #[serde(deserialize_with = "pma_model::error::exact::array", default)]
     pub amplitude_nm: [f64; 2],
     /// Range of their duration `[low, high]` (s).
-    #[serde(default = "default_duration")]
+    #[serde(
+        deserialize_with = "pma_model::error::exact::array",
+        default = "default_duration"
+    )]
     pub duration_s: [f64; 2],
     /// Their direction (default `either`).
     #[serde(default = "default_direction")]
@@ -293,17 +296,24 @@ pub struct ActiveSettings {
     /// Their joint stiffness about their own aim (N m/rad), hip and knee. Default
     /// [60, 30]: an assumption (no measured hip or knee impedance during walking was
     /// found here), stiff enough to walk their own way against the device's frames.
-    #[serde(default = "default_patient_stiffness")]
+    #[serde(
+        deserialize_with = "pma_model::error::exact::array",
+        default = "default_patient_stiffness"
+    )]
     pub stiffness_nm_per_rad: [f64; 2],
     /// Their joint damping (N m s/rad), hip and knee. Default [3, 1.5].
-    #[serde(default = "default_patient_damping")]
+    #[serde(
+        deserialize_with = "pma_model::error::exact::array",
+        default = "default_patient_damping"
+    )]
     pub damping_nm_s_per_rad: [f64; 2],
-    /// Share of a healthy limb's torque they produce (default 1; below 1 a weak limb).
-    #[serde(default = "one")]
-    pub strength: f64,
+    /// Share of a healthy limb's torque they produce (default 1; below 1 a weak limb);
+    /// see [`ActiveSettings::strength`].
+    #[serde(default)]
+    pub strength: Option<f64>,
     /// The share per leg on a two-leg trainer, `[right, left]`, instead of `strength`: a
     /// patient weaker on one side (after a stroke, say).
-    #[serde(default)]
+    #[serde(deserialize_with = "pma_model::error::exact::option", default)]
     pub strength_by_leg: Option<[f64; 2]>,
     /// Seed of their stride-to-stride variation (both legs walk on the one clock it draws).
     #[serde(default)]
@@ -343,7 +353,19 @@ fn default_patient_damping() -> [f64; 2] {
 }
 
 impl ActiveSettings {
+    /// The share of a healthy limb's torque they produce: `strength`, or 1.
+    pub fn strength(&self) -> f64 {
+        self.strength.unwrap_or(1.0)
+    }
+
     fn validate(&self) -> Result<(), LegError> {
+        if let (Some(s), Some(_)) = (self.strength, self.strength_by_leg) {
+            return Err(LegError::Unsupported {
+                name: "patient.active.strength".into(),
+                value: pma_model::error::number(s),
+                message: "and patient.active.strength_by_leg are both given: strength_by_leg is instead of strength, give one".into(),
+            });
+        }
         if let Some(t) = self.stride_period_s {
             within(
                 "patient.active.stride_period_s",
@@ -369,7 +391,7 @@ impl ActiveSettings {
         )?;
         within(
             "patient.active.strength",
-            self.strength,
+            self.strength(),
             0.0,
             2.0,
             "must be 0..=2",
@@ -690,8 +712,8 @@ impl PatientSettings {
             }
         }
         if let Some(a) = &mut out.active {
-            if let Some(by_leg) = a.strength_by_leg {
-                a.strength = by_leg[leg.min(1)];
+            if let Some(by_leg) = a.strength_by_leg.take() {
+                a.strength = Some(by_leg[leg.min(1)]);
             }
         }
         out
@@ -759,7 +781,7 @@ pub(super) mod tests {
         let p: PatientSettings = toml::from_str(text).unwrap();
         p.validate().unwrap();
         let [right, left] = [0, 1].map(|leg| p.for_leg(leg).active.unwrap());
-        assert_eq!((right.strength, left.strength), (1.0, 0.4));
+        assert_eq!((right.strength(), left.strength()), (1.0, 0.4));
         // Regression (issue 28): each leg drew its own strides (seed plus its index), so a
         // person's two legs drifted out of step; they share one clock.
         assert_eq!((right.seed, left.seed), (3, 3));

@@ -129,10 +129,13 @@ pub struct PatientPopulation {
     /// Mildest and most severe spasticity.
     pub spasticity: [Spasticity; 2],
     /// Random spasms per minute, at each joint.
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub spasm_rate_per_min: [f64; 2],
     /// Peak torque of the strongest spasms (N m).
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub spasm_amplitude_nm: [f64; 2],
     /// Effort as a fraction of the gait's own joint torque.
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub effort_fraction: [f64; 2],
 }
 
@@ -358,24 +361,32 @@ pub struct LegRunRecord {
     pub patient_group: String,
     /// Spasticity preset at hip and knee (`custom` when the scenario sets gains, `none`
     /// without a reflex).
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub spasticity: [String; 2],
     /// Random spasms per minute at hip and knee.
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub spasm_rate_per_min: [f64; 2],
     /// Largest peak torque of the random spasms at hip and knee (N m).
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub spasm_amplitude_max_nm: [f64; 2],
     /// Effort fraction at hip and knee (> 0 assists).
+    #[serde(deserialize_with = "pma_model::error::exact::array")]
     pub effort_fraction: [f64; 2],
     /// Spasm and encoder seed set by the sweep (`null`: the scenario's own).
     pub seed: Option<u64>,
     /// Simulated seconds (up to the fault, if one stopped the run).
     pub ran_s: f64,
     /// Hip tracking error after the first stride, RMS (deg).
+    #[serde(deserialize_with = "nan_if_null")]
     pub hip_rms_deg: f64,
     /// Its largest (deg).
+    #[serde(deserialize_with = "nan_if_null")]
     pub hip_max_deg: f64,
     /// Knee tracking error after the first stride, RMS (deg).
+    #[serde(deserialize_with = "nan_if_null")]
     pub knee_rms_deg: f64,
     /// Its largest (deg).
+    #[serde(deserialize_with = "nan_if_null")]
     pub knee_max_deg: f64,
     /// Spasms in the run.
     pub spasms: usize,
@@ -386,19 +397,48 @@ pub struct LegRunRecord {
     /// not counted).
     pub spasms_unrecovered: usize,
     /// Mean |du/dt| of the commands (bar/s).
+    #[serde(deserialize_with = "nan_if_null")]
     pub command_variation_bar_per_s: f64,
     /// Largest muscle force over its rating.
+    #[serde(deserialize_with = "nan_if_null")]
     pub peak_force_over_rated: f64,
     /// Valve saturation, summed over the muscles (s).
+    #[serde(deserialize_with = "nan_if_null")]
     pub valve_saturated_s: f64,
     /// Time beyond the URDF joint limits, summed over the joints (s).
+    #[serde(deserialize_with = "nan_if_null")]
     pub time_outside_limits_s: f64,
     /// Every figure finite.
     pub finite: bool,
+    /// On a treadmill, whether the patient walked (`pma_leg::verdict`); `null` in the air.
+    #[serde(default)]
+    pub walking: Option<bool>,
+    /// On a two-leg trainer, each leg's hip and knee RMS error (deg) by side; empty for
+    /// one leg (its figures are the ones above).
+    #[serde(default)]
+    pub legs: std::collections::BTreeMap<String, LegFigures>,
     /// The supervisor's fault that stopped the run (`position-out`, ...), if any.
     pub fault: Option<String>,
     /// When it stopped the run (s).
     pub fault_t_s: Option<f64>,
+}
+
+/// One leg's figures of a two-leg run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LegFigures {
+    /// Hip tracking error after the first stride, RMS (deg).
+    #[serde(deserialize_with = "nan_if_null")]
+    pub hip_rms_deg: f64,
+    /// Knee tracking error after the first stride, RMS (deg).
+    #[serde(deserialize_with = "nan_if_null")]
+    pub knee_rms_deg: f64,
+}
+
+/// A figure a run could not give is written `null` (JSON has no NaN) and read back as
+/// NaN, so that a sweep reads its own lines.
+fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Option::<f64>::deserialize(d).map(|v| v.unwrap_or(f64::NAN))
 }
 
 /// The spasticity preset of a joint's settings, by name.
@@ -456,12 +496,34 @@ impl LegPoint {
         fault: Option<pma_leg::LegFault>,
     ) -> LegRunRecord {
         let row = crate::compare::CompareRow::of(report, self.controller.as_str());
+        // Every leg's joint of that name: the legs' mean RMS, the largest error.
         let joint = |j: &str| {
-            report
+            let max = report
                 .joints
-                .get(j)
-                .map_or((f64::NAN, f64::NAN), |s| (s.rms_deg, s.max_deg))
+                .iter()
+                .filter(|(k, _)| *k == j || k.ends_with(&format!("/{j}")))
+                .map(|(_, s)| s.max_deg)
+                .fold(f64::NAN, f64::max);
+            (report.joint_rms_deg(j), max)
         };
+        let legs = report
+            .joints
+            .keys()
+            .filter_map(|k| k.split_once('/').map(|(side, _)| side.to_owned()))
+            .map(|side| {
+                let rms = |j: &str| {
+                    report
+                        .joints
+                        .get(&format!("{side}/{j}"))
+                        .map_or(f64::NAN, |s| s.rms_deg)
+                };
+                let figures = LegFigures {
+                    hip_rms_deg: rms("hip"),
+                    knee_rms_deg: rms("knee"),
+                };
+                (side, figures)
+            })
+            .collect();
         let (hip_rms_deg, hip_max_deg) = joint("hip");
         let (knee_rms_deg, knee_max_deg) = joint("knee");
         let joints = [&scenario.patient.hip, &scenario.patient.knee];
@@ -495,6 +557,8 @@ impl LegPoint {
             valve_saturated_s: row.valve_saturated_s,
             time_outside_limits_s: row.time_outside_limits_s,
             finite: row.finite,
+            walking: report.walking.as_ref().map(|v| v.walking),
+            legs,
             fault: fault.as_ref().map(|f| f.name.to_owned()),
             fault_t_s: fault.map(|f| f.t_s),
         }
