@@ -265,6 +265,17 @@ pub struct LegRun {
     pub periods: u64,
 }
 
+/// `e`, a leg that could not be built from scenario `arg`, naming the scenario's file where
+/// the error does not already name a file.
+fn in_scenario(e: pma_leg::LegError, arg: &str) -> pma_leg::LegError {
+    use pma_leg::LegError as E;
+    match e {
+        E::Parse { .. } | E::InFile { .. } | E::Io { .. } | E::Urdf { .. } => e,
+        _ if arg.ends_with(".toml") => e.in_file(arg),
+        _ => e.in_file(&format!("{arg} (embedded scenario)")),
+    }
+}
+
 impl LegRun {
     /// Checks the arguments, loads the scenario and gains and builds the simulation, in
     /// the CLI's order.
@@ -276,7 +287,10 @@ impl LegRun {
         check_duration(duration_s)?;
         sc.check_run_duration(duration_s)?;
         let config = leg_config(a.controller, a.gains, &loaded)?;
-        let sim = LegSim::with_controller(&loaded, &config)?;
+        // What the scenario sets but only a built leg checks (its modes, cuffs, patient)
+        // names the scenario's file as the checks at load do.
+        let sim =
+            LegSim::with_controller(&loaded, &config).map_err(|e| in_scenario(e, a.scenario))?;
         let settings = sim.settings(duration_s)?;
         let periods = settings.periods(sc.period_s)?;
         Ok(Self {

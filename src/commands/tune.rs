@@ -213,7 +213,7 @@ pub fn run(a: Args) -> Result<i32> {
             a.objective.into(),
             &opts,
             &objective,
-            None,
+            &[],
             &stop,
         )
     })?;

@@ -278,17 +278,15 @@ impl GaitSettings {
                 self.stride_period_s,
                 self.ramp_s,
             ),
-            (GaitData::Fukuchi2018, Some(s), _) => Err(pma_model::Invalid::new(
-                "gait.speed",
-                f64::NAN,
-                format!("(`{s}`) is a speed class of the children's data: the adults' (fukuchi2018) takes gait.speed_m_per_s"),
-            )
-            .into()),
-            (GaitData::Fukuchi2018, None, None) => Err(invalid(
-                "gait.speed_m_per_s",
-                f64::NAN,
-                "is missing: gait.data = \"fukuchi2018\" needs one of its treadmill speeds",
-            )),
+            (GaitData::Fukuchi2018, Some(s), _) => Err(LegError::Unsupported {
+                name: "gait.speed".into(),
+                value: format!("\"{s}\""),
+                message: "is a speed class of the children's data: the adults' (gait.data = \"fukuchi2018\") take gait.speed_m_per_s".into(),
+            }),
+            (GaitData::Fukuchi2018, None, None) => Err(LegError::Missing {
+                name: "gait.speed_m_per_s".into(),
+                hint: "gait.data = \"fukuchi2018\" needs one of its treadmill speeds",
+            }),
             (GaitData::Fukuchi2018, None, Some(v)) => {
                 GaitReference::adult(v, self.stride_period_s, self.ramp_s)
             }

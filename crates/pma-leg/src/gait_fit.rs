@@ -222,8 +222,21 @@ pub fn fit_gait(
         let change = speeds.hip_change_deg(&reference, &lever, settings.gain)?;
         correction = correction.plus(&change);
         run.scenario.gait.hip_correction = Some(correction);
+        let next = -speeds.mean_stance_m_s;
+        if !(next.is_finite() && (0.0..=crate::ground::BELT_SPEED_MAX_M_S).contains(&next)) {
+            // A speed the fit computed, not one the file holds: say so, not as a field.
+            return Err(LegError::Unsupported {
+                name: "fit-gait".into(),
+                value: format!("run {iteration}"),
+                message: format!(
+                    "the stance foot moved at {} m/s, which no belt runs (0..={} m/s): the fit diverges; lower --gain or give more --strides",
+                    pma_model::error::number(-next),
+                    crate::ground::BELT_SPEED_MAX_M_S
+                ),
+            });
+        }
         if let Some(t) = &mut run.scenario.treadmill {
-            t.speed_m_per_s = Some(-speeds.mean_stance_m_s);
+            t.speed_m_per_s = Some(next);
         }
     }
     let (best, hip_correction, stance_belt_m_s, _) = kept;

@@ -144,6 +144,10 @@ pub enum Contralateral {
     None,
 }
 
+/// Fastest belt a scenario may ask for (m/s): gait trainers' belts run up to about 3.2
+/// km/h (Lokomat), treadmills for gait research to a few metres per second.
+pub const BELT_SPEED_MAX_M_S: f64 = 3.0;
+
 /// The passive ankle: an ankle-foot orthosis (or a trainer's foot lifter) as a rotational
 /// spring and damper about a rest angle, within its stops (the scenario's
 /// `[treadmill.ankle]`; defaults and their sources: docs/treadmill.md).
@@ -429,18 +433,18 @@ impl TreadmillSettings {
             ));
         }
         if self.legs == 2 && self.contralateral == Some(Contralateral::Reference) {
-            return Err(invalid(
-                "treadmill.contralateral",
-                2.0,
-                "a two-leg trainer has its other leg: `reference` is for one leg (use `none` or leave it out)",
-            ));
+            return Err(LegError::Unsupported {
+                name: "treadmill.contralateral".into(),
+                value: "\"reference\"".into(),
+                message: "a two-leg trainer (treadmill.legs = 2) has its other leg: `reference` is for one leg (use `none` or leave it out)".into(),
+            });
         }
         if let Some(v) = self.speed_m_per_s {
             within(
                 "treadmill.speed_m_per_s",
                 v,
                 0.0,
-                3.0,
+                BELT_SPEED_MAX_M_S,
                 "a gait trainer's belt, 0..=3 m/s",
             )?;
         }
@@ -461,20 +465,17 @@ impl TreadmillSettings {
             )?;
         }
         let [from, to] = self.bws_release_s;
-        within(
-            "treadmill.bws_release_s",
-            from,
-            0.0,
-            60.0,
-            "[from, to] with 0 <= from <= to <= 60 s",
-        )?;
-        within(
-            "treadmill.bws_release_s",
-            to,
-            from,
-            60.0,
-            "[from, to] with 0 <= from <= to <= 60 s",
-        )?;
+        if !(from.is_finite() && to.is_finite() && 0.0 <= from && from <= to && to <= 60.0) {
+            return Err(LegError::Unsupported {
+                name: "treadmill.bws_release_s".into(),
+                value: format!(
+                    "[{}, {}]",
+                    pma_model::error::number(from),
+                    pma_model::error::number(to)
+                ),
+                message: "must be [from, to] with 0 <= from <= to <= 60 s".into(),
+            });
+        }
         self.validate_release_pairing()?;
         within(
             "treadmill.body_mass_kg",

@@ -330,8 +330,9 @@ impl Leg {
         self.array(py, &self.run.applied)
     }
 
-    /// The supervisor's limits: ``pressure_max_pa``, ``pressure_rate_max_pa_per_s`` and
-    /// ``windows`` (each encoder's name and admissible range, rad).
+    /// The supervisor's limits: ``pressure_max_pa``, ``pressure_rate_max_pa_per_s``,
+    /// ``windows`` (each reading's name and admissible range: encoders in rad, cuff torques
+    /// in N m, pressures in Pa) and ``joint_speed_max_rad_s`` (the physics' bound).
     #[getter]
     fn limits<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let l = &self.limits;
@@ -343,6 +344,11 @@ impl Leg {
             windows.set_item(w.name, (w.min, w.max))?;
         }
         d.set_item("windows", windows)?;
+        // Beyond it the simulation has left its physics and the run fails.
+        d.set_item(
+            "joint_speed_max_rad_s",
+            pma_leg::plant::JOINT_SPEED_MAX_RAD_S,
+        )?;
         Ok(d)
     }
 

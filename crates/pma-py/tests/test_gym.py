@@ -80,3 +80,13 @@ def test_bad_settings_raise_a_one_line_error():
         LegEnv(fault_penalty=float("nan"))
     with pytest.raises(pma_exo.PmaError, match="scenario"):
         LegEnv("no_such_scenario")
+
+
+def test_the_environment_is_registered_and_its_observations_are_bounded():
+    env = gymnasium.make("pma_exo/Leg-v0", scenario="gait_training", episode_s=0.05)
+    space = env.observation_space
+    assert np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high))
+    obs, _ = env.reset()
+    assert space.contains(obs)
+    # Without importing the module first, as Gymnasium's "module:id" form does.
+    gymnasium.make("pma_exo.gym:pma_exo/Leg-v0", episode_s=0.05).reset()

@@ -1,6 +1,6 @@
 //! Gains for the leg, found by the same firefly search as the bench's baselines
 //! (`crate::tune`): a controller's search space, one gain set shared by the four muscles.
-use crate::tune::{firefly_from, polish, FireflyOptions};
+use crate::tune::{firefly_from, polish, FireflyOptions, POLISH_STEP};
 use pma_control::{ControllerConfig, ControllerKind};
 use pma_leg::gains::base_config;
 use pma_leg::{LegSim, LoadedScenario};
@@ -159,9 +159,6 @@ pub struct LegBudget<'a> {
     /// Counts every evaluation, for a progress bar.
     pub progress: Option<&'a std::sync::atomic::AtomicUsize>,
 }
-
-/// First step of the polish, in the unit cube (a twentieth of each gain's range).
-pub const POLISH_STEP: f64 = 0.05;
 
 /// Tunes `kind`'s gains, shared by every muscle, on the scenarios together (the worst of
 /// their objectives, [`worst_objective`]); `Ok(None)` if `kind` has no search space. The

@@ -29,6 +29,13 @@ pub struct FireflyOptions {
     pub seed: u64,
     /// Counts the evaluations done, for a progress bar (the search does not read it).
     pub progress: Option<&'static AtomicUsize>,
+    /// Evaluations of a compass search polishing the best point after the generations
+    /// ([`polish`]; 0: none, the plain firefly search).
+    pub polish: usize,
+    /// Restarts: the generations split into this many searches, each from a fresh random
+    /// population (seeds `seed`, `seed + 1`, ...) with the best point so far among its
+    /// starts ([`firefly_restarts`]; 1: one search).
+    pub restarts: usize,
 }
 
 impl Default for FireflyOptions {
@@ -41,6 +48,8 @@ impl Default for FireflyOptions {
             alpha0: 0.2,
             seed: 2019,
             progress: None,
+            polish: 0,
+            restarts: 1,
         }
     }
 }
@@ -92,13 +101,30 @@ pub fn firefly_from(
     stop: &AtomicBool,
     objective: impl Fn(&[f64]) -> f64 + Sync,
 ) -> (Vec<f64>, f64, usize) {
+    let starts: Vec<&[f64]> = first.into_iter().collect();
+    firefly_seeded(dims, opts, &starts, stop, objective)
+}
+
+/// [`firefly`] with its first fireflies at `starts` (known points of the cube: the gains a
+/// tuning starts from and shipped sets), the others random as without them. Each firefly
+/// keeps the best point it has seen, so the search never ends worse than its best start.
+pub fn firefly_seeded(
+    dims: usize,
+    opts: &FireflyOptions,
+    starts: &[&[f64]],
+    stop: &AtomicBool,
+    objective: impl Fn(&[f64]) -> f64 + Sync,
+) -> (Vec<f64>, f64, usize) {
     let mut rng = GaussianRng::new(opts.seed);
     let n = opts.population.max(2);
     let mut pos: Vec<Vec<f64>> = (0..n)
         .map(|_| (0..dims).map(|_| rng.uniform()).collect())
         .collect();
-    if let Some(u) = first.filter(|u| u.len() == dims) {
-        pos[0] = u.iter().map(|x| x.clamp(0.0, 1.0)).collect();
+    for (p, u) in pos
+        .iter_mut()
+        .zip(starts.iter().filter(|u| u.len() == dims))
+    {
+        *p = u.iter().map(|x| x.clamp(0.0, 1.0)).collect();
     }
     let mut cost = evaluate_all(&pos, stop, &objective, opts.progress);
     let mut evals = n;
@@ -150,6 +176,9 @@ pub fn firefly_from(
     (pos[best].clone(), cost[best], evals)
 }
 
+/// First step of a polish, in the unit cube (a twentieth of each gain's range).
+pub const POLISH_STEP: f64 = 0.05;
+
 /// A local polish of `start` (cost `start_cost`) in the unit cube, after a global search
 /// has found it: a compass search that tries `start +- step` along every axis (the
 /// `2 dims` points evaluated in parallel), moves to the best if it is better, halves the
@@ -196,6 +225,46 @@ pub fn polish(
         }
     }
     (best, best_cost, evals)
+}
+
+/// [`firefly_seeded`] restarted: `opts.generations` split into `opts.restarts` searches,
+/// each from a fresh random population (its own seed) with `starts` and the best point so
+/// far among its first fireflies. A search that settles in a poor basin (one seed in three
+/// did on the `realistic` rig) is left for a fresh one that keeps what it found.
+pub fn firefly_restarts(
+    dims: usize,
+    opts: &FireflyOptions,
+    starts: &[&[f64]],
+    stop: &AtomicBool,
+    objective: impl Fn(&[f64]) -> f64 + Sync,
+) -> (Vec<f64>, f64, usize) {
+    let restarts = opts.restarts.max(1);
+    let mut best: Option<(Vec<f64>, f64)> = None;
+    let mut evaluations = 0;
+    for r in 0..restarts {
+        let generations =
+            opts.generations / restarts + usize::from(r < opts.generations % restarts);
+        let each = FireflyOptions {
+            generations: generations.max(1),
+            seed: opts.seed.wrapping_add(r as u64),
+            ..*opts
+        };
+        let mut seeds: Vec<&[f64]> = Vec::with_capacity(starts.len() + 1);
+        if let Some((u, _)) = &best {
+            seeds.push(u);
+        }
+        seeds.extend_from_slice(starts);
+        let (u, cost, n) = firefly_seeded(dims, &each, &seeds, stop, &objective);
+        evaluations += n;
+        if best.as_ref().is_none_or(|(_, c)| cost < *c) {
+            best = Some((u, cost));
+        }
+        if stop.load(Ordering::Relaxed) {
+            break;
+        }
+    }
+    let (u, cost) = best.unwrap_or_else(|| (vec![0.5; dims], f64::INFINITY));
+    (u, cost, evaluations)
 }
 
 /// What [`tune`] minimises: the IAE of eq. (52) on the paper's sine over `duration_s`,
@@ -482,7 +551,7 @@ pub fn tune_robust(
     aggregate: Aggregate,
     opts: &FireflyOptions,
     objective: &Objective,
-    start: Option<&ControllerConfig>,
+    starts: &[ControllerConfig],
     stop: &AtomicBool,
 ) -> Option<(TuneResult, Vec<Score>)> {
     let dims = kind.search_space().len();
@@ -496,10 +565,23 @@ pub fn tune_robust(
             .collect();
         aggregate.of(&mut costs)
     };
-    let first = start.filter(|c| c.kind() == kind).map(cube_position);
-    let (u, _, evaluations) = firefly_from(dims, opts, first.as_deref(), stop, |u| {
-        cost(&ControllerConfig::at(kind, u))
-    });
+    let firsts: Vec<Vec<f64>> = starts
+        .iter()
+        .filter(|c| c.kind() == kind)
+        .map(cube_position)
+        .collect();
+    let firsts: Vec<&[f64]> = firsts.iter().map(Vec::as_slice).collect();
+    let at = |u: &[f64]| cost(&ControllerConfig::at(kind, u));
+    let (u, best, searched) = firefly_restarts(dims, opts, &firsts, stop, at);
+    let (u, _, polished) = polish(
+        (&u, best),
+        POLISH_STEP,
+        opts.polish,
+        stop,
+        opts.progress,
+        at,
+    );
+    let evaluations = searched + polished;
     let config = ControllerConfig::at(kind, &u);
     let scores: Vec<Score> = plants
         .iter()
@@ -533,6 +615,41 @@ pub fn tune_robust(
         },
         scores,
     ))
+}
+
+/// The shipped gain sets of `kind` a tuning may start from besides its own: the bench's
+/// tuned set (`crates/pma-control/models/gains/`) and the equal-activity sets tuned within
+/// 1.5, 3 and 6 bar/s (`crates/pma-studies/models/gains/equal-activity/`), the paper's
+/// for APRC-NDO and APRC. A search seeded with them starts from sets known to work within
+/// small budgets, which its random fireflies may miss.
+pub fn shipped_starts(kind: ControllerKind) -> Vec<ControllerConfig> {
+    let mut texts: Vec<&str> = Vec::new();
+    match kind {
+        ControllerKind::AprcNdo | ControllerKind::Aprc => {
+            texts.push(pma_control::shipped::APRC_NDO_PAPER);
+            texts.push(pma_control::shipped::APRC_NDO_TUNED);
+        }
+        other => texts.extend(
+            pma_control::shipped::BASELINES
+                .iter()
+                .filter(|(k, _)| *k == other)
+                .map(|(_, t)| *t),
+        ),
+    }
+    for budget in ["1.5", "3", "6"] {
+        if let Some(t) = crate::experiments::paper::equal_activity_file(budget, kind.as_str()) {
+            texts.push(t);
+        }
+    }
+    texts
+        .into_iter()
+        .filter_map(|t| ControllerConfig::from_toml_str(t).ok())
+        .filter_map(|c| match (c, kind) {
+            (c, k) if c.kind() == k => Some(c),
+            (ControllerConfig::AprcNdo(g), ControllerKind::Aprc) => Some(ControllerConfig::Aprc(g)),
+            _ => None,
+        })
+        .collect()
 }
 
 /// Result of [`tune`].

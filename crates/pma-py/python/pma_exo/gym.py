@@ -7,7 +7,12 @@ muscle's pressure each control period and is rewarded for tracking the scenario'
   ``Leg.muscles``; ``-1`` is vented, ``1`` the valve's ``pressure_max_pa``. The supervisor
   of ``pma-exo simulate`` still rate-limits the commands (``Leg.limits``).
 - **Observation**: per leg the hip and knee angles (rad), their references now (rad) and
-  the angles' change over the last period (rad/s), in that order: ``6 * legs`` values.
+  the angles' change over the last period (rad/s), in that order: ``6 * legs`` values,
+  bounded: angles and references by the supervisor's encoder windows, rates by the speed
+  beyond which the simulation fails (``Leg.limits``).
+- **Registered** as ``pma_exo/Leg-v0``: ``gymnasium.make("pma_exo/Leg-v0",
+  scenario="gait_treadmill")`` once ``pma_exo.gym`` is imported, or
+  ``gymnasium.make("pma_exo.gym:pma_exo/Leg-v0")`` without importing it.
 - **Reward**: minus the mean absolute tracking error over the joints (deg), per period.
 - **End**: ``terminated`` when the supervisor vents the muscles (an encoder left its
   joint's window; the reward is then ``-fault_penalty``), ``truncated`` after
@@ -44,8 +49,22 @@ class LegEnv(gymnasium.Env):
         self._pressure_max_pa = float(self.leg.limits["pressure_max_pa"])
         n = self.leg.legs
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4 * n,), dtype=np.float64)
-        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(6 * n,), dtype=np.float64)
+        low, high = self._bounds()
+        self.observation_space = spaces.Box(low, high, dtype=np.float64)
         self._last = np.zeros((n, 2))
+
+    def _bounds(self) -> Tuple[np.ndarray, np.ndarray]:
+        """Each observation's range: the encoders' windows for angles and references, the
+        physics' speed bound for rates."""
+        limits = self.leg.limits
+        windows, v = limits["windows"], float(limits["joint_speed_max_rad_s"])
+        low, high = [], []
+        for i in range(self.leg.legs):
+            side = "" if i == 0 else "left "
+            hip, knee = windows[f"{side}hip angle"], windows[f"{side}knee angle"]
+            low += [hip[0], knee[0], hip[0], knee[0], -v, -v]
+            high += [hip[1], knee[1], hip[1], knee[1], v, v]
+        return np.array(low), np.array(high)
 
     def pressures_pa(self, action: np.ndarray) -> np.ndarray:
         """The commands (Pa, shape ``(legs, 4)``) an action stands for."""
@@ -55,7 +74,9 @@ class LegEnv(gymnasium.Env):
     def _observation(self, q: np.ndarray) -> np.ndarray:
         rate = (q - self._last) / self.leg.period
         self._last = q.copy()
-        return np.concatenate([np.hstack([q[i], self.leg.reference()[i], rate[i]]) for i in range(self.leg.legs)])
+        obs = np.concatenate([np.hstack([q[i], self.leg.reference()[i], rate[i]]) for i in range(self.leg.legs)])
+        # Within the box: a reading beyond a window has already ended the episode.
+        return np.clip(obs, self.observation_space.low, self.observation_space.high)
 
     def _reward(self, q: np.ndarray) -> float:
         return -float(np.degrees(np.abs(q - self.leg.reference())).mean())
@@ -77,3 +98,6 @@ class LegEnv(gymnasium.Env):
             return self._observation(q), -self.fault_penalty, True, False, info
         truncated = self.leg.time >= self.episode_s - 0.5 * self.leg.period
         return self._observation(q), self._reward(q), False, truncated, {"t_s": self.leg.time}
+
+
+gymnasium.register(id="pma_exo/Leg-v0", entry_point="pma_exo.gym:LegEnv")

@@ -80,6 +80,14 @@ pub struct Args {
 /// Seconds of bench simulation per gain set and plant in the tuning (the paper's sine).
 const TUNING_RUN_S: f64 = 20.0;
 
+/// The tuning's generations split into this many searches from fresh populations, each
+/// keeping the best so far ([`pma_studies::tune::firefly_restarts`]).
+const RESTARTS: usize = 1;
+
+/// Evaluations of the compass search that polishes the tuning's best (each over every
+/// robust plant): two of the firefly search's generations of 20.
+const POLISH_EVALUATIONS: usize = 40;
+
 /// Wall time of identification per logged period (s): an upper bound on what
 /// docs/commissioning.md measured (7-16 s for a 60 s log with a weighed load, 36-44 s for
 /// the added mass's two; at most 0.37 ms a period).
@@ -140,7 +148,8 @@ impl Plan {
             name: "--spread".into(),
             ..e
         })?;
-        let tuning_runs = evaluations(a.population, a.generations)?;
+        let tuning_runs = evaluations(a.population, a.generations)?
+            + ((RESTARTS - 1) * a.population + POLISH_EVALUATIONS) as f64;
         let load = Load::of(a, &cfg)?;
         let excitations = match load {
             Load::Weighed(_) => 1.0,
@@ -374,17 +383,23 @@ fn commission(
         population: a.population,
         generations: a.generations,
         seed: a.seed,
+        polish: POLISH_EVALUATIONS,
+        restarts: RESTARTS,
         ..FireflyOptions::default()
     };
-    // The search starts one firefly from the gains that run now: it keeps them unless it
-    // finds better on the plants around the identified one.
+    // The search starts fireflies from the gains that run now and from the shipped sets
+    // (the bench's tuned ones, those tuned within small activity budgets): it keeps the
+    // best of them unless it finds better on the plants around the identified one, then
+    // polishes its best.
+    let mut starts = vec![plan.current];
+    starts.extend(pma_studies::tune::shipped_starts(plan.kind));
     let tuned = tune_robust(
         plan.kind,
         &plants,
         Aggregate::Mean,
         &opts,
         &objective,
-        Some(&plan.current),
+        &starts,
         stop,
     );
     if stop.load(Ordering::Relaxed) {

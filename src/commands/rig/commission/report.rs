@@ -263,7 +263,7 @@ impl Report {
                 self.tuned.as_ref(),
                 &match &self.tuning {
                     Some(t) => format!(
-                        "not run: no gain set within {} bar/s (the best: {:.2} bar/s, IAE {:.2} mm, after {} runs)",
+                        "not run: no gain set within {} bar/s (the best: {:.2} bar/s, IAE {:.2} mm, after {} runs; `--max-variation` lets the tuning use more valve activity)",
                         a.max_variation,
                         t.variation_bar_per_s,
                         t.iae_m * 1e3,
