@@ -39,7 +39,7 @@ fn leg(c: &mut Criterion) {
             ..pma_leg::ground::TreadmillSettings::new(0.3, 75.0)
         };
         let mut on_belt = Exoskeleton::on_treadmill(
-            pma_leg::config::EMBEDDED_TRAINER_URDF,
+            pma_leg::body::EMBEDDED_TRAINER_URDF,
             "exo_trainer.urdf",
             [sc.joints.hip, sc.joints.knee],
             sc.period_s,

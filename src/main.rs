@@ -6,10 +6,8 @@ use clap::{Parser, Subcommand};
 
 mod commands;
 mod output;
-mod paper;
 mod plot;
 mod provenance;
-mod studies;
 
 use commands::{
     compare_leg, compare_modes, fit_gait, identify, impedance, pendulum, rig, simulate, single,
@@ -94,7 +92,10 @@ fn main() {
     match run(cli) {
         Ok(code) => std::process::exit(code),
         Err(e) if e.downcast_ref::<output::StdoutClosed>().is_some() => std::process::exit(0),
-        Err(e) if e.downcast_ref::<studies::Interrupted>().is_some() => {
+        Err(e)
+            if e.downcast_ref::<commands::paper::studies::Interrupted>()
+                .is_some() =>
+        {
             eprintln!(
                 "interrupted: nothing was written over the previous results (the sweeps' runs so far are kept under the output's sweeps/; the same command resumes them)"
             );
@@ -173,7 +174,7 @@ fn run(cli: Cli) -> Result<i32> {
         Command::Simulate(a) => simulate::run(a),
         Command::Pendulum(a) => pendulum::run(a),
         Command::Single(a) => single::run(a),
-        Command::Paper { out } => paper::run(&out).map(|()| 0),
+        Command::Paper { out } => commands::paper::run(&out).map(|()| 0),
         Command::Tune(a) => tune::run(a),
         Command::TuneLeg(a) => tune::run_leg(a),
         Command::CompareLeg(a) => compare_leg::run(a),

@@ -368,7 +368,7 @@ pub fn patient_name(loaded: &LoadedScenario) -> String {
 
 /// The controller of every muscle: a gain file, or the scenario's gains for the controller
 /// (its own APRC-NDO gains for APRC-NDO, the default, and APRC; its gain set's for the
-/// others: `pma_leg::gains::scenario_gains`). One name, one gain set.
+/// others: `pma_leg::scenario::scenario_gains`). One name, one gain set.
 pub fn leg_config(
     kind: Option<ControllerKind>,
     gains: Option<&Path>,
@@ -379,7 +379,9 @@ pub fn leg_config(
             let k = kind_of_gains(Some(path), k.unwrap_or(ControllerKind::AprcNdo))?;
             load_gains(k, Some(path))?
         }
-        (k, None) => pma_leg::gains::scenario_gains(loaded, k.unwrap_or(ControllerKind::AprcNdo))?,
+        (k, None) => {
+            pma_leg::scenario::scenario_gains(loaded, k.unwrap_or(ControllerKind::AprcNdo))?
+        }
     })
 }
 
@@ -519,22 +521,22 @@ impl SizeArgs {
 /// the demand beside their moments.
 pub struct SizeRun {
     /// The strides' demand.
-    pub demand: pma_leg::demand::Demand,
+    pub demand: pma_leg::tools::Demand,
     /// Every joint's designs and the recommendation.
-    pub sizing: pma_leg::sizing::Sizing,
+    pub sizing: pma_leg::tools::Sizing,
     /// The demand against the adults' moments (empty off the adults' data).
-    pub norms: Vec<pma_leg::demand::NormComparison>,
+    pub norms: Vec<pma_leg::tools::NormComparison>,
     /// The adults' loading response beside the feet's (a treadmill on the adults' data).
-    pub norm_loading: Option<pma_leg::demand::NormLoading>,
+    pub norm_loading: Option<pma_leg::tools::NormLoading>,
 }
 
 impl SizeRun {
     /// Drives `loaded`'s legs along its gait and sizes their muscles as `args` say.
     pub fn of(loaded: &LoadedScenario, args: &SizeArgs) -> Result<Self> {
-        let demand = pma_leg::demand::stride_demand(loaded, args.strides)?;
+        let demand = pma_leg::tools::stride_demand(loaded, args.strides)?;
         let p_max = loaded.scenario.plant.valve.pressure_max_pa;
         let sizing =
-            pma_leg::sizing::size_joints(&demand, p_max, args.max_length_m, args.force_margin);
+            pma_leg::tools::size_joints(&demand, p_max, args.max_length_m, args.force_margin);
         let adults = adult_norms(&loaded.scenario)?;
         let norms = adults
             .as_ref()
@@ -580,22 +582,22 @@ pub fn adult_norms(sc: &pma_leg::Scenario) -> Result<Option<pma_leg::gait::Adult
 /// The demand beside the adults' moments (`norms`).
 fn norm_comparison(
     sc: &pma_leg::Scenario,
-    demand: &pma_leg::demand::Demand,
+    demand: &pma_leg::tools::Demand,
     norms: &pma_leg::gait::AdultNorms,
-) -> Vec<pma_leg::demand::NormComparison> {
+) -> Vec<pma_leg::tools::NormComparison> {
     let (mass, bws) = sc
         .treadmill
         .map_or((75.0, 0.0), |t| (t.body_mass_kg, t.bws_fraction));
-    pma_leg::demand::against_norms(demand, norms, mass, bws)
+    pma_leg::tools::against_norms(demand, norms, mass, bws)
 }
 
 /// The adults' loading response (`norms`), for a treadmill scenario.
 fn norm_loading(
     sc: &pma_leg::Scenario,
     norms: &pma_leg::gait::AdultNorms,
-) -> Option<pma_leg::demand::NormLoading> {
+) -> Option<pma_leg::tools::NormLoading> {
     let t = sc.treadmill.as_ref()?;
-    Some(pma_leg::demand::norm_loading(
+    Some(pma_leg::tools::norm_loading(
         norms,
         sc.gait.stride_period_s,
         sc.period_s,
@@ -636,7 +638,7 @@ pub enum BodySpeedArg {
     Normative,
 }
 
-impl From<BodySpeedArg> for pma_leg::gait_fit::BodySpeed {
+impl From<BodySpeedArg> for pma_leg::tools::BodySpeed {
     fn from(a: BodySpeedArg) -> Self {
         match a {
             BodySpeedArg::Constant => Self::Constant,
@@ -654,7 +656,7 @@ pub enum BeltArg {
     Stance,
 }
 
-impl From<BeltArg> for pma_leg::gait_fit::BeltRule {
+impl From<BeltArg> for pma_leg::tools::BeltRule {
     fn from(a: BeltArg) -> Self {
         match a {
             BeltArg::NoDrag => Self::NoHarnessDrag,

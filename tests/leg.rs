@@ -1,6 +1,6 @@
 //! The exoskeleton leg through the public API: gait tracking, co-contraction over a long
 //! run, energy and static equilibrium against hand calculations, bad input.
-use pma_leg::config::EMBEDDED_URDF;
+use pma_leg::body::EMBEDDED_URDF;
 use pma_leg::{LegOutput, LegReport, LegSim, PerLeg, Scenario, Side, SupervisedLeg, TrainerSample};
 use pma_loop::{FnRecorder, Period};
 
@@ -421,7 +421,7 @@ fn a_cuff_torque_beyond_full_scale_vents_the_muscles_and_names_the_sensor() {
 fn cuff_readings_carry_the_sensors_bias_and_noise_around_the_true_torque() {
     use pma_loop::Backend;
     let mut loaded = Scenario::load("gait_training").unwrap();
-    loaded.scenario.plant.cuff_sensor = pma_leg::config::CuffSensorSettings {
+    loaded.scenario.plant.cuff_sensor = pma_leg::plant::CuffSensorSettings {
         noise_rms_nm: 2.0,
         bias_nm: [1.0, -3.0],
         seed: 7,
@@ -519,7 +519,7 @@ fn one_implicit_step_is_more_accurate_than_one_explicit_step() {
 
 #[test]
 fn implicit_muscle_damping_on_the_treadmill_is_refused_naming_the_field() {
-    let (_, text) = pma_leg::config::EMBEDDED_SCENARIOS
+    let (_, text) = pma_leg::scenario::EMBEDDED_SCENARIOS
         .iter()
         .find(|(name, _)| *name == "gait_treadmill")
         .expect("gait_treadmill");

@@ -257,7 +257,7 @@ fn the_leg_loop_allocates_nothing_but_what_rapier_allocates_itself() {
 
 /// Admittance mode with a patient who walks on their own timing, the adults' moments left
 /// to them and the gait's clock following the legs (docs/cooperative.md).
-fn follow_a_walking_patient(sc: &mut pma_leg::config::Scenario) {
+fn follow_a_walking_patient(sc: &mut pma_leg::scenario::Scenario) {
     sc.control.mode = pma_leg::ControlMode::Admittance;
     let imp = &mut sc.control.impedance;
     imp.hip.stiffness_nm_per_rad = Some(300.0);

@@ -411,7 +411,7 @@ fn provenance_names_every_seed_and_every_part_of_the_patient() {
 #[test]
 fn a_scenario_file_is_named_by_its_path_not_its_inner_name() {
     let dir = temp("prov-scenario");
-    let (_, training) = pma_leg::config::EMBEDDED_SCENARIOS
+    let (_, training) = pma_leg::scenario::EMBEDDED_SCENARIOS
         .iter()
         .find(|(n, _)| *n == "gait_training")
         .expect("gait_training");
@@ -449,7 +449,7 @@ fn a_scenario_file_is_named_by_its_path_not_its_inner_name() {
         "gait_training, t.toml (name \"gait_training\")"
     );
     // The treadmill scenario as a file: its muscle geometry says which file it came from.
-    let (_, treadmill) = pma_leg::config::EMBEDDED_SCENARIOS
+    let (_, treadmill) = pma_leg::scenario::EMBEDDED_SCENARIOS
         .iter()
         .find(|(n, _)| *n == "gait_treadmill")
         .expect("gait_treadmill");

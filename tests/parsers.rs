@@ -6,7 +6,8 @@
 //! allocation above 256 MiB, which aborts the test).
 use pma_bench::{MuscleBench, PlantConfig};
 use pma_control::ControllerConfig;
-use pma_leg::config::{parse_muscles, EMBEDDED_MUSCLES, EMBEDDED_SCENARIOS};
+use pma_leg::plant::parse_muscles;
+use pma_leg::scenario::{EMBEDDED_MUSCLES, EMBEDDED_SCENARIOS};
 use pma_leg::{LegSim, LoadedScenario, Scenario};
 use pma_rig::config::{EMBEDDED_PCI6052E, EMBEDDED_VIRTUAL};
 use pma_rig::{RigConfig, VirtualDaq};

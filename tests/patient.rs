@@ -27,7 +27,7 @@ fn run(
     part: fn(&PatientTorques) -> [f64; 2],
 ) -> (LegReport, [f64; 2]) {
     let loaded = Scenario::load(scenario).expect("scenario");
-    let config = pma_leg::gains::leg_gains(kind).expect("gains");
+    let config = pma_leg::control::leg_gains(kind).expect("gains");
     let mut sim = LegSim::with_controller(&loaded, &config).expect("sim");
     let mut peak = [0.0f64; 2];
     let mut rec = FnRecorder(|p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>| {
@@ -169,7 +169,7 @@ fn spasm_times(kind: ControllerKind, seed: u64) -> Vec<(String, f64, f64, f64)> 
     if let Some(s) = &mut loaded.scenario.patient.knee.spasms {
         s.seed = seed;
     }
-    let config = pma_leg::gains::leg_gains(kind).unwrap();
+    let config = pma_leg::control::leg_gains(kind).unwrap();
     let mut sim = LegSim::with_controller(&loaded, &config).unwrap();
     let r = sim.run(40.0, &mut ()).unwrap();
     r.spasms

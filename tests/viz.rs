@@ -423,7 +423,7 @@ fn a_treadmill_recording_shows_the_belt_the_contacts_the_grf_and_the_phases() {
             assert_eq!(grf[k], g.vertical_n);
             assert_eq!(
                 stance[k] == 1.0,
-                g.vertical_n > pma_leg::stance::CONTACT_THRESHOLD_N
+                g.vertical_n > pma_leg::metrics::CONTACT_THRESHOLD_N
             );
         }
     }
@@ -435,7 +435,7 @@ fn a_treadmill_recording_shows_the_belt_the_contacts_the_grf_and_the_phases() {
         rerun::Arrows3D::descriptor_vectors().component,
     );
     assert_eq!(arrows.len(), 3000);
-    let threshold = (pma_leg::stance::CONTACT_THRESHOLD_N * pma_viz::GRF_ARROW_M_PER_N) as f32;
+    let threshold = (pma_leg::metrics::CONTACT_THRESHOLD_N * pma_viz::GRF_ARROW_M_PER_N) as f32;
     let up = arrows.iter().filter(|(_, v)| v[0][2] > threshold).count();
     let in_stance = stance.iter().filter(|s| **s == 1.0).count();
     assert_eq!(up, in_stance, "arrows up vs periods in stance");

@@ -3,7 +3,7 @@
 //! device does to the patient and how the patient walks (issue 28).
 use crate::say;
 use anyhow::Result;
-use pma_leg::phase_sync::PhaseSync;
+use pma_leg::control::PhaseSync;
 use pma_leg::{ControlMode, LegError, LegReport, LegSim, LoadedScenario, Scenario};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -127,7 +127,7 @@ fn row(scenario: &str, drive: Drive, r: &LegReport) -> Row {
     let rms = |name: &str| r.joints.get(name).map_or(f64::NAN, |j| j.rms_deg);
     let muscles = r.safety.muscles.values();
     let hooked = !matches!(drive, Drive::Unhooked);
-    let worst = |f: fn(&pma_leg::safety::MuscleSafety) -> f64| {
+    let worst = |f: fn(&pma_leg::metrics::MuscleSafety) -> f64| {
         if hooked {
             muscles.clone().map(f).fold(0.0, f64::max)
         } else {
@@ -213,11 +213,11 @@ pub fn run(a: Args) -> Result<i32> {
     if let Some(k) = a
         .admittance_stiffness
         .iter()
-        .find(|k| !pma_leg::impedance::stiffness_in_range(**k))
+        .find(|k| !pma_leg::control::stiffness_in_range(**k))
     {
         anyhow::bail!(
             "--admittance-stiffness {k}: each must be > 0 and at most {} N m/rad",
-            pma_leg::impedance::STIFFNESS_MAX_NM_PER_RAD
+            pma_leg::control::STIFFNESS_MAX_NM_PER_RAD
         );
     }
     let following: Vec<Drive> = a

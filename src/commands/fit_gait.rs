@@ -94,7 +94,7 @@ pub fn run(a: Args) -> Result<i32> {
 /// A belt without drag far from the stance's speed: the stance slides instead of walking.
 fn warn_if_the_stance_does_not_walk(fit: &GaitFit) {
     if let Some(off) = fit.belt_off_stance() {
-        if off.abs() > pma_leg::gait_fit::BELT_OFF_STANCE_WARN {
+        if off.abs() > pma_leg::tools::BELT_OFF_STANCE_WARN {
             eprintln!(
                 "note: the belt without drag, {:.4} m/s, is {:+.1} % from the stance's speed: the stance does not move with the belt (its feet slide; docs/treadmill.md, at 0 % support)",
                 fit.belt_speed_m_s,

@@ -3,9 +3,9 @@
 use crate::provenance::Provenance;
 use crate::say;
 use anyhow::Result;
-use pma_leg::exoskeleton::JOINT_NAMES;
-use pma_leg::impedance::{StiffnessRange, STIFFNESS_MAX_NM_PER_RAD};
-use pma_leg::probe::{probe_frequency, probe_stiffness, FrequencyProbe, ProbeAt, StiffnessProbe};
+use pma_leg::base::JOINT_NAMES;
+use pma_leg::control::{StiffnessRange, STIFFNESS_MAX_NM_PER_RAD};
+use pma_leg::tools::{probe_frequency, probe_stiffness, FrequencyProbe, ProbeAt, StiffnessProbe};
 use pma_leg::{ControlMode, LegSim, MusclePair, Scenario};
 use serde::Serialize;
 
@@ -64,94 +64,19 @@ fn pair(r: Option<StiffnessRange>) -> Option<[f64; 2]> {
     r.map(|r| [r.min_nm_per_rad, r.max_nm_per_rad])
 }
 
-/// Runs `impedance`.
+/// Runs `impedance`: every argument checked, each joint's reach and probes measured, then
+/// reported.
 pub fn run(a: Args) -> Result<i32> {
-    if !(a.settle.is_finite() && (0.2..=30.0).contains(&a.settle)) {
-        anyhow::bail!("--settle must be 0.2..=30 s (got {})", a.settle);
-    }
-    let mode = a.mode.control_mode();
-    if !matches!(mode, ControlMode::Impedance | ControlMode::Admittance) {
-        anyhow::bail!("--mode {mode}: the perturbation tests measure a stiffness set point, which impedance and admittance modes have");
-    }
-    if let Some(k) = a
-        .stiffness
-        .iter()
-        .find(|k| !pma_leg::impedance::stiffness_in_range(**k))
-    {
-        anyhow::bail!("--stiffness {k}: each set point must be > 0 and at most {STIFFNESS_MAX_NM_PER_RAD} N m/rad");
-    }
-    let [lo, hi] = pma_leg::probe::PROBE_FREQUENCY_RANGE_HZ;
-    if let Some(f) = a
-        .frequencies
-        .iter()
-        .find(|f| !(f.is_finite() && (lo..=hi).contains(*f)))
-    {
-        anyhow::bail!("--frequencies {f}: each must be {lo}..={hi} Hz");
-    }
-    let pose_deg = [a.pose_deg[0], a.pose_deg[1]];
-    if pose_deg.iter().any(|d| !d.is_finite()) {
-        anyhow::bail!("--pose-deg must be two finite angles in degrees");
-    }
+    let (mode, pose_deg) = checked_args(&a)?;
     let loaded = Scenario::load(&a.scenario)?;
     let sc = &loaded.scenario;
     let sim = LegSim::new(&loaded)?;
-    // The pose within the joints' limits, checked (in degrees) before anything runs.
-    for (j, name) in JOINT_NAMES.iter().enumerate() {
-        let [lo, hi] = sim.exo().limits_rad(0)[j].map(f64::to_degrees);
-        if !(lo..=hi).contains(&pose_deg[j]) {
-            anyhow::bail!(
-                "--pose-deg: the {name} at {} deg is outside its limits, {lo:.1}..={hi:.1} deg (the URDF's)",
-                pose_deg[j]
-            );
-        }
-    }
-    let inertia = *sim.exo().inertia();
-    let gait = sc.gait.reference()?;
-    let pose_rad = pose_deg.map(f64::to_radians);
-    let in_air = sc.treadmill.is_none();
-    let mut joints = Vec::with_capacity(2);
-    for (j, name) in JOINT_NAMES.iter().enumerate() {
-        let p = MusclePair::new(
-            sim.plant().leg_muscles(0),
-            j,
-            sc.plant.valve.pressure_max_pa,
-        )?;
-        let over_stride = stride_reach(&p, &inertia, &gait, j);
-        let gravity = inertia.inverse_dynamics(pose_rad, [0.0; 2], [0.0; 2])[j];
-        let at_pose = p.stiffness_range(gravity, pose_rad[j]);
-        let mut probes = Vec::new();
-        let mut frequency_probes = Vec::new();
-        if let (true, Some(r)) = (in_air, at_pose) {
-            let set_points = if a.stiffness.is_empty() {
-                SET_POINTS
-                    .iter()
-                    .map(|share| r.min_nm_per_rad + share * (r.max_nm_per_rad - r.min_nm_per_rad))
-                    .collect()
-            } else {
-                a.stiffness.clone()
-            };
-            for k in set_points {
-                let at = ProbeAt {
-                    mode,
-                    joint: j,
-                    stiffness_nm_per_rad: k,
-                    pose_rad,
-                };
-                probes.push(probe_stiffness(&loaded, &at, a.settle)?);
-                for &f in &a.frequencies {
-                    frequency_probes.push(probe_frequency(&loaded, &at, f)?);
-                }
-            }
-        }
-        joints.push(JointReach {
-            joint: name,
-            at_rest: pair(p.stiffness_range(0.0, 0.0)),
-            over_stride_in_air: over_stride,
-            at_pose: pair(at_pose),
-            probes,
-            frequency_probes,
-        });
-    }
+    check_pose(&sim, pose_deg)?;
+    let joints = JOINT_NAMES
+        .iter()
+        .enumerate()
+        .map(|(j, name)| measure_joint(&a, &loaded, &sim, mode, (j, name), pose_deg))
+        .collect::<Result<Vec<_>>>()?;
     let provenance = Provenance {
         scenario: Some(crate::provenance::named(&a.scenario, &sc.name)),
         ..Provenance::of_this_run()
@@ -166,6 +91,120 @@ pub fn run(a: Args) -> Result<i32> {
         say!("{}", serde_json::to_string(&json)?);
         return Ok(0);
     }
+    print_reach(sc, mode, pose_deg, &joints)?;
+    say!("{}", provenance.line());
+    Ok(0)
+}
+
+/// The mode and the pose (deg) of `a`, every argument checked before anything runs.
+fn checked_args(a: &Args) -> Result<(ControlMode, [f64; 2])> {
+    if !(a.settle.is_finite() && (0.2..=30.0).contains(&a.settle)) {
+        anyhow::bail!("--settle must be 0.2..=30 s (got {})", a.settle);
+    }
+    let mode = a.mode.control_mode();
+    if !matches!(mode, ControlMode::Impedance | ControlMode::Admittance) {
+        anyhow::bail!("--mode {mode}: the perturbation tests measure a stiffness set point, which impedance and admittance modes have");
+    }
+    if let Some(k) = a
+        .stiffness
+        .iter()
+        .find(|k| !pma_leg::control::stiffness_in_range(**k))
+    {
+        anyhow::bail!("--stiffness {k}: each set point must be > 0 and at most {STIFFNESS_MAX_NM_PER_RAD} N m/rad");
+    }
+    let [lo, hi] = pma_leg::tools::PROBE_FREQUENCY_RANGE_HZ;
+    if let Some(f) = a
+        .frequencies
+        .iter()
+        .find(|f| !(f.is_finite() && (lo..=hi).contains(*f)))
+    {
+        anyhow::bail!("--frequencies {f}: each must be {lo}..={hi} Hz");
+    }
+    let pose_deg = [a.pose_deg[0], a.pose_deg[1]];
+    if pose_deg.iter().any(|d| !d.is_finite()) {
+        anyhow::bail!("--pose-deg must be two finite angles in degrees");
+    }
+    Ok((mode, pose_deg))
+}
+
+/// The pose within the joints' limits, checked (in degrees) before anything runs.
+fn check_pose(sim: &LegSim, pose_deg: [f64; 2]) -> Result<()> {
+    for (j, name) in JOINT_NAMES.iter().enumerate() {
+        let [lo, hi] = sim.exo().limits_rad(0)[j].map(f64::to_degrees);
+        if !(lo..=hi).contains(&pose_deg[j]) {
+            anyhow::bail!(
+                "--pose-deg: the {name} at {} deg is outside its limits, {lo:.1}..={hi:.1} deg (the URDF's)",
+                pose_deg[j]
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Joint `j`'s reach by co-contraction (at rest, over a stride, at the pose) and, for a
+/// leg in the air, its perturbation and frequency probes at each set point.
+fn measure_joint(
+    a: &Args,
+    loaded: &pma_leg::LoadedScenario,
+    sim: &LegSim,
+    mode: ControlMode,
+    (j, name): (usize, &'static str),
+    pose_deg: [f64; 2],
+) -> Result<JointReach> {
+    let sc = &loaded.scenario;
+    let inertia = *sim.exo().inertia();
+    let gait = sc.gait.reference()?;
+    let pose_rad = pose_deg.map(f64::to_radians);
+    let p = MusclePair::new(
+        sim.plant().leg_muscles(0),
+        j,
+        sc.plant.valve.pressure_max_pa,
+    )?;
+    let over_stride = stride_reach(&p, &inertia, &gait, j);
+    let gravity = inertia.inverse_dynamics(pose_rad, [0.0; 2], [0.0; 2])[j];
+    let at_pose = p.stiffness_range(gravity, pose_rad[j]);
+    let mut probes = Vec::new();
+    let mut frequency_probes = Vec::new();
+    if let (true, Some(r)) = (sc.treadmill.is_none(), at_pose) {
+        let set_points = if a.stiffness.is_empty() {
+            SET_POINTS
+                .iter()
+                .map(|share| r.min_nm_per_rad + share * (r.max_nm_per_rad - r.min_nm_per_rad))
+                .collect()
+        } else {
+            a.stiffness.clone()
+        };
+        for k in set_points {
+            let at = ProbeAt {
+                mode,
+                joint: j,
+                stiffness_nm_per_rad: k,
+                pose_rad,
+            };
+            probes.push(probe_stiffness(loaded, &at, a.settle)?);
+            for &f in &a.frequencies {
+                frequency_probes.push(probe_frequency(loaded, &at, f)?);
+            }
+        }
+    }
+    Ok(JointReach {
+        joint: name,
+        at_rest: pair(p.stiffness_range(0.0, 0.0)),
+        over_stride_in_air: over_stride,
+        at_pose: pair(at_pose),
+        probes,
+        frequency_probes,
+    })
+}
+
+/// The text report: each joint's reach, then its probes.
+fn print_reach(
+    sc: &Scenario,
+    mode: ControlMode,
+    pose_deg: [f64; 2],
+    joints: &[JointReach],
+) -> Result<()> {
+    let in_air = sc.treadmill.is_none();
     say!(
         "{}: joint stiffness by co-contraction (each pair's pressure sum; the valves' range 0..{:.2} bar, both muscles pulling)",
         sc.name,
@@ -186,7 +225,7 @@ pub fn run(a: Args) -> Result<i32> {
             }
         );
     }
-    for j in &joints {
+    for j in joints {
         say!(
             "  {:<5} at rest {}; at every point of a stride in the air {}; at {:.0}/{:.0} deg holding gravity {}",
             j.joint,
@@ -239,8 +278,7 @@ pub fn run(a: Args) -> Result<i32> {
     if !in_air {
         say!("  (no perturbation tests: they hold a leg in the air, and this scenario stands on a treadmill)");
     }
-    say!("{}", provenance.line());
-    Ok(0)
+    Ok(())
 }
 
 /// The scenario's Coulomb friction on joint `name` (N m).

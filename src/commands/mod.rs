@@ -11,6 +11,7 @@ pub mod compare_modes;
 pub mod fit_gait;
 pub mod identify;
 pub mod impedance;
+pub mod paper;
 pub mod pendulum;
 pub mod rig;
 pub mod simulate;

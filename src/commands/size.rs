@@ -4,7 +4,7 @@ use crate::provenance::{Provenance, Seeds};
 use crate::say;
 use anyhow::Result;
 use pma_exo::setup::{SizeArgs, SizeRun};
-use pma_leg::sizing::{muscle_geometry, muscles_toml, JointSizing, Sizing};
+use pma_leg::tools::{muscle_geometry, muscles_toml, JointSizing, Sizing};
 use pma_leg::Scenario;
 use std::path::PathBuf;
 
@@ -30,7 +30,7 @@ pub struct Args {
     /// Least share of its rating a recommended muscle keeps free at the stride's peak
     /// force, 0-0.9: the room a controller's own activity takes above the servo-driven
     /// stride (docs/treadmill.md measures what that is). Pressure and speed keep 10 %.
-    #[arg(long, default_value_t = pma_leg::sizing::FORCE_MARGIN_MIN, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = pma_leg::tools::FORCE_MARGIN_MIN, allow_negative_numbers = true)]
     force_margin: f64,
     /// Write the servo-driven strides period by period (each leg's angles, servo torques,
     /// ground reaction, ankle, pelvis, slip and contact speed) to a CSV file.
@@ -150,7 +150,7 @@ pub fn run(a: Args) -> Result<i32> {
 }
 
 /// The servo-driven strides, a row per leg and period (angles in degrees).
-fn write_csv(path: &std::path::Path, demand: &pma_leg::demand::Demand) -> Result<()> {
+fn write_csv(path: &std::path::Path, demand: &pma_leg::tools::Demand) -> Result<()> {
     let header: Vec<String> = CSV_COLUMNS.iter().map(|c| (*c).to_owned()).collect();
     let mut csv = output::CsvOut::create(path, &header, None)?;
     for s in &demand.samples {
@@ -179,8 +179,8 @@ fn write_csv(path: &std::path::Path, demand: &pma_leg::demand::Demand) -> Result
 }
 
 fn print_norms(
-    norms: &[pma_leg::demand::NormComparison],
-    loading: Option<&pma_leg::demand::NormLoading>,
+    norms: &[pma_leg::tools::NormComparison],
+    loading: Option<&pma_leg::tools::NormLoading>,
 ) -> Result<()> {
     for c in norms {
         say!(
@@ -205,7 +205,7 @@ fn print_norms(
     Ok(())
 }
 
-fn print_summary(s: &Sizing, demand: &pma_leg::demand::Demand, scenario: &str) -> Result<()> {
+fn print_summary(s: &Sizing, demand: &pma_leg::tools::Demand, scenario: &str) -> Result<()> {
     say!(
         "{scenario}: what a stride asks of the joints (servos along the reference, within {:.2} / {:.2} deg at hip / knee), and the muscles that supply it",
         demand.max_error_deg[0],

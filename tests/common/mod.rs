@@ -8,7 +8,7 @@ use std::path::Path;
 pub fn diverging_scenario(dir: &Path) -> String {
     let shank_mass = r#"<mass value="6.075"/>"#;
     let shank_inertia = r#"ixx="0.1376" ixy="0" ixz="0" iyy="0.1376" iyz="0" izz="0.0100""#;
-    let urdf = pma_leg::config::EMBEDDED_URDF;
+    let urdf = pma_leg::body::EMBEDDED_URDF;
     assert!(
         urdf.contains(shank_mass) && urdf.contains(shank_inertia),
         "the embedded URDF's shank changed: update this test's light shank"
@@ -20,7 +20,7 @@ pub fn diverging_scenario(dir: &Path) -> String {
             r#"ixx="1e-7" ixy="0" ixz="0" iyy="1e-7" iyz="0" izz="1e-7""#,
         );
     std::fs::write(dir.join("light_shank.urdf"), light).expect("urdf");
-    let (_, training) = pma_leg::config::EMBEDDED_SCENARIOS
+    let (_, training) = pma_leg::scenario::EMBEDDED_SCENARIOS
         .iter()
         .find(|(n, _)| *n == "gait_training")
         .expect("gait_training");

@@ -1,5 +1,5 @@
 //! TEMPORARY probe: a scenario's servo-driven demand, per leg, and its ground figures.
-use pma_leg::demand::stride_demand;
+use pma_leg::tools::stride_demand;
 use pma_leg::Scenario;
 
 fn main() {

@@ -1,7 +1,7 @@
 //! Patient-cooperative control on the leg in the air (issue 28): the interaction torque's
 //! model against the leg's dynamics, the active patient's own gait, and the ordering of the
 //! modes on the same patient.
-use pma_leg::impedance::ControlMode;
+use pma_leg::control::ControlMode;
 use pma_leg::{LegReport, LegSim, Scenario};
 
 /// The limb and the frames make the leg: their inverse dynamics add up to the leg's at any
@@ -81,7 +81,7 @@ fn interaction_torque_falls_from_position_to_impedance_to_path_control() {
     ]
     .map(|m| run(Some(m), false, secs).cooperation[0].clone());
     for j in ["hip", "knee"] {
-        let rms = |c: &pma_leg::cooperative::CooperationReport| c.joints[j].interaction_rms_nm;
+        let rms = |c: &pma_leg::metrics::CooperationReport| c.joints[j].interaction_rms_nm;
         assert!(
             rms(&position) > rms(&impedance),
             "{j}: {position:?} {impedance:?}"

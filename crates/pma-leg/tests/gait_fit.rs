@@ -2,10 +2,10 @@
 //! replayed rigidly, the data's hip drags the stance feet along the belt; the fitted hip
 //! lets them move with it, and what the joints must supply falls accordingly
 //! (docs/treadmill.md).
-use pma_leg::demand::{stride_demand, Demand};
 use pma_leg::gait::StartUp;
-use pma_leg::gait_fit::BeltRule;
 use pma_leg::ground::TreadmillSettings;
+use pma_leg::tools::BeltRule;
+use pma_leg::tools::{stride_demand, Demand};
 use pma_leg::{fit_gait, GaitFitSettings, LoadedScenario, Scenario};
 
 /// `gait_treadmill` with the pelvis nearly free fore-aft (the default hold) and the

@@ -1,8 +1,8 @@
 //! Impedance by co-contraction on the leg in the air (issue 28): the stiffness a
 //! small-perturbation test measures against the set point, at three set points per joint;
 //! a spasm against position control.
-use pma_leg::impedance::ControlMode;
-use pma_leg::probe::{probe_frequency, probe_stiffness, ProbeAt};
+use pma_leg::control::ControlMode;
+use pma_leg::tools::{probe_frequency, probe_stiffness, ProbeAt};
 use pma_leg::{LegSim, MusclePair, Scenario};
 
 fn at(mode: ControlMode, joint: usize, stiffness_nm_per_rad: f64, pose_rad: [f64; 2]) -> ProbeAt {

@@ -15,7 +15,8 @@
 //! comparison runs pma-leg's Hertz contact at its stiffest (E = 1e9 N/m^2, sinking at most
 //! 0.5 mm); the scenario's own (E = 2e6, sinking up to 31 mm) is compared too, except the
 //! double support's split, which its sinkage decides.
-use pma_leg::config::{JointSettings, EMBEDDED_TRAINER_URDF};
+use pma_leg::body::JointSettings;
+use pma_leg::body::EMBEDDED_TRAINER_URDF;
 use pma_leg::ground::{AnkleSettings, ContactParams, Contralateral, TreadmillSettings};
 use pma_leg::{Exoskeleton, PerLeg};
 use serde::Deserialize;

@@ -3,9 +3,10 @@
 //! servo-driven gait on the belt (issue 27; one leg with a virtual other leg where said).
 //! `cargo test -p pma-leg --test treadmill -- --nocapture` prints the figures
 //! docs/treadmill.md quotes.
-use pma_leg::config::{JointSettings, EMBEDDED_TRAINER_URDF};
-use pma_leg::demand::stride_demand;
+use pma_leg::body::JointSettings;
+use pma_leg::body::EMBEDDED_TRAINER_URDF;
 use pma_leg::ground::{ContactParams, Contralateral, TreadmillSettings};
+use pma_leg::tools::stride_demand;
 use pma_leg::{Exoskeleton, PerLeg, Scenario};
 
 const PERIOD_S: f64 = 1e-3;
@@ -454,9 +455,9 @@ fn treadmill_error(urdf: &str, t: &TreadmillSettings) -> String {
 #[test]
 fn a_treadmill_without_a_foot_slide_or_second_leg_is_a_one_line_error() {
     let ok = settings(2, 0.6, 0.3);
-    let e = treadmill_error(pma_leg::config::EMBEDDED_URDF, &settings(1, 0.6, 0.3));
+    let e = treadmill_error(pma_leg::body::EMBEDDED_URDF, &settings(1, 0.6, 0.3));
     assert!(e.contains("foot") && !e.contains('\n'), "{e}");
-    let e = treadmill_error(pma_leg::config::EMBEDDED_URDF, &ok);
+    let e = treadmill_error(pma_leg::body::EMBEDDED_URDF, &ok);
     assert!(e.contains("treadmill.legs = 2") && !e.contains('\n'), "{e}");
     let no_slide = EMBEDDED_TRAINER_URDF.replace("type=\"prismatic\"", "type=\"fixed\"");
     let e = treadmill_error(&no_slide, &ok);

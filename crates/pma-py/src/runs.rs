@@ -397,7 +397,7 @@ pub fn fit_gait<'py>(
     belt: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     use pma_exo::setup::{BeltArg, BodySpeedArg};
-    use pma_leg::gait_fit::GaitFitSettings;
+    use pma_leg::tools::GaitFitSettings;
     let body_speed = choice::<BodySpeedArg>("body_speed", body_speed)?.into();
     let belt = choice::<BeltArg>("belt", belt)?.into();
     let settings = GaitFitSettings {

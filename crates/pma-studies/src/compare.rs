@@ -105,7 +105,7 @@ impl TreadmillRow {
                 })
             })
         };
-        let strikes = |f: fn(&pma_leg::stance::HeelStrikeStats) -> f64| {
+        let strikes = |f: fn(&pma_leg::metrics::HeelStrikeStats) -> f64| {
             ["hip", "knee"].map(|j| {
                 feet.iter()
                     .filter_map(|r| r.heel_strikes.get(j).map(f))

@@ -2,7 +2,7 @@
 //! (`crate::tune`): a controller's search space, one gain set shared by the four muscles.
 use crate::tune::{firefly_from, polish, FireflyOptions, POLISH_STEP};
 use pma_control::{ControllerConfig, ControllerKind};
-use pma_leg::gains::base_config;
+use pma_leg::scenario::base_config;
 use pma_leg::{LegSim, LoadedScenario};
 
 /// Weight of command activity in the objective (deg per bar/s): a chattering valve

@@ -1,8 +1,8 @@
 //! The patient's model: the torques of the reflexes, spasms, effort and passive moments at
 //! each physics substep, allocation-free once planned.
 use super::settings::*;
-use crate::error::LegError;
-use crate::exoskeleton::LegInertia;
+use crate::base::LegError;
+use crate::body::LegInertia;
 use crate::gait::GaitReference;
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -576,7 +576,7 @@ mod tests {
 
     /// A limb of two uniform 5 kg bars (the walking tests do not use its dynamics).
     fn two_bars() -> LegInertia {
-        let bar = crate::exoskeleton::LinkInertia {
+        let bar = crate::body::LinkInertia {
             mass_kg: 5.0,
             com_below_joint_m: 0.2,
             inertia_kg_m2: 0.05,

@@ -1,6 +1,6 @@
 //! The patient's settings (the scenario's `[patient]`): presets, overrides, and their
 //! validation, resolved into the parameters the model runs on.
-use crate::error::{invalid, LegError};
+use crate::base::{invalid, LegError};
 use pma_model::error::{finite, non_negative, positive, within};
 use serde::Deserialize;
 
@@ -358,7 +358,7 @@ impl ActiveSettings {
         self.strength.unwrap_or(1.0)
     }
 
-    fn validate(&self) -> Result<(), LegError> {
+    pub(crate) fn validate(&self) -> Result<(), LegError> {
         if let (Some(s), Some(_)) = (self.strength, self.strength_by_leg) {
             return Err(LegError::Unsupported {
                 name: "patient.active.strength".into(),
@@ -611,7 +611,7 @@ impl PassiveMoment {
 }
 
 impl SpasmSettings {
-    fn validate(&self, at: &str) -> Result<(), LegError> {
+    pub(crate) fn validate(&self, at: &str) -> Result<(), LegError> {
         non_negative(format!("{at}.rate_per_min"), self.rate_per_min)?;
         if self.rate_per_min > MAX_SPASM_RATE_PER_MIN {
             return Err(invalid(
@@ -678,7 +678,7 @@ impl SpasmSettings {
 }
 
 impl EffortSettings {
-    fn validate(&self, at: &str) -> Result<(), LegError> {
+    pub(crate) fn validate(&self, at: &str) -> Result<(), LegError> {
         finite(format!("{at}.fraction"), self.fraction)?;
         if self.fraction.abs() > 1.0 {
             return Err(invalid(

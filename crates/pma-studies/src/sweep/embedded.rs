@@ -88,7 +88,7 @@ fn base_gains(
         ("leg", Some(_)) if is_aprc(kind) => as_kind(leg_gains(ControllerKind::AprcNdo)?, kind),
         ("leg", Some(_)) => Some(leg_gains(kind)?),
         ("scenario", Some(loaded)) if is_aprc(kind) => {
-            Some(pma_leg::gains::base_config(loaded, kind))
+            Some(pma_leg::scenario::base_config(loaded, kind))
         }
         ("scenario", Some(_)) => None,
         _ => base_gains_by_name(kind, base, dir)?,
@@ -96,7 +96,7 @@ fn base_gains(
 }
 
 fn leg_gains(kind: ControllerKind) -> Result<ControllerConfig, String> {
-    pma_leg::gains::leg_gains(kind).map_err(|e| e.to_string())
+    pma_leg::control::leg_gains(kind).map_err(|e| e.to_string())
 }
 
 fn base_gains_by_name(
@@ -187,13 +187,13 @@ mod tests {
         let loaded = pma_leg::Scenario::load("gait_training").unwrap();
         let leg = Some(&loaded);
         for kind in ControllerKind::ALL {
-            let shipped = pma_leg::gains::leg_gains(kind).unwrap();
+            let shipped = pma_leg::control::leg_gains(kind).unwrap();
             let got = gains_for(kind, "leg", d, leg).unwrap().unwrap();
             match kind {
                 ControllerKind::Aprc => assert_eq!(
                     got,
                     as_kind(
-                        pma_leg::gains::leg_gains(ControllerKind::AprcNdo).unwrap(),
+                        pma_leg::control::leg_gains(ControllerKind::AprcNdo).unwrap(),
                         kind
                     )
                     .unwrap()

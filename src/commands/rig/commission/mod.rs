@@ -12,12 +12,13 @@ use super::supervised::{check_rig_wall_time, warn_if_not_vented, with_added_mass
 use crate::commands::tune::{check_robust, check_tuning_wall_time, evaluations};
 use crate::output::{self, OutFile};
 use anyhow::{bail, Context, Result};
+use pma_bench::PlantConfig;
 use pma_control::{ControllerConfig, ControllerKind};
 use pma_exo::setup::load_id_log as load_log;
 use pma_rig::{RigConfig, RunOptions};
 use pma_studies::identify::{identify_logs, IdLog, Identified, MIN_LOG_S};
 use pma_studies::tune::{
-    robust_plants, tune_robust, Aggregate, FireflyOptions, Objective, RigScenario,
+    robust_plants, tune_robust, Aggregate, FireflyOptions, Objective, RigScenario, TuneResult,
 };
 use report::{Report, RunResult};
 use std::path::{Path, PathBuf};
@@ -324,6 +325,32 @@ fn commission(
     out: &mut OutDir,
     report: &mut Report,
 ) -> Result<()> {
+    run_before(a, plan, stop, out, report)?;
+
+    stage(2, "excitation");
+    let logs = excite(a, plan, stop, out)?;
+
+    stage(3, "identification");
+    let id = identify(&logs, plan, a, stop, out)?;
+    let plant = id.plant_config(&logs[0]);
+    OutFile::create(&out.file("plant.toml")?)?
+        .finish_with(&toml::to_string(&plant).context("cannot serialise the plant")?)?;
+    report.plant = Some(out.path.join("plant.toml"));
+    report.identified = Some(id);
+
+    let tuned = tune(a, plan, &plant, stop, report)?;
+    let verified = verify(a, plan, &plant, tuned.as_ref(), stop, out, report)?;
+    keep(a, plan, tuned.as_ref(), &verified, &logs[0], out, report)
+}
+
+/// Stage 1: the current controller as configured, a result even if the supervisor stops it.
+fn run_before(
+    a: &Args,
+    plan: &Plan,
+    stop: &AtomicBool,
+    out: &mut OutDir,
+    report: &mut Report,
+) -> Result<()> {
     let cfg = &plan.cfg;
     stage(1, "the current controller, as configured");
     confirm("the run before", 1, plan, a.yes, stop)?;
@@ -345,17 +372,19 @@ fn commission(
     }
     report.before = Some(result);
 
-    stage(2, "excitation");
-    let logs = excite(a, plan, stop, out)?;
+    Ok(())
+}
 
-    stage(3, "identification");
-    let id = identify(&logs, plan, a, stop, out)?;
-    let plant = id.plant_config(&logs[0]);
-    OutFile::create(&out.file("plant.toml")?)?
-        .finish_with(&toml::to_string(&plant).context("cannot serialise the plant")?)?;
-    report.plant = Some(out.path.join("plant.toml"));
-    report.identified = Some(id);
-
+/// Stage 4: the robust tuning on plants around the identified one; the tuned gains if they
+/// kept within the command's variation budget.
+fn tune(
+    a: &Args,
+    plan: &Plan,
+    plant: &PlantConfig,
+    stop: &AtomicBool,
+    report: &mut Report,
+) -> Result<Option<TuneResult>> {
+    let cfg = &plan.cfg;
     stage(
         4,
         &format!(
@@ -365,7 +394,7 @@ fn commission(
             plan.tuning_s / rayon::current_num_threads() as f64
         ),
     );
-    let plants = robust_plants(&plant, a.robust, a.spread, a.seed)?;
+    let plants = robust_plants(plant, a.robust, a.spread, a.seed)?;
     // The gains are scored on the run the rig will make: its reference entered from the
     // vented rest, inside its position window.
     let reference = cfg.reference(0.0);
@@ -411,8 +440,28 @@ fn commission(
         variation_bar_per_s: r.score.variation_pa_per_s / 1e5,
         within_budget: r.feasible,
     });
-    let tuned = tuned.map(|(r, _)| r).filter(|r| r.feasible);
 
+    Ok(tuned.map(|(r, _)| r).filter(|r| r.feasible))
+}
+
+/// Stage 5's two runs: the current gains and the tuned ones (if any), each on the rig told
+/// the identified plant.
+struct Verified {
+    current: RunResult,
+    tuned: Option<RunResult>,
+}
+
+/// Stage 5: the verification with the identified plant told.
+fn verify(
+    a: &Args,
+    plan: &Plan,
+    plant: &PlantConfig,
+    tuned: Option<&TuneResult>,
+    stop: &AtomicBool,
+    out: &mut OutDir,
+    report: &mut Report,
+) -> Result<Verified> {
+    let cfg = &plan.cfg;
     stage(5, "verification with the identified plant told");
     let mut told = cfg.clone();
     told.control.nominal = plant.nominal;
@@ -441,7 +490,7 @@ fn commission(
         ),
     )?;
     report.told = Some(current.clone());
-    let tuned_run = match &tuned {
+    let tuned_run = match tuned {
         Some(t) => Some(verify(
             t.config,
             "after-tuned-gains.csv",
@@ -455,17 +504,35 @@ fn commission(
         None => None,
     };
     report.tuned = tuned_run.clone();
+    Ok(Verified {
+        current,
+        tuned: tuned_run,
+    })
+}
+
+/// Keeps the gains the rig says track best (the tuned ones only if they completed and beat
+/// the current ones; the current ones only if they completed), or fails saying why.
+fn keep(
+    a: &Args,
+    plan: &Plan,
+    tuned: Option<&TuneResult>,
+    verified: &Verified,
+    log: &IdLog,
+    out: &mut OutDir,
+    report: &mut Report,
+) -> Result<()> {
+    let (current, tuned_run) = (&verified.current, &verified.tuned);
     // The tuned gains are kept only if they completed and the rig says they track better
     // than the current ones (up to their fault, if the supervisor stopped them); the
     // current ones only if they completed.
     let tuned_better = tuned_run
         .as_ref()
         .is_some_and(|r| r.fault.is_none() && r.rte_percent < current.rte_percent);
-    let (kept, gains, rte_after) = match &tuned {
-        Some(t) if tuned_better => ("tuned", t.config, report_rte(&tuned_run)),
+    let (kept, gains, rte_after) = match tuned {
+        Some(t) if tuned_better => ("tuned", t.config, report_rte(tuned_run)),
         _ if current.fault.is_none() => ("current", plan.current, current.rte_percent),
         _ => {
-            report.finish(a, &out.path, &logs[0], tuned.is_some())?;
+            report.finish(a, &out.path, log, tuned.is_some())?;
             bail!(
                 "no gain set to keep: the current gains faulted in the verification and no tuned gains did better; the rig keeps its configuration (see {})",
                 out.path.join("report.md").display()
@@ -479,7 +546,7 @@ fn commission(
     report.kept = Some(kept);
     report.rte_after_percent = Some(rte_after);
     report.gains = Some(out.path.join("gains.toml"));
-    report.finish(a, &out.path, &logs[0], tuned.is_some())
+    report.finish(a, &out.path, log, tuned.is_some())
 }
 
 /// The RTE of a verification that ran.

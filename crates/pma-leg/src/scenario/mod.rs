@@ -1,0 +1,342 @@
+//! Scenario and muscle-geometry files (TOML, `deny_unknown_fields`, units in the names).
+use crate::body::{Joints, EMBEDDED_TRAINER_URDF, EMBEDDED_URDF};
+use crate::control::ControlSettings;
+use crate::gait::GaitSettings;
+use crate::plant::{parse_muscles, MuscleGeometry, PlantSettings};
+use crate::scenario::embedded_text;
+mod embedded;
+mod gains;
+
+pub use embedded::*;
+pub use gains::*;
+
+use crate::base::{invalid, LegError};
+use crate::ground::TreadmillSettings;
+use crate::patient::PatientSettings;
+use pma_model::error::{non_negative, positive, within};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// A gait-training scenario (`crates/pma-leg/models/scenarios/*.toml`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Name.
+    pub name: String,
+    /// One line.
+    #[serde(default)]
+    pub description: String,
+    /// URDF path relative to the scenario file; absent = the embedded `exo_leg.urdf`.
+    #[serde(default)]
+    pub urdf: Option<PathBuf>,
+    /// Muscle geometry path relative to the scenario file; absent = the embedded one.
+    #[serde(default)]
+    pub muscle_geometry: Option<PathBuf>,
+    /// Default duration (s).
+    pub duration_s: f64,
+    /// Control period (s).
+    pub period_s: f64,
+    /// Physics steps per control period.
+    pub physics_substeps: u32,
+    /// The muscles' damping evaluated at the joint rates the physics step ends on (linearly
+    /// implicit), from the leg's own rigid-body model, except while a joint is at its limit:
+    /// one step per period is then more accurate than one explicit step and about as
+    /// accurate as two (`docs/benchmarks.md`). In the air only: on the treadmill the pelvis
+    /// floats, which that model does not have.
+    #[serde(default)]
+    pub implicit_muscle_damping: bool,
+    /// Gait reference.
+    pub gait: GaitSettings,
+    /// Joint damping and friction.
+    pub joints: Joints,
+    /// True plant.
+    pub plant: PlantSettings,
+    /// Controllers.
+    pub control: ControlSettings,
+    /// The patient in the exoskeleton (absent: the URDF's passive limb).
+    #[serde(default)]
+    pub patient: PatientSettings,
+    /// The foot on a treadmill belt and the pelvis on body-weight support (absent: the leg
+    /// swings in the air from a fixed pelvis). Its URDF needs a `foot` link and a
+    /// `pelvis_z` slide; absent `urdf` and `muscle_geometry` are then the embedded
+    /// `exo_trainer.urdf` and `muscles_treadmill.toml`.
+    #[serde(default)]
+    pub treadmill: Option<TreadmillSettings>,
+}
+
+/// Parses TOML text into `T`; an error names the line and the field's path
+/// (`patient.knee.spasticity.preset`) on one line.
+fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, file: &str) -> Result<T, LegError> {
+    let parse_error = |e: &toml::de::Error| LegError::Parse {
+        file: file.to_owned(),
+        message: pma_control::text::toml_error(text, e),
+    };
+    let de = toml::Deserializer::parse(text).map_err(|e| parse_error(&e))?;
+    serde_path_to_error::deserialize(de).map_err(|e| {
+        let path = e.path().to_string();
+        let message = pma_control::text::toml_error(text, e.inner());
+        LegError::Parse {
+            file: file.to_owned(),
+            message: if path == "." || message.contains(&path) {
+                message
+            } else {
+                format!("{path}: {message}")
+            },
+        }
+    })
+}
+
+/// A scenario with its URDF and muscle geometry loaded.
+#[derive(Debug, Clone)]
+pub struct LoadedScenario {
+    /// The scenario.
+    pub scenario: Scenario,
+    /// URDF text.
+    pub urdf_text: String,
+    /// Where the URDF came from (for messages).
+    pub urdf_source: String,
+    /// Muscles.
+    pub muscles: Vec<MuscleGeometry>,
+    /// Where the muscle geometry came from (for messages).
+    pub muscles_source: String,
+}
+
+fn read(path: &Path) -> Result<String, LegError> {
+    std::fs::read_to_string(path).map_err(|e| LegError::Io {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    })
+}
+
+impl Scenario {
+    /// Parses and validates scenario text; `file` names it in errors.
+    pub fn from_toml_str(text: &str, file: &str) -> Result<Self, LegError> {
+        let s: Scenario = parse_toml(text, file)?;
+        s.validate().map_err(|e| LegError::Parse {
+            file: file.to_owned(),
+            message: e.to_string(),
+        })?;
+        Ok(s)
+    }
+
+    /// Rejects a run of `duration_s` shorter than two strides: tracking figures and the
+    /// tuner's objective start after the first one.
+    pub fn check_run_duration(&self, duration_s: f64) -> Result<(), LegError> {
+        let two_strides_s = 2.0 * self.gait.stride_period_s;
+        if duration_s < two_strides_s {
+            return Err(LegError::ShorterThanTwoStrides {
+                scenario: self.name.clone(),
+                duration_s,
+                two_strides_s,
+            });
+        }
+        if let Some(t) = &self.treadmill {
+            let [_, until] = t.bws_release_s;
+            if t.bws_start_fraction.is_some_and(|f| f != t.bws_fraction) && until > duration_s {
+                return Err(LegError::Unsupported {
+                    name: "treadmill.bws_release_s".into(),
+                    value: format!("[{}, {until}]", t.bws_release_s[0]),
+                    message: format!(
+                        "the support is lowered until {until} s, after the run's {duration_s} s: it never reaches bws_fraction = {} within it (run longer, or release sooner)",
+                        t.bws_fraction
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Range checks.
+    pub fn validate(&self) -> Result<(), LegError> {
+        positive("duration_s", self.duration_s)?;
+        within(
+            "period_s",
+            self.period_s,
+            1e-4,
+            1e-2,
+            "must be 0.0001..=0.01 s (the controllers are discretised for 0.1-10 ms)",
+        )?;
+        if !(1..=100).contains(&self.physics_substeps) {
+            return Err(invalid(
+                "physics_substeps",
+                f64::from(self.physics_substeps),
+                "must be 1..=100",
+            ));
+        }
+        pma_model::error::check(
+            !(self.implicit_muscle_damping && self.treadmill.is_some()),
+            "implicit_muscle_damping",
+            1.0,
+            "is for a leg in the air: on the treadmill the pelvis floats, which the leg's rigid-body model it needs does not have",
+        )?;
+        within(
+            "gait.stride_period_s",
+            self.gait.stride_period_s,
+            0.5,
+            10.0,
+            "must be 0.5..=10 s (normal strides last about 1 s, training strides 1.4-3 s)",
+        )?;
+        within(
+            "gait.ramp_s",
+            self.gait.ramp_s,
+            0.0,
+            10.0,
+            "must be 0..=10 s (a start-up from standing over a few strides)",
+        )?;
+        self.gait.reference()?;
+        for (n, j) in [("hip", self.joints.hip), ("knee", self.joints.knee)] {
+            non_negative(
+                format!("joints.{n}.damping_nm_s_per_rad"),
+                j.damping_nm_s_per_rad,
+            )?;
+            non_negative(format!("joints.{n}.friction_nm"), j.friction_nm)?;
+            within(
+                format!("joints.{n}.damping_nm_s_per_rad"),
+                j.damping_nm_s_per_rad,
+                0.0,
+                100.0,
+                "must be 0..=100 N m s/rad",
+            )?;
+            within(
+                format!("joints.{n}.friction_nm"),
+                j.friction_nm,
+                0.0,
+                100.0,
+                "must be 0..=100 N m",
+            )?;
+        }
+        self.plant
+            .valve
+            .validate()
+            .map_err(|e| e.within_section("plant.valve"))?;
+        self.plant.flow_valve()?;
+        self.control.impedance.validate()?;
+        if let Some(f) = self.plant.muscle_rated_force_n {
+            positive("plant.muscle_rated_force_n", f)?;
+        }
+        self.plant.encoder.sensor(0).validate()?;
+        self.plant.cuff_sensor.validate()?;
+        self.plant.cuffs.validate()?;
+        positive("control.cocontraction_pa", self.control.cocontraction_pa)?;
+        if self.control.cocontraction_pa > self.plant.valve.pressure_max_pa {
+            return Err(invalid(
+                "control.cocontraction_pa",
+                self.control.cocontraction_pa,
+                "must be at most the valve's plant.valve.pressure_max_pa",
+            ));
+        }
+        positive(
+            "control.nominal_inertia_fraction",
+            self.control.nominal_inertia_fraction,
+        )?;
+        non_negative(
+            "control.cocontraction_gain_m_per_pa",
+            self.control.cocontraction_gain_m_per_pa,
+        )?;
+        non_negative(
+            "control.cocontraction_max_m",
+            self.control.cocontraction_max_m,
+        )?;
+        positive(
+            "control.cocontraction_filter_s",
+            self.control.cocontraction_filter_s,
+        )?;
+        non_negative(
+            "control.nominal_valve_time_constant_s",
+            self.control.nominal_valve_time_constant_s,
+        )?;
+        positive(
+            "control.pressure_rate_max_pa_per_s",
+            self.control.pressure_rate_max_pa_per_s,
+        )?;
+        pma_control::ControllerConfig::AprcNdo(self.control.gains).validate()?;
+        self.patient.validate()?;
+        if let Some(t) = &self.treadmill {
+            t.validate()?;
+        }
+        Ok(())
+    }
+
+    /// The URDF and muscle geometry a scenario uses when it names none: the embedded
+    /// in-air leg, or the treadmill's. Text and source of each.
+    fn default_models(&self) -> [(&'static str, &'static str); 2] {
+        if self.treadmill.is_some() {
+            [
+                (
+                    EMBEDDED_TRAINER_URDF,
+                    "crates/pma-leg/models/exo_trainer.urdf",
+                ),
+                (
+                    EMBEDDED_TREADMILL_MUSCLES,
+                    "crates/pma-leg/models/muscles_treadmill.toml",
+                ),
+            ]
+        } else {
+            [
+                (EMBEDDED_URDF, "crates/pma-leg/models/exo_leg.urdf"),
+                (EMBEDDED_MUSCLES, "crates/pma-leg/models/muscles.toml"),
+            ]
+        }
+    }
+
+    /// An embedded scenario by name (see [`EMBEDDED_SCENARIOS`]).
+    pub fn embedded(name: &str) -> Option<LoadedScenario> {
+        Self::load_embedded(embedded_text(name)?, name).ok()
+    }
+
+    fn load_embedded(text: &str, name: &str) -> Result<LoadedScenario, LegError> {
+        let scenario = Scenario::from_toml_str(text, &format!("{name}.toml"))?;
+        let [(urdf, urdf_source), (muscles, muscles_source)] = scenario.default_models();
+        Ok(LoadedScenario {
+            scenario,
+            urdf_text: urdf.to_owned(),
+            urdf_source: urdf_source.into(),
+            muscles: parse_muscles(muscles, muscles_source)?,
+            muscles_source: muscles_source.into(),
+        })
+    }
+
+    /// Loads a scenario: an embedded name (see [`EMBEDDED_SCENARIOS`]) or a file, with
+    /// the URDF and muscle geometry it refers to (relative to its directory).
+    pub fn load(name_or_path: &str) -> Result<LoadedScenario, LegError> {
+        if !name_or_path.ends_with(".toml") {
+            return match embedded_text(name_or_path) {
+                Some(text) => Self::load_embedded(text, name_or_path),
+                None => Err(LegError::Parse {
+                    file: name_or_path.to_owned(),
+                    message: format!(
+                        "unknown scenario (expected one of {EMBEDDED_SCENARIO_NAMES}, or a .toml file)"
+                    ),
+                }),
+            };
+        }
+        let path = Path::new(name_or_path);
+        let scenario = Scenario::from_toml_str(&read(path)?, name_or_path)?;
+        let dir = path.parent().unwrap_or_else(|| Path::new("."));
+        let [(urdf, urdf_default), (muscles, muscles_default)] = scenario.default_models();
+        let (urdf_text, urdf_source) = match &scenario.urdf {
+            Some(p) => {
+                let full = dir.join(p);
+                (read(&full)?, full.display().to_string())
+            }
+            None => (urdf.to_owned(), urdf_default.into()),
+        };
+        let (muscles, muscles_source) = match &scenario.muscle_geometry {
+            Some(p) => {
+                let full = dir.join(p).display().to_string();
+                (parse_muscles(&read(Path::new(&full))?, &full)?, full)
+            }
+            None => (
+                parse_muscles(muscles, muscles_default)?,
+                muscles_default.into(),
+            ),
+        };
+        Ok(LoadedScenario {
+            scenario,
+            urdf_text,
+            urdf_source,
+            muscles,
+            muscles_source,
+        })
+    }
+}
