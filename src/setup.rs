@@ -10,6 +10,7 @@ use pma_leg::{ControlMode, LegSim, LoadedScenario, Scenario};
 use pma_loop::LoopSettings;
 use pma_studies::pendulum::PendulumSetup;
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// The reference trajectories of the bench.
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -496,6 +497,8 @@ pub struct SizeArgs {
     pub max_length_m: f64,
     /// Share of its rating a recommended muscle keeps free.
     pub force_margin: f64,
+    /// Seconds of the closed-loop check of the recommendation (0: none).
+    pub closed_loop_s: f64,
 }
 
 impl SizeArgs {
@@ -507,11 +510,27 @@ impl SizeArgs {
                 self.max_length_m
             );
         }
-        if !(self.force_margin.is_finite() && (0.0..=0.9).contains(&self.force_margin)) {
-            bail!("--force-margin must be 0..=0.9 (got {})", self.force_margin);
+        let most = pma_leg::tools::FORCE_MARGIN_MAX;
+        if !(self.force_margin.is_finite() && (0.0..=most).contains(&self.force_margin)) {
+            bail!(
+                "--force-margin must be 0..={most} (got {})",
+                self.force_margin
+            );
         }
         if !(1..=50).contains(&self.strides) {
             bail!("--strides must be 1..=50 (got {})", self.strides);
+        }
+        let (lo, hi) = (
+            pma_leg::tools::CLOSED_LOOP_MIN_S,
+            pma_leg::tools::CLOSED_LOOP_MAX_S,
+        );
+        if !(self.closed_loop_s == 0.0
+            || (self.closed_loop_s.is_finite() && (lo..=hi).contains(&self.closed_loop_s)))
+        {
+            bail!(
+                "--closed-loop-s must be 0 (no check) or {lo}..={hi} s (got {})",
+                self.closed_loop_s
+            );
         }
         Ok(())
     }
@@ -528,15 +547,53 @@ pub struct SizeRun {
     pub norms: Vec<pma_leg::tools::NormComparison>,
     /// The adults' loading response beside the feet's (a treadmill on the adults' data).
     pub norm_loading: Option<pma_leg::tools::NormLoading>,
+    /// Each closed-loop check, in order: the first of the recommendation made with the
+    /// asked margin, the next of each re-sizing (empty without a check).
+    pub closed_loop: Vec<pma_leg::tools::ClosedLoop>,
 }
 
+/// Most closed-loop checks (and re-sizings) of one `size`.
+pub const CLOSED_LOOP_ROUNDS: usize = 3;
+
 impl SizeRun {
-    /// Drives `loaded`'s legs along its gait and sizes their muscles as `args` say.
-    pub fn of(loaded: &LoadedScenario, args: &SizeArgs) -> Result<Self> {
+    /// Drives `loaded`'s legs along its gait and sizes their muscles as `args` say, then
+    /// runs the recommendation in closed loop (unless `args.closed_loop_s` is 0): where the
+    /// closed loop takes more of the rating than the margin allows, the muscles are sized
+    /// again with the margin raised by the controller's share, up to
+    /// [`CLOSED_LOOP_ROUNDS`] times. `stop` ends a closed-loop run early.
+    pub fn of(loaded: &LoadedScenario, args: &SizeArgs, stop: &AtomicBool) -> Result<Self> {
         let demand = pma_leg::tools::stride_demand(loaded, args.strides)?;
         let p_max = loaded.scenario.plant.valve.pressure_max_pa;
-        let sizing =
-            pma_leg::tools::size_joints(&demand, p_max, args.max_length_m, args.force_margin);
+        let size =
+            |margin: f64| pma_leg::tools::size_joints(&demand, p_max, args.max_length_m, margin);
+        let mut sizing = size(args.force_margin);
+        let mut closed_loop = Vec::new();
+        let mut margin = args.force_margin;
+        while args.closed_loop_s > 0.0 && closed_loop.len() < CLOSED_LOOP_ROUNDS {
+            let Some(check) = pma_leg::tools::closed_loop(
+                loaded,
+                &sizing,
+                (args.force_margin, margin),
+                args.closed_loop_s,
+                stop,
+            )?
+            else {
+                break;
+            };
+            let (holds, share) = (check.holds, check.controller_share());
+            closed_loop.push(check);
+            // A run that did not walk or faulted is not a force margin the sizing can fix.
+            let only_force = closed_loop.last().is_some_and(|c| c.why_not.is_none());
+            if holds || !only_force || stop.load(Ordering::Relaxed) {
+                break;
+            }
+            let raised = (margin + share).min(pma_leg::tools::FORCE_MARGIN_MAX);
+            if raised <= margin {
+                break;
+            }
+            margin = raised;
+            sizing = size(margin);
+        }
         let adults = adult_norms(&loaded.scenario)?;
         let norms = adults
             .as_ref()
@@ -549,10 +606,15 @@ impl SizeRun {
             sizing,
             norms,
             norm_loading,
+            closed_loop,
         })
     }
 
-    /// The figures `size --json` prints, without its provenance and the file written.
+    /// The last closed-loop check, if any ran, and whether the recommendation holds.
+    pub fn closed_loop_holds(&self) -> Option<bool> {
+        self.closed_loop.last().map(|c| c.holds)
+    }
+
     pub fn figures(&self) -> serde_json::Map<String, serde_json::Value> {
         let json = serde_json::json!({
             "servo_max_error_deg": self.demand.max_error_deg,
@@ -561,6 +623,7 @@ impl SizeRun {
             "treadmill": self.demand.treadmill,
             "normative_loading": self.norm_loading,
             "sizing": self.sizing,
+            "closed_loop": self.closed_loop,
         });
         match json {
             serde_json::Value::Object(map) => map,

@@ -53,6 +53,10 @@ struct Figure {
     /// row of it must be in the doc, as it is.
     #[serde(default)]
     rows_of: Option<String>,
+    /// The exit status the command must end with, where it is not a success (`size`
+    /// refusing a recommendation that does not hold in closed loop: 1).
+    #[serde(default)]
+    exit: Option<i32>,
     #[serde(default)]
     slow: bool,
 }
@@ -146,7 +150,7 @@ fn table_rows(text: &str) -> Vec<&str> {
         .collect()
 }
 
-fn run(command: &[String], dir: &Path) -> serde_json::Value {
+fn run(command: &[String], dir: &Path, exit: Option<i32>) -> serde_json::Value {
     let args: Vec<String> = command
         .iter()
         .map(|a| a.replace("{dir}", &dir.display().to_string()))
@@ -156,10 +160,15 @@ fn run(command: &[String], dir: &Path) -> serde_json::Value {
         .current_dir(dir)
         .output()
         .expect("run pma-exo");
+    let expected = match exit {
+        Some(code) => out.status.code() == Some(code),
+        None => out.status.success() || out.status.code() == Some(3),
+    };
     assert!(
-        out.status.success() || out.status.code() == Some(3),
-        "pma-exo {}: {}",
+        expected,
+        "pma-exo {} (exit {:?}, expected {exit:?}): {}",
         args.join(" "),
+        out.status.code(),
         String::from_utf8_lossy(&out.stderr)
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -173,7 +182,7 @@ fn check(slow: bool) {
     let mut stale = Vec::new();
     let mut checked = 0;
     for f in m.figure.iter().filter(|f| f.slow == slow) {
-        let json = run(&f.command, &dir);
+        let json = run(&f.command, &dir, f.exit);
         let doc = std::fs::read_to_string(root().join(&f.doc)).expect("doc");
         let mut expected: Vec<String> = f.text.iter().map(|t| expand(t, &json)).collect();
         if let Some(path) = &f.rows_of {
@@ -194,7 +203,7 @@ fn check(slow: bool) {
     }
     let write = std::env::var_os("PMA_BLESS").is_some();
     for image in m.image.iter().filter(|i| i.slow == slow) {
-        run(&image.command, &dir);
+        run(&image.command, &dir, None);
         let drawn = image.drawn.replace("{dir}", &dir.display().to_string());
         let new = std::fs::read(&drawn).expect("the drawn image");
         let path = root().join(&image.path);

@@ -108,7 +108,16 @@ fn every_output_file_gets_the_mode_the_umask_gives() {
                 "save=o.rrd",
             ][..],
             &["simulate", "--duration", "3.2", "--plot", "plots"],
-            &["size", "--strides", "1", "--out", "m.toml", "--json"],
+            &[
+                "size",
+                "--strides",
+                "1",
+                "--closed-loop-s",
+                "0",
+                "--out",
+                "m.toml",
+                "--json",
+            ],
             &["sweep", "sweep.toml", "--out", "sweep"],
         ] {
             let out = pma_exo_umask(&dir, umask, args);
@@ -269,16 +278,21 @@ fn rig_run_refuses_its_log_as_its_recording_up_front() {
 fn size_without_out_writes_nothing() {
     let dir = temp("size-no-out");
     std::fs::write(dir.join("muscles.toml"), "mine").expect("a file of the user's");
-    let out = ok(&dir, &["size", "--strides", "1"]);
+    let out = ok(&dir, &["size", "--strides", "1", "--closed-loop-s", "0"]);
     assert!(stderr(&out).contains("--out"), "{}", stderr(&out));
     assert_eq!(listing(&dir), ["muscles.toml"]);
     assert_eq!(
         std::fs::read_to_string(dir.join("muscles.toml")).expect("kept"),
         "mine"
     );
-    let v: serde_json::Value =
-        serde_json::from_slice(&ok(&dir, &["size", "--strides", "1", "--json"]).stdout)
-            .expect("json");
+    let v: serde_json::Value = serde_json::from_slice(
+        &ok(
+            &dir,
+            &["size", "--strides", "1", "--closed-loop-s", "0", "--json"],
+        )
+        .stdout,
+    )
+    .expect("json");
     assert!(v["muscle_geometry"].is_null(), "{v}");
     std::fs::remove_dir_all(dir).ok();
 }
@@ -456,11 +470,22 @@ fn a_scenario_file_is_named_by_its_path_not_its_inner_name() {
     std::fs::write(dir.join("tm.toml"), treadmill).expect("scenario");
     ok(
         &dir,
-        &["size", "tm.toml", "--strides", "1", "--out", "m.toml"],
+        &[
+            "size",
+            "tm.toml",
+            "--strides",
+            "1",
+            "--closed-loop-s",
+            "0",
+            "--out",
+            "m.toml",
+        ],
     );
     let header = std::fs::read_to_string(dir.join("m.toml")).expect("geometry");
     assert!(
-        header.contains("recommended by `pma-exo size tm.toml --strides 1 --out m.toml`"),
+        header.contains(
+            "recommended by `pma-exo size tm.toml --strides 1 --closed-loop-s 0 --out m.toml`"
+        ),
         "{header}"
     );
     std::fs::remove_dir_all(dir).ok();

@@ -415,13 +415,17 @@ fn fit_gait_writes_the_lines_the_scenario_takes() {
 fn size_recommends_muscles_the_two_legs_then_run_on() {
     let dir = temp_dir("size");
     let out = dir.join("m.toml");
+    // The servo's sizing alone (the closed-loop check is the next test's).
     let v = json_of(&[
         "size",
         "gait_treadmill",
+        "--closed-loop-s",
+        "0",
         "--out",
         out.to_str().unwrap(),
         "--json",
     ]);
+    assert_eq!(v["closed_loop"].as_array().unwrap().len(), 0);
     let joints = v["sizing"]["joints"].as_array().unwrap();
     assert_eq!(joints.len(), 2);
     for j in joints {
@@ -467,6 +471,81 @@ fn size_recommends_muscles_the_two_legs_then_run_on() {
     ]);
     let err = String::from_utf8_lossy(&again.stderr);
     assert!(!again.status.success() && err.contains("refusing"), "{err}");
+}
+
+/// Issue 46 item 5: `size` runs its recommendation in closed loop. On the in-air leg the
+/// controller takes more of the rating than the servo (0.75 against 0.60 at the hip), so
+/// the muscles are sized again with the margin raised by that share, and the second
+/// recommendation holds; on the trainer the scenario's controller, tuned for the shipped
+/// muscles, does not walk the recommended ones: nothing is written, exit 1, one line.
+#[test]
+fn size_checks_its_recommendation_in_closed_loop_and_sizes_again_or_says_why_not() {
+    let dir = temp_dir("size-closed-loop");
+    let v = json_of(&["size", "gait_training", "--strides", "1", "--json"]);
+    let checks = v["closed_loop"].as_array().unwrap();
+    assert_eq!(checks.len(), 2, "{checks:?}");
+    let (first, second) = (&checks[0], &checks[1]);
+    assert!(!first["holds"].as_bool().unwrap() && first["why_not"].is_null());
+    assert_eq!(first["force_margin"].as_f64().unwrap(), 0.4);
+    let over = |c: &serde_json::Value| {
+        c["joints"].as_array().unwrap().iter().any(|j| {
+            j["peak_over_rated"].as_f64().unwrap() > j["allowed_over_rated"].as_f64().unwrap()
+        })
+    };
+    assert!(over(first), "{first}");
+    // The margin raised by the controller's share, the new design within it, and the
+    // closed loop within the stated margin plus a tenth.
+    let share = first["joints"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|j| {
+            j["peak_over_rated"].as_f64().unwrap() - j["servo_peak_over_rated"].as_f64().unwrap()
+        })
+        .fold(0.0, f64::max);
+    let raised = second["force_margin"].as_f64().unwrap();
+    assert!(
+        (raised - (0.4 + share)).abs() < 1e-12,
+        "{raised} vs {share}"
+    );
+    assert!(
+        second["holds"].as_bool().unwrap() && !over(second),
+        "{second}"
+    );
+    for j in second["joints"].as_array().unwrap() {
+        assert!(j["servo_peak_over_rated"].as_f64().unwrap() <= 1.0 - raised + 1e-9);
+        assert!(j["allowed_over_rated"].as_f64().unwrap() == 1.0 - 0.4 + 0.1);
+    }
+    for j in v["sizing"]["joints"].as_array().unwrap() {
+        let d = &j["recommended"];
+        assert!(d["peak_force_over_rated"].as_f64().unwrap() <= 1.0 - raised + 1e-9);
+    }
+    // The trainer's recommendation under the trainer's controller: no walking, no file.
+    let out = dir.join("m.toml");
+    let run = pma_exo(&[
+        "size",
+        "gait_treadmill",
+        "--strides",
+        "1",
+        "--closed-loop-s",
+        "8",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{err}");
+    assert!(!out.exists());
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("does not hold in closed loop"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let check = &v["closed_loop"][0];
+    assert!(!check["holds"].as_bool().unwrap(), "{check}");
+    assert!(
+        check["why_not"].as_str().unwrap().contains("did not walk"),
+        "{check}"
+    );
+    assert!(v["muscle_geometry"].is_null());
 }
 
 #[test]

@@ -32,6 +32,12 @@ pub struct Args {
     /// stride (docs/treadmill.md measures what that is). Pressure and speed keep 10 %.
     #[arg(long, default_value_t = pma_leg::tools::FORCE_MARGIN_MIN, allow_negative_numbers = true)]
     force_margin: f64,
+    /// Seconds of the closed-loop check (0: none): the recommendation run under the
+    /// scenario's controller, valves and patient; where its peak force exceeds the servo
+    /// figure's margin by more than a tenth of the rating, the muscles are sized again with
+    /// the margin raised by what the controller took (at most three checks).
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
+    closed_loop_s: f64,
     /// Write the servo-driven strides period by period (each leg's angles, servo torques,
     /// ground reaction, ankle, pelvis, slip and contact speed) to a CSV file.
     #[arg(long)]
@@ -67,6 +73,7 @@ pub fn run(a: Args) -> Result<i32> {
         strides: a.strides,
         max_length_m: a.max_length_m,
         force_margin: a.force_margin,
+        closed_loop_s: a.closed_loop_s,
     };
     args.check()?;
     let loaded = Scenario::load(&a.scenario)?;
@@ -83,7 +90,7 @@ pub fn run(a: Args) -> Result<i32> {
     let stop = output::stop_flag()?;
     let out_file = a.out.as_deref().map(OutFile::create).transpose()?;
     let sc = &loaded.scenario;
-    let run = SizeRun::of(&loaded, &args)?;
+    let run = SizeRun::of(&loaded, &args, &stop)?;
     if stop.load(std::sync::atomic::Ordering::Relaxed) {
         eprintln!("interrupted: nothing written");
         return Ok(output::INTERRUPTED);
@@ -98,13 +105,18 @@ pub fn run(a: Args) -> Result<i32> {
         seeds: Seeds::of_scenario(sc),
         ..Provenance::of_this_run()
     };
-    let geometry = muscle_geometry(sizing);
+    let holds = run.closed_loop_holds().unwrap_or(true);
+    let geometry = muscle_geometry(sizing).filter(|_| holds);
+    let margin = run
+        .closed_loop
+        .last()
+        .map_or(a.force_margin, |c| c.force_margin);
     let written = match (&geometry, out_file) {
         (Some(muscles), Some(out_file)) => {
             let header = format!(
                 "Muscle geometry recommended by `{}` (docs/treadmill.md).\nEach joint: the smallest Festo size that supplies the stride's torques with\n{:.0} % of its rating free, within a 25 % contraction and with 10 % of the valve's\nrange and of its useful speed to spare, then the most compact. Set the scenario's\ncontrol.cocontraction_pa to {}.\n{}",
                 provenance.command,
-                100.0 * a.force_margin,
+                100.0 * margin,
                 sizing
                     .cocontraction_pa
                     .map_or_else(|| "(none common)".to_owned(), |p| format!("{p:.4e}")),
@@ -126,7 +138,12 @@ pub fn run(a: Args) -> Result<i32> {
     } else {
         print_summary(sizing, demand, &sc.name)?;
         print_norms(norms, run.norm_loading.as_ref())?;
+        print_closed_loop(&run.closed_loop)?;
         say!("{}", provenance.line());
+    }
+    if let Some(last) = run.closed_loop.last().filter(|c| !c.holds) {
+        eprintln!("{}", closed_loop_failure(last));
+        return Ok(1);
     }
     match (geometry, written) {
         (Some(_), Some(path)) => {
@@ -283,4 +300,61 @@ fn print_joint(j: &JointSizing) -> Result<()> {
         say!("    at the edge of the search: {why}");
     }
     Ok(())
+}
+
+/// Each closed-loop check: the joints' peak force against the servo figure and the
+/// allowance, and whether the patient walked.
+fn print_closed_loop(checks: &[pma_leg::tools::ClosedLoop]) -> Result<()> {
+    for (i, c) in checks.iter().enumerate() {
+        let joints: Vec<String> = c
+            .joints
+            .iter()
+            .map(|j| {
+                format!(
+                    "{} peak force {:.2} of the rating (servo {:.2}, at most {:.2})",
+                    j.joint, j.peak_over_rated, j.servo_peak_over_rated, j.allowed_over_rated
+                )
+            })
+            .collect();
+        let walked = match (c.walking, &c.why_not) {
+            (_, Some(why)) => format!("; {why}"),
+            (Some(true), None) => "; the patient walked".into(),
+            _ => String::new(),
+        };
+        say!(
+            "  closed loop {} ({:.0} s, margin {:.2}, the scenario's controller and valves): {}{walked}: {}",
+            i + 1,
+            c.duration_s,
+            c.force_margin,
+            joints.join(", "),
+            if c.holds { "holds" } else { "does not hold" }
+        );
+    }
+    Ok(())
+}
+
+/// One line on why the recommendation does not hold in closed loop, and what to do.
+fn closed_loop_failure(c: &pma_leg::tools::ClosedLoop) -> String {
+    if let Some(why) = &c.why_not {
+        return format!(
+            "the recommendation does not hold in closed loop ({why}): nothing written; tune the scenario's controller for these muscles (pma-exo tune-leg) or pass --closed-loop-s 0 to size on the servo alone"
+        );
+    }
+    let worst = c
+        .joints
+        .iter()
+        .max_by(|a, b| {
+            (a.peak_over_rated - a.allowed_over_rated)
+                .total_cmp(&(b.peak_over_rated - b.allowed_over_rated))
+        })
+        .map_or_else(String::new, |j| {
+            format!(
+                "the {} peaks at {:.2} of its rating in closed loop, above {:.2}",
+                j.joint, j.peak_over_rated, j.allowed_over_rated
+            )
+        });
+    format!(
+        "the recommendation does not hold in closed loop: {worst} even with the margin raised to {:.2}: nothing written; a larger valve range, a longer search (--max-length-m) or a gentler controller",
+        c.force_margin
+    )
 }

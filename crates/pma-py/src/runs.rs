@@ -206,28 +206,33 @@ pub fn pendulum<'py>(
 /// The Festo muscles and pulleys a scenario's gait needs: `pma-exo size --json`.
 ///
 /// Drives the scenario's legs along its gait with stiff joint servos for `strides`
-/// strides and sizes a DMSP pair per joint that keeps `force_margin` of its rating free.
-/// Returns the dict `size --json` prints (without its provenance): `sizing`,
-/// `against_norms`, `treadmill`, `servo_max_error_deg`, `servo_raw_torque_range_nm`.
+/// strides and sizes a DMSP pair per joint that keeps `force_margin` of its rating free,
+/// then runs the recommendation for `closed_loop_s` in closed loop (0: no check; sized
+/// again where the controller takes more of the rating). Returns the dict `size --json`
+/// prints (without its provenance): `sizing`, `closed_loop`, `against_norms`, `treadmill`,
+/// `servo_max_error_deg`, `servo_raw_torque_range_nm`.
 #[pyfunction]
-#[pyo3(signature = (scenario = "gait_treadmill", strides = 3, max_length_m = 2.0, force_margin = 0.4))]
+#[pyo3(signature = (scenario = "gait_treadmill", strides = 3, max_length_m = 2.0, force_margin = 0.4, closed_loop_s = 20.0))]
 pub fn size<'py>(
     py: Python<'py>,
     scenario: &str,
     strides: usize,
     max_length_m: f64,
     force_margin: f64,
+    closed_loop_s: f64,
 ) -> PyResult<Bound<'py, PyAny>> {
     let args = SizeArgs {
         strides,
         max_length_m,
         force_margin,
+        closed_loop_s,
     };
     args.check().map_err(to_py)?;
     let loaded = pma_leg::Scenario::load(scenario).map_err(py_err)?;
-    // On a worker thread, the GIL released; the sizing polls no stop flag, so a Ctrl-C is
-    // raised when it ends.
-    let run = interruptible(py, "the sizing", |_| SizeRun::of(&loaded, &args))?.map_err(to_py)?;
+    // On a worker thread, the GIL released; a Ctrl-C stops the closed-loop check (the
+    // servo-driven strides poll no flag: it is raised when they end).
+    let run = interruptible(py, "the sizing", |stop| SizeRun::of(&loaded, &args, stop))?
+        .map_err(to_py)?;
     json_to_py(py, &serde_json::Value::Object(run.figures()))
 }
 

@@ -259,6 +259,9 @@ pub const MARGIN_MIN: f64 = 0.1;
 /// docs/treadmill.md.
 pub const FORCE_MARGIN_MIN: f64 = 0.4;
 
+/// Largest force margin a sizing is asked for: a muscle kept at a tenth of its rating.
+pub const FORCE_MARGIN_MAX: f64 = 0.9;
+
 /// Whether `d` keeps `force_margin` of its rating and [`MARGIN_MIN`] of the valve's range
 /// and of its useful speed.
 fn keeps(d: &PairDesign, force_margin: f64) -> bool {

@@ -77,13 +77,17 @@ def size(
     strides: int = 3,
     max_length_m: float = 2.0,
     force_margin: float = 0.4,
+    closed_loop_s: float = 20.0,
 ) -> Dict[str, Any]:
     """The Festo muscles and pulleys a scenario's gait needs (``pma-exo size --json``).
 
     Stiff joint servos drive the legs along the gait for ``strides`` strides; every DMSP
     size, length and pulley is tried, and the smallest size keeping ``force_margin`` of its
-    rating free is recommended. Keys: ``sizing``, ``against_norms``, ``treadmill``,
-    ``servo_max_error_deg``, ``servo_raw_torque_range_nm``.
+    rating free is recommended, then run for ``closed_loop_s`` under the scenario's
+    controller (0: no check) and sized again where the controller takes more of the
+    rating. Keys: ``sizing``, ``closed_loop`` (each check; the last one's ``holds`` is the
+    verdict), ``against_norms``, ``treadmill``, ``servo_max_error_deg``,
+    ``servo_raw_torque_range_nm``.
     """
 
 def identify(
