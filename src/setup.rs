@@ -195,6 +195,10 @@ pub struct LegArgs<'a> {
     pub duration_s: Option<f64>,
     /// Control mode (`None`: the scenario's).
     pub mode: Option<Mode>,
+    /// Run a treadmill whose servo-driven stride asks more than
+    /// [`pma_leg::tools::DEMAND_OVER_NORM_MAX`] times the adults' moments (refused
+    /// otherwise).
+    pub allow_unfit: bool,
 }
 
 /// A control mode on the command line.
@@ -288,6 +292,9 @@ impl LegRun {
         check_duration(duration_s)?;
         sc.check_run_duration(duration_s)?;
         let config = leg_config(a.controller, a.gains, &loaded)?;
+        if !a.allow_unfit {
+            check_fits_its_data(&loaded, a.scenario)?;
+        }
         // What the scenario sets but only a built leg checks (its modes, cuffs, patient)
         // names the scenario's file as the checks at load do.
         let sim =
@@ -302,6 +309,25 @@ impl LegRun {
             settings,
             periods,
         })
+    }
+}
+
+/// A treadmill on the adults' data must ask its joints what walking at that speed asks:
+/// one servo-driven stride (as `size` measures) whose peak demand is more than
+/// [`pma_leg::tools::DEMAND_OVER_NORM_MAX`] times the adults' peak moment means a belt
+/// speed or support the reference does not fit, on which the trainer cannot walk; refused
+/// before anything runs, in one line.
+fn check_fits_its_data(loaded: &LoadedScenario, scenario: &str) -> Result<()> {
+    let sc = &loaded.scenario;
+    let (Some(_), Some(adults)) = (&sc.treadmill, adult_norms(sc)?) else {
+        return Ok(());
+    };
+    let demand = pma_leg::tools::stride_demand(loaded, 1)?;
+    match beyond_norms(&norm_comparison(sc, &demand, &adults)) {
+        Some(why) => {
+            bail!("{scenario}: {why}; `pma-exo size {scenario} --closed-loop-s 0` shows the demand (--allow-unfit runs it)")
+        }
+        None => Ok(()),
     }
 }
 
@@ -550,6 +576,25 @@ pub struct SizeRun {
     /// Each closed-loop check, in order: the first of the recommendation made with the
     /// asked margin, the next of each re-sizing (empty without a check).
     pub closed_loop: Vec<pma_leg::tools::ClosedLoop>,
+    /// Why no muscles are recommended for this gait, where a joint's demand is over
+    /// [`pma_leg::tools::DEMAND_OVER_NORM_MAX`] times the adults' (the scenario does not
+    /// fit its data); no closed-loop check runs then.
+    pub beyond_norms: Option<String>,
+}
+
+/// The first joint whose peak demand is beyond [`pma_leg::tools::DEMAND_OVER_NORM_MAX`]
+/// times the adults' peak moment, said in one line.
+fn beyond_norms(norms: &[pma_leg::tools::NormComparison]) -> Option<String> {
+    let most = pma_leg::tools::DEMAND_OVER_NORM_MAX;
+    norms.iter().find(|n| n.ratio() > most).map(|n| {
+        format!(
+            "the {} asks {:.2} N m/kg at its peak, {:.1} times the adults' {:.2} N m/kg (at most {most} times): the scenario does not fit its gait data (a belt speed or support the reference was not recorded at?)",
+            n.joint,
+            n.peak_demand_nm_kg,
+            n.ratio(),
+            n.peak_normative_nm_kg
+        )
+    })
 }
 
 /// Most closed-loop checks (and re-sizings) of one `size`.
@@ -563,13 +608,24 @@ impl SizeRun {
     /// [`CLOSED_LOOP_ROUNDS`] times. `stop` ends a closed-loop run early.
     pub fn of(loaded: &LoadedScenario, args: &SizeArgs, stop: &AtomicBool) -> Result<Self> {
         let demand = pma_leg::tools::stride_demand(loaded, args.strides)?;
+        let adults = adult_norms(&loaded.scenario)?;
+        let norms = adults
+            .as_ref()
+            .map_or_else(Vec::new, |n| norm_comparison(&loaded.scenario, &demand, n));
+        let norm_loading = adults
+            .as_ref()
+            .and_then(|n| norm_loading(&loaded.scenario, n));
         let p_max = loaded.scenario.plant.valve.pressure_max_pa;
         let size =
             |margin: f64| pma_leg::tools::size_joints(&demand, p_max, args.max_length_m, margin);
         let mut sizing = size(args.force_margin);
+        let beyond_norms = beyond_norms(&norms);
         let mut closed_loop = Vec::new();
         let mut margin = args.force_margin;
-        while args.closed_loop_s > 0.0 && closed_loop.len() < CLOSED_LOOP_ROUNDS {
+        while args.closed_loop_s > 0.0
+            && beyond_norms.is_none()
+            && closed_loop.len() < CLOSED_LOOP_ROUNDS
+        {
             let Some(check) = pma_leg::tools::closed_loop(
                 loaded,
                 &sizing,
@@ -594,19 +650,13 @@ impl SizeRun {
             margin = raised;
             sizing = size(margin);
         }
-        let adults = adult_norms(&loaded.scenario)?;
-        let norms = adults
-            .as_ref()
-            .map_or_else(Vec::new, |n| norm_comparison(&loaded.scenario, &demand, n));
-        let norm_loading = adults
-            .as_ref()
-            .and_then(|n| norm_loading(&loaded.scenario, n));
         Ok(Self {
             demand,
             sizing,
             norms,
             norm_loading,
             closed_loop,
+            beyond_norms,
         })
     }
 
@@ -624,6 +674,7 @@ impl SizeRun {
             "normative_loading": self.norm_loading,
             "sizing": self.sizing,
             "closed_loop": self.closed_loop,
+            "beyond_norms": self.beyond_norms,
         });
         match json {
             serde_json::Value::Object(map) => map,

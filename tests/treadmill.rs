@@ -107,7 +107,15 @@ fn edited(
 
 /// Runs `simulate` on `path`, asserts it failed with one line naming `needle`.
 fn assert_refused(path: &std::path::Path, needle: &str) {
-    let out = pma_exo(&["simulate", path.to_str().unwrap(), "--duration", "4"]);
+    // Past the up-front check of the demand: what the run itself refuses.
+    let args = [
+        "simulate",
+        path.to_str().unwrap(),
+        "--allow-unfit",
+        "--duration",
+        "4",
+    ];
+    let out = pma_exo(&args);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{needle}: succeeded");
     assert_eq!(err.trim_end().lines().count(), 1, "{needle}: {err}");
@@ -399,9 +407,12 @@ fn fit_gait_writes_the_lines_the_scenario_takes() {
         .replace("speed_m_per_s = 0.4855", speed);
     let path = dir.join("fitted.toml");
     std::fs::write(&path, edited).unwrap();
+    // A fit of a few iterations is not converged: its stride asks many times the adults'
+    // moments, which `simulate` refuses unless told to run it.
     let v = json_of(&[
         "simulate",
         path.to_str().unwrap(),
+        "--allow-unfit",
         "--duration",
         "4",
         "--json",
@@ -546,6 +557,64 @@ fn size_checks_its_recommendation_in_closed_loop_and_sizes_again_or_says_why_not
         "{check}"
     );
     assert!(v["muscle_geometry"].is_null());
+}
+
+/// Issue 47 item 4: a belt the reference was not recorded at asks the joints many times
+/// what walking asks (the servo-driven stride, as `size` measures it); `simulate` refuses
+/// it before anything runs and `size` recommends nothing for it, each in one line naming
+/// the figure; the belt the reference is fitted to runs.
+#[test]
+fn a_belt_the_reference_does_not_fit_is_refused_before_it_runs() {
+    let dir = temp_dir("belt-unfit");
+    let fast = scenario_with(
+        &dir,
+        "fast.toml",
+        &[("speed_m_per_s = 0.4855", "speed_m_per_s = 0.55")],
+    );
+    let csv = dir.join("run.csv");
+    let out = pma_exo(&[
+        "simulate",
+        fast.to_str().unwrap(),
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("times the adults'") && err.contains("does not fit its gait data"),
+        "{err}"
+    );
+    assert!(!csv.exists());
+    let m = dir.join("m.toml");
+    let out = pma_exo(&[
+        "size",
+        fast.to_str().unwrap(),
+        "--out",
+        m.to_str().unwrap(),
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("no muscles are recommended"), "{err}");
+    assert!(!m.exists());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let hip = &v["against_norms"][0];
+    let ratio =
+        hip["peak_demand_nm_kg"].as_f64().unwrap() / hip["peak_normative_nm_kg"].as_f64().unwrap();
+    assert!(ratio > pma_leg::tools::DEMAND_OVER_NORM_MAX, "{ratio}");
+    assert!(v["closed_loop"].as_array().unwrap().is_empty());
+    // The fitted belt asks 2.3 times the adults' at the hip and runs.
+    let v = json_of(&[
+        "size",
+        "gait_treadmill",
+        "--strides",
+        "1",
+        "--closed-loop-s",
+        "0",
+        "--json",
+    ]);
+    assert!(v["beyond_norms"].is_null(), "{}", v["beyond_norms"]);
 }
 
 #[test]

@@ -105,7 +105,7 @@ pub fn run(a: Args) -> Result<i32> {
         seeds: Seeds::of_scenario(sc),
         ..Provenance::of_this_run()
     };
-    let holds = run.closed_loop_holds().unwrap_or(true);
+    let holds = run.closed_loop_holds().unwrap_or(true) && run.beyond_norms.is_none();
     let geometry = muscle_geometry(sizing).filter(|_| holds);
     let margin = run
         .closed_loop
@@ -140,6 +140,10 @@ pub fn run(a: Args) -> Result<i32> {
         print_norms(norms, run.norm_loading.as_ref())?;
         print_closed_loop(&run.closed_loop)?;
         say!("{}", provenance.line());
+    }
+    if let Some(why) = &run.beyond_norms {
+        eprintln!("{why}: no muscles are recommended for it, nothing written");
+        return Ok(1);
     }
     if let Some(last) = run.closed_loop.last().filter(|c| !c.holds) {
         eprintln!("{}", closed_loop_failure(last));

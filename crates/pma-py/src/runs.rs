@@ -125,6 +125,7 @@ pub fn simulate<'py>(
         gains: gains.as_deref(),
         duration_s: duration,
         mode: mode_of(mode)?,
+        allow_unfit: false,
     })
     .map_err(to_py)?;
     let names = sim.plant().muscle_names();

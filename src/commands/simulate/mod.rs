@@ -45,6 +45,11 @@ pub struct Args {
     /// Run even if it would take over an hour.
     #[arg(long)]
     yes: bool,
+    /// Run a treadmill scenario even if one servo-driven stride asks the joints more than
+    /// 5 times the adults' moments (a belt or support its gait data does not fit: refused
+    /// otherwise, before anything runs).
+    #[arg(long)]
+    allow_unfit: bool,
     /// Draw the run into this directory: `leg.png` over time (angles over their references,
     /// tracking errors, patient torques, pressures and forces against their limits, spasms
     /// shaded; on a treadmill the ground reaction and the pelvis's height too; a long run's
@@ -66,6 +71,7 @@ impl Default for Args {
             duration: None,
             control_mode: None,
             yes: false,
+            allow_unfit: false,
             plot: None,
             output: RunOutput::default(),
         }
@@ -88,6 +94,7 @@ pub fn run(a: Args) -> Result<i32> {
         gains: a.gains.as_deref(),
         duration_s: a.duration,
         mode: a.control_mode,
+        allow_unfit: a.allow_unfit,
     })?;
     let sc = &loaded.scenario;
     let provenance = Provenance {

@@ -241,6 +241,22 @@ fn average_per_leg(samples: &mut [DemandSample], legs: usize, half: usize) {
     }
 }
 
+/// The most a joint's peak demand may be over the adults' peak moment before `size`
+/// refuses to recommend muscles for it, and `simulate` to run it: the shipped trainer asks
+/// 2.3 times the adults' at the hip (its pelvis cannot pitch, so the hip holds what the
+/// subjects' trunk balanced; docs/treadmill.md) and 1.5 times at the knee; belts within
+/// 1 % of the fitted 0.4855 m/s ask up to 4.2 times (0.490 m/s); one 7 % faster (0.52
+/// m/s, where the knee's stance RMS is 2.1 deg) asks 16 times, at 0.7 m/s (a collapse)
+/// 24 times: a scenario that does not fit its gait data.
+pub const DEMAND_OVER_NORM_MAX: f64 = 5.0;
+
+impl NormComparison {
+    /// The joint's peak demand over the adults' peak moment.
+    pub fn ratio(&self) -> f64 {
+        self.peak_demand_nm_kg / self.peak_normative_nm_kg
+    }
+}
+
 /// A joint's demand over the gait cycle beside the adult normative moment (per kilogram of
 /// the patient's body mass, flexion positive), at 0, 1, ..., 100 % of each leg's cycle.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
