@@ -382,15 +382,16 @@ fn treadmill_row(controller: &str, t: &pma_studies::compare::TreadmillRow) -> St
     let f = pma_leg::metrics::figure;
     let pair = |v: [f64; 2], digits: usize| format!("{} / {}", f(v[0], digits), f(v[1], digits));
     format!(
-        "| {controller} | {} | {} | {:.2} | {:.1} | {:.3} ({:.3}) | {:.1} | {:.2} | {} | {} | {} / {} | {} |",
+        "| {controller} | {} | {} | {} | {} | {} ({}) | {} | {} | {} | {} | {} / {} | {} |",
         pair(t.hip_stance_swing_rms_deg, 3),
         pair(t.knee_stance_swing_rms_deg, 3),
-        t.peak_grf_bw,
-        t.loading_rate_bw_s,
-        t.stance_fraction[0],
-        t.stance_fraction[1],
-        1e3 * t.slip_per_stride_m,
-        t.scuffs_per_stride,
+        // A run without a counted stride has no loading, stance or slip: "-", never NaN.
+        f(t.peak_grf_bw, 2),
+        f(t.loading_rate_bw_s, 1),
+        f(t.stance_fraction[0], 3),
+        f(t.stance_fraction[1], 3),
+        f(1e3 * t.slip_per_stride_m, 1),
+        f(t.scuffs_per_stride, 2),
         pair(t.heel_strike_max_deviation_deg, 2),
         pair(t.heel_strike_max_recovery_s, 3),
         t.heel_strikes_unrecovered[0],
