@@ -6,6 +6,7 @@ use anyhow::{bail, Context, Result};
 use pma_bench::{PlantConfig, RunResult, RunSpec};
 use pma_control::{ChirpReference, ControllerConfig, ControllerKind, Reference, SineReference};
 use pma_leg::patient::{SpasticityPreset, SpasticitySettings};
+use pma_leg::scenario::PHYSICS_SUBSTEPS_MAX;
 use pma_leg::{ControlMode, LegSim, LoadedScenario, Scenario};
 use pma_loop::LoopSettings;
 use pma_studies::pendulum::PendulumSetup;
@@ -169,6 +170,12 @@ impl SingleRun {
             "reference": self.ref_name,
             "plant": self.plant.name,
             "duration_s": self.ran_s(res),
+            "step": {
+                "period_s": self.spec.period_s,
+                "substeps_per_period": self.plant.substeps_per_period,
+                "integration_step_s": self.spec.period_s / f64::from(self.plant.substeps_per_period),
+                "exact_held_pressure_step": self.plant.exact_held_pressure_step,
+            },
             "mae_m": s.mae_m,
             "iae_m": s.iae_m,
             "rte_percent": s.rte_percent,
@@ -285,8 +292,25 @@ impl LegRun {
     /// Checks the arguments, loads the scenario and gains and builds the simulation, in
     /// the CLI's order.
     pub fn assemble(a: &LegArgs<'_>) -> Result<Self> {
+        Self::assemble_at_substeps(a, 1)
+    }
+
+    /// As [`LegRun::assemble`], with the scenario's physics substeps multiplied by
+    /// `factor` (`simulate --check-step`: 2), within their bound.
+    pub fn assemble_at_substeps(a: &LegArgs<'_>, factor: u32) -> Result<Self> {
         let mut loaded = Scenario::load(a.scenario)?;
         apply_mode(&mut loaded, a.mode, a.controller)?;
+        if factor != 1 {
+            let n = loaded.scenario.physics_substeps;
+            loaded.scenario.physics_substeps = n.saturating_mul(factor);
+            if loaded.scenario.physics_substeps > PHYSICS_SUBSTEPS_MAX {
+                bail!(
+                    "{}: --check-step takes physics_substeps from {n} to {}, over its bound of {PHYSICS_SUBSTEPS_MAX}",
+                    a.scenario,
+                    loaded.scenario.physics_substeps
+                );
+            }
+        }
         let sc = &loaded.scenario;
         let duration_s = a.duration_s.unwrap_or(sc.duration_s);
         check_duration(duration_s)?;

@@ -80,6 +80,90 @@ fn single_prints_the_metrics_as_json() {
 }
 
 #[test]
+fn check_step_says_how_far_the_figures_move_at_half_the_step() {
+    let json = |args: &[&str]| -> serde_json::Value {
+        serde_json::from_slice(&pma_exo_ok(args).stdout).expect("JSON")
+    };
+    // APRC-NDO on the ideal plant gives the same figures at 4 and 8 substeps
+    // (docs/convergence.md): converged.
+    let ideal = json(&["single", "--check-step", "--json"]);
+    assert_eq!(ideal["step"]["substeps_per_period"], 4);
+    assert!((ideal["step"]["integration_step_s"].as_f64().unwrap() - 2.5e-4).abs() < 1e-12);
+    let c = &ideal["check_step"];
+    assert_eq!(c["substeps_per_period"], 8);
+    assert_eq!(c["converged"], true, "{c}");
+    assert!(c["moved"]["rte"].as_f64().unwrap() < 1e-3, "{c}");
+    // Behind the realistic plant's 20 ms valve its RTE is 4.8 % at 4 substeps and 13.9 %
+    // at 8: the step decides the figure, and the run says so.
+    let lagging = json(&["single", "--plant", "realistic", "--check-step", "--json"]);
+    let c = &lagging["check_step"];
+    assert_eq!(c["converged"], false, "{c}");
+    assert!(c["moved"]["rte"].as_f64().unwrap() > 0.5, "{c}");
+    let text = pma_exo_ok(&["single", "--plant", "realistic", "--check-step"]);
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(text.contains("step 1 ms, 4 substeps"), "{text}");
+    assert!(
+        text.contains("at half the step (8 substeps)") && text.contains("moved more than 2 %"),
+        "{text}"
+    );
+    // Twice the substeps must stay within the plant's own bound, checked before the run.
+    let dir = temp("check-step");
+    let plant = dir.join("fine.toml");
+    let ideal_toml = include_str!("../crates/pma-bench/models/plants/ideal.toml");
+    let fine = ideal_toml.replacen("\n[", "\nsubsteps_per_period = 600\n\n[", 1);
+    std::fs::write(&plant, fine).unwrap();
+    pma_exo_ok(&[
+        "single",
+        "--plant",
+        plant.to_str().unwrap(),
+        "--duration",
+        "0.5",
+    ]);
+    assert_one_line_error(
+        &["single", "--plant", plant.to_str().unwrap(), "--check-step"],
+        "--check-step doubles the plant's substeps_per_period (600)",
+    );
+}
+
+#[test]
+fn simulate_check_step_reruns_at_half_the_physics_step() {
+    let out = pma_exo_ok(&["simulate", "--duration", "8", "--check-step", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    assert_eq!(v["step"]["physics_substeps"], 2, "{}", v["step"]);
+    assert_eq!(v["step"]["implicit_muscle_damping"], false);
+    let c = &v["check_step"];
+    assert_eq!(c["physics_substeps"], 4, "{c}");
+    let mut within = true;
+    for joint in ["hip", "knee"] {
+        let j = &c["joints"][joint];
+        let (first, refined) = (
+            v["joints"][joint]["rms_deg"].as_f64().unwrap(),
+            j["rms_deg"].as_f64().unwrap(),
+        );
+        let moved = j["moved_rms"].as_f64().unwrap();
+        assert!(
+            ((refined - first).abs() / first - moved).abs() < 1e-12,
+            "{joint}: {j}"
+        );
+        within &= moved <= 0.02 && j["moved_max"].as_f64().unwrap() <= 0.02;
+    }
+    assert_eq!(c["converged"], within, "{c}");
+    // Twice the substeps must stay within their bound: refused before anything runs.
+    let dir = temp("check-step-leg");
+    let file = dir.join("fine.toml");
+    let text = include_str!("../crates/pma-leg/models/scenarios/gait_training.toml").replacen(
+        "physics_substeps = 2",
+        "physics_substeps = 60",
+        1,
+    );
+    std::fs::write(&file, text).unwrap();
+    assert_one_line_error(
+        &["simulate", file.to_str().unwrap(), "--check-step"],
+        "--check-step takes physics_substeps from 60 to 120, over its bound of 100",
+    );
+}
+
+#[test]
 fn single_writes_the_csv_time_series() {
     let dir = std::env::temp_dir().join(format!("pma-exo-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

@@ -33,8 +33,92 @@ pub struct Args {
     /// Run even if it would take over an hour.
     #[arg(long)]
     yes: bool,
+    /// Run again at half the integration step (twice `substeps_per_period`) and say how
+    /// much the figures moved (`docs/convergence.md`).
+    #[arg(long)]
+    check_step: bool,
     #[command(flatten)]
     output: RunOutput,
+}
+
+/// How much a figure may move at half the step for the run to call it converged (the
+/// project's criterion for a published figure: `docs/convergence.md`).
+const STEP_TOLERANCE: f64 = 0.02;
+
+/// The run's figures again at half the step, and how far each moved.
+struct StepCheck {
+    substeps: u32,
+    stats: pma_control::TrackingStats,
+    moved: [f64; 3],
+}
+
+impl StepCheck {
+    /// The run of `r` again with twice its substeps (`None`: stopped by the operator).
+    fn run(
+        r: &SingleRun,
+        first: &pma_bench::RunResult,
+        stop: &std::sync::atomic::AtomicBool,
+    ) -> Result<Option<Self>> {
+        let mut plant = r.plant.clone();
+        plant.substeps_per_period *= 2;
+        let res = run_single_until(
+            &r.config,
+            &plant,
+            r.reference.as_ref(),
+            &r.spec,
+            stop,
+            &mut (),
+        )?;
+        if res.interrupted {
+            return Ok(None);
+        }
+        r.check_finite(&res)?;
+        let (a, b) = (first.stats, res.stats);
+        let rel = |x: f64, y: f64| (y - x).abs() / x.abs().max(f64::MIN_POSITIVE);
+        Ok(Some(Self {
+            substeps: plant.substeps_per_period,
+            stats: b,
+            moved: [
+                rel(a.mae_m, b.mae_m),
+                rel(a.rte_percent, b.rte_percent),
+                rel(a.rms_m, b.rms_m),
+            ],
+        }))
+    }
+
+    fn converged(&self) -> bool {
+        self.moved.iter().all(|m| *m <= STEP_TOLERANCE)
+    }
+
+    fn json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "substeps_per_period": self.substeps,
+            "mae_m": self.stats.mae_m,
+            "rte_percent": self.stats.rte_percent,
+            "rms_m": self.stats.rms_m,
+            "moved": {"mae": self.moved[0], "rte": self.moved[1], "rms": self.moved[2]},
+            "tolerance": STEP_TOLERANCE,
+            "converged": self.converged(),
+        })
+    }
+
+    fn line(&self) -> String {
+        format!(
+            "  at half the step ({} substeps): MAE {:.3e} m ({:+.1} %), RTE {:.3} % ({:+.1} %), RMS {:.3e} m ({:+.1} %): {}",
+            self.substeps,
+            self.stats.mae_m,
+            100.0 * self.moved[0],
+            self.stats.rte_percent,
+            100.0 * self.moved[1],
+            self.stats.rms_m,
+            100.0 * self.moved[2],
+            if self.converged() {
+                "within 2 %".to_owned()
+            } else {
+                "moved more than 2 %: the step decides these figures (docs/convergence.md)".to_owned()
+            }
+        )
+    }
 }
 
 /// Runs `single`.
@@ -47,6 +131,12 @@ pub fn run(a: Args) -> Result<i32> {
         duration_s: a.duration,
     })?;
     let (plant, kind, spec) = (&r.plant, r.kind, &r.spec);
+    if a.check_step && plant.substeps_per_period > 500 {
+        anyhow::bail!(
+            "--check-step doubles the plant's substeps_per_period ({}), which allows at most 1000",
+            plant.substeps_per_period
+        );
+    }
     let provenance = Provenance {
         plant: Some(crate::provenance::named(&a.plant, &plant.name)),
         controller: Some(kind.as_str().to_owned()),
@@ -62,7 +152,13 @@ pub fn run(a: Args) -> Result<i32> {
         },
         ..Provenance::of_this_run()
     };
-    output::check_wall_time("this run", spec.periods()? as f64, BENCH_PERIOD_S, a.yes)?;
+    let runs = if a.check_step { 3.0 } else { 1.0 };
+    output::check_wall_time(
+        "this run",
+        runs * spec.periods()? as f64,
+        BENCH_PERIOD_S,
+        a.yes,
+    )?;
     let mut inputs = Vec::new();
     if let Some(p) = output::input_file(&a.plant) {
         inputs.push(("plant file", p));
@@ -105,8 +201,16 @@ pub fn run(a: Args) -> Result<i32> {
     r.check_finite(&res)?;
     let s = res.stats;
     let ran_s = r.ran_s(&res);
+    let check = match a.check_step && !res.interrupted {
+        true => StepCheck::run(&r, &res, &stop)?,
+        false => None,
+    };
     if a.output.json {
-        say!("{}", provenance.attach(&r.metrics(&res))?);
+        let mut v = r.metrics(&res);
+        if let Some(c) = &check {
+            v["check_step"] = c.json();
+        }
+        say!("{}", provenance.attach(&v)?);
     } else {
         say!(
             "{} on {} ({}, {} s): MAE {:.3e} m, IAE {:.3e} m, RTE {:.3} %, RMS {:.3e} m, {:.0}x real time",
@@ -120,6 +224,19 @@ pub fn run(a: Args) -> Result<i32> {
             s.rms_m,
             res.real_time_factor
         );
+        say!(
+            "  step {} ms, {} substeps{}",
+            1e3 * spec.period_s,
+            plant.substeps_per_period,
+            if plant.exact_held_pressure_step {
+                ", exact where the pressure is held"
+            } else {
+                ""
+            }
+        );
+        if let Some(c) = &check {
+            say!("{}", c.line());
+        }
         say!("  ({})", provenance.line());
     }
     viz_result?;

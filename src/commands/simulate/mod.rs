@@ -50,6 +50,10 @@ pub struct Args {
     /// otherwise, before anything runs).
     #[arg(long)]
     allow_unfit: bool,
+    /// Run again at half the physics step (twice `physics_substeps`) and say how much each
+    /// joint's tracking figures moved (`docs/convergence.md`).
+    #[arg(long)]
+    check_step: bool,
     /// Draw the run into this directory: `leg.png` over time (angles over their references,
     /// tracking errors, patient torques, pressures and forces against their limits, spasms
     /// shaded; on a treadmill the ground reaction and the pelvis's height too; a long run's
@@ -72,6 +76,7 @@ impl Default for Args {
             control_mode: None,
             yes: false,
             allow_unfit: false,
+            check_step: false,
             plot: None,
             output: RunOutput::default(),
         }
@@ -88,15 +93,14 @@ pub fn run(a: Args) -> Result<i32> {
         mut sim,
         settings,
         periods,
-    } = LegRun::assemble(&LegArgs {
-        scenario: &a.scenario,
-        controller: a.controller,
-        gains: a.gains.as_deref(),
-        duration_s: a.duration,
-        mode: a.control_mode,
-        allow_unfit: a.allow_unfit,
-    })?;
+    } = LegRun::assemble(&leg_args(&a))?;
     let sc = &loaded.scenario;
+    // The check's run is built before anything runs: a scenario at the substeps' bound is
+    // refused here, not after the first run.
+    let refined = a
+        .check_step
+        .then(|| LegRun::assemble_at_substeps(&leg_args(&a), 2))
+        .transpose()?;
     let provenance = Provenance {
         scenario: Some(crate::provenance::named(&a.scenario, &sc.name)),
         controller: Some(controller_label(&loaded, &config)),
@@ -106,7 +110,14 @@ pub fn run(a: Args) -> Result<i32> {
         seeds: Seeds::of_scenario(sc),
         ..Provenance::of_this_run()
     };
-    output::check_wall_time("this simulation", periods as f64, LEG_PERIOD_S, a.yes)?;
+    // The check costs about twice the run (twice the physics steps).
+    let runs = if a.check_step { 3.0 } else { 1.0 };
+    output::check_wall_time(
+        "this simulation",
+        runs * periods as f64,
+        LEG_PERIOD_S,
+        a.yes,
+    )?;
     let names = sim.plant().muscle_names();
     let plot_files = a
         .plot
@@ -132,10 +143,13 @@ pub fn run(a: Args) -> Result<i32> {
     let mut recorders = (csv, viz, progress, trace, cycles);
     let outcome = sim.run_until_fault(&settings, &mut recorders);
     bar.finish_and_clear();
-    let (report, fault) = outcome?;
+    let (mut report, fault) = outcome?;
     // A supervisor's fault fails the run; a collapse the trainer stopped is its result.
     if let Some(f) = fault.as_ref().filter(|f| f.name != "collapse") {
         return Err(pma_leg::LegError::Supervisor(f.message.clone()).into());
+    }
+    if let Some(refined) = refined.filter(|_| !report.interrupted) {
+        report.check_step = check_step(refined, &report, &stop)?;
     }
     let (csv, viz, _, trace, cycles) = recorders;
     if let (Some(files), Some(trace), Some(cycles)) = (&plot_files, trace, cycles) {
@@ -160,6 +174,48 @@ pub fn run(a: Args) -> Result<i32> {
         print_summary,
     )?;
     Ok(exit_status(&report))
+}
+
+/// `simulate`'s arguments as the library takes them.
+fn leg_args(a: &Args) -> LegArgs<'_> {
+    LegArgs {
+        scenario: &a.scenario,
+        controller: a.controller,
+        gains: a.gains.as_deref(),
+        duration_s: a.duration,
+        mode: a.control_mode,
+        allow_unfit: a.allow_unfit,
+    }
+}
+
+/// The run again on `refined` (its physics step halved), against `first`'s figures;
+/// `None` if the operator stopped it.
+fn check_step(
+    refined: LegRun,
+    first: &LegReport,
+    stop: &std::sync::atomic::AtomicBool,
+) -> Result<Option<pma_leg::metrics::StepCheckReport>> {
+    let LegRun {
+        loaded,
+        mut sim,
+        settings,
+        ..
+    } = refined;
+    let settings = settings.with_stop_flag(stop);
+    let (report, fault) = sim.run_until_fault(&settings, &mut ())?;
+    if let Some(f) = fault.as_ref().filter(|f| f.name != "collapse") {
+        return Err(
+            pma_leg::LegError::Supervisor(format!("at half the step: {}", f.message)).into(),
+        );
+    }
+    if report.interrupted {
+        return Ok(None);
+    }
+    Ok(Some(pma_leg::metrics::StepCheckReport::of(
+        first,
+        &report,
+        loaded.scenario.physics_substeps,
+    )))
 }
 
 /// Every output path checked before anything runs: none of them is one of the run's inputs.
@@ -440,6 +496,7 @@ fn print_summary(r: &LegReport) -> Result<()> {
         fig(r.cocontraction_pa.end / 1e5, 3),
         fig(r.command_variation_bar_per_s, 1)
     );
+    print_step(r)?;
     print_patient(r)?;
     if let Some(t) = &r.treadmill {
         print_treadmill(t)?;
@@ -447,6 +504,49 @@ fn print_summary(r: &LegReport) -> Result<()> {
     print_safety(&r.safety)?;
     if let Some(v) = &r.walking {
         print_verdict(v)?;
+    }
+    Ok(())
+}
+
+/// The step the figures were computed at and, with `--check-step`, how far they moved.
+fn print_step(r: &LegReport) -> Result<()> {
+    if let Some(s) = &r.step {
+        say!(
+            "  step: {} ms control period, {} physics substeps ({} ms){}",
+            1e3 * s.period_s,
+            s.physics_substeps,
+            1e3 * s.physics_step_s,
+            if s.implicit_muscle_damping {
+                ", implicit muscle damping"
+            } else {
+                ""
+            }
+        );
+    }
+    if let Some(c) = &r.check_step {
+        let moved: Vec<String> = c
+            .joints
+            .iter()
+            .map(|(name, j)| {
+                format!(
+                    "{name} RMS {} deg ({:+.1} %), max {} deg ({:+.1} %)",
+                    fig(j.rms_deg, 3),
+                    100.0 * j.moved_rms,
+                    fig(j.max_deg, 3),
+                    100.0 * j.moved_max
+                )
+            })
+            .collect();
+        say!(
+            "  at half the step ({} substeps): {}: {}",
+            c.physics_substeps,
+            moved.join(", "),
+            if c.converged {
+                "within 2 %"
+            } else {
+                "moved more than 2 %: the step decides these figures (docs/convergence.md)"
+            }
+        );
     }
     Ok(())
 }

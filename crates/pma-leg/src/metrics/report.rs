@@ -123,4 +123,85 @@ pub struct LegReport {
     /// On a treadmill: whether the patient walked, and if not why.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub walking: Option<crate::metrics::WalkingVerdict>,
+    /// The integration step the figures were computed at (`None`: not from a run).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub step: Option<StepReport>,
+    /// The headline figures again at half the step, and how far they moved
+    /// (`simulate --check-step`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub check_step: Option<StepCheckReport>,
+}
+
+/// The integration step of a run: what its figures' numerical error depends on.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct StepReport {
+    /// Control period (s).
+    pub period_s: f64,
+    /// Physics steps per period.
+    pub physics_substeps: u32,
+    /// One physics step (s).
+    pub physics_step_s: f64,
+    /// Whether the muscles' damping is evaluated implicitly.
+    pub implicit_muscle_damping: bool,
+}
+
+/// A joint's tracking figures at half the step and how far they moved (relative).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct JointStepCheck {
+    /// RMS tracking error at half the step (deg).
+    pub rms_deg: f64,
+    /// Largest tracking error at half the step (deg).
+    pub max_deg: f64,
+    /// |RMS at half the step - RMS| / RMS.
+    pub moved_rms: f64,
+    /// The same for the largest error.
+    pub moved_max: f64,
+}
+
+/// The run again at twice its physics substeps.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct StepCheckReport {
+    /// Physics steps per period of the check.
+    pub physics_substeps: u32,
+    /// Per joint, as in [`LegReport::joints`].
+    pub joints: BTreeMap<String, JointStepCheck>,
+    /// The largest relative move a converged figure may show (0.02).
+    pub tolerance: f64,
+    /// Whether every figure moved by at most `tolerance`.
+    pub converged: bool,
+}
+
+/// How much a published figure may move at half the step (`docs/convergence.md`).
+pub const STEP_TOLERANCE: f64 = 0.02;
+
+impl StepCheckReport {
+    /// `refined` (the run at `physics_substeps`) against `first`, joint by joint.
+    pub fn of(first: &LegReport, refined: &LegReport, physics_substeps: u32) -> Self {
+        let rel = |a: f64, b: f64| (b - a).abs() / a.abs().max(f64::MIN_POSITIVE);
+        let joints: BTreeMap<String, JointStepCheck> = first
+            .joints
+            .iter()
+            .filter_map(|(name, j)| {
+                let r = refined.joints.get(name)?;
+                Some((
+                    name.clone(),
+                    JointStepCheck {
+                        rms_deg: r.rms_deg,
+                        max_deg: r.max_deg,
+                        moved_rms: rel(j.rms_deg, r.rms_deg),
+                        moved_max: rel(j.max_deg, r.max_deg),
+                    },
+                ))
+            })
+            .collect();
+        let converged = joints
+            .values()
+            .all(|j| j.moved_rms <= STEP_TOLERANCE && j.moved_max <= STEP_TOLERANCE);
+        Self {
+            physics_substeps,
+            joints,
+            tolerance: STEP_TOLERANCE,
+            converged,
+        }
+    }
 }

@@ -837,15 +837,13 @@ mod tests {
         assert_eq!(scuffed.peak_grf_bw, clean.peak_grf_bw);
     }
 
-    #[test]
-    fn regression_a_scuff_before_the_first_counted_stride_is_no_stride() {
-        // Unsupported, without a foot lifter, the left foot's first contact after its
-        // first stride was a 0.33 s drag of 0.15 BW in swing; with no counted stride to
-        // merge it into, it was counted as one, and the loading peak's mean fell to 0.92
-        // of the belt's load while every stance reached 1.21-1.24. Stance from half the
-        // cycle to 17.5 % of the next (so the first counted contact is the touch) and a
-        // drag of 110 N (0.15 BW) from 23 % to 42 % (0.33 s), on gait_treadmill (30 %
-        // support: a scuff under 257 N):
+    /// A foot in stance from half the cycle to 17.5 % of the next (its first contact
+    /// after the first stride falls in its swing), touched at `touch` phases with
+    /// `touch_n`: the clean report and the touched one.
+    fn touched_before_the_first_counted_stride(
+        touch: std::ops::Range<f64>,
+        touch_n: f64,
+    ) -> [FootReport; 2] {
         let stance = |phase: f64| {
             if !(0.175..0.5).contains(&phase) {
                 600.0
@@ -853,14 +851,25 @@ mod tests {
                 0.0
             }
         };
-        let dragging = |phase: f64| {
-            if (0.23..0.42).contains(&phase) {
-                110.0
+        let touched = |phase: f64| {
+            if touch.contains(&phase) {
+                touch_n
             } else {
                 stance(phase)
             }
         };
-        let [clean, dragged] = [foot_report(6, stance), foot_report(6, dragging)];
+        [foot_report(6, stance), foot_report(6, touched)]
+    }
+
+    #[test]
+    fn regression_a_scuff_before_the_first_counted_stride_is_no_stride() {
+        // Unsupported, without a foot lifter, the left foot's first contact after its
+        // first stride was a 0.33 s drag of 0.15 BW in swing; with no counted stride to
+        // merge it into, it was counted as one, and the loading peak's mean fell to 0.92
+        // of the belt's load while every stance reached 1.21-1.24. Here a drag of 110 N
+        // (0.15 BW) from 23 % to 42 % (0.33 s), on gait_treadmill (30 % support: a scuff
+        // under 257 N):
+        let [clean, dragged] = touched_before_the_first_counted_stride(0.23..0.42, 110.0);
         assert_eq!(clean.scuffs, 0);
         assert_eq!(dragged.strides, clean.strides, "{dragged:?}");
         assert_eq!(dragged.scuffs, clean.strides + 1, "{dragged:?}");
@@ -872,23 +881,9 @@ mod tests {
 
     #[test]
     fn a_brief_heavy_touch_before_the_first_counted_stride_is_no_stride() {
-        // The same as a toe's 53 ms stamp of 600 N (over the load, under a quarter of the
-        // reference's stance).
-        let stance = |phase: f64| {
-            if !(0.175..0.5).contains(&phase) {
-                600.0
-            } else {
-                0.0
-            }
-        };
-        let stamped = |phase: f64| {
-            if (0.40..0.43).contains(&phase) {
-                600.0
-            } else {
-                stance(phase)
-            }
-        };
-        let [clean, touched] = [foot_report(6, stance), foot_report(6, stamped)];
+        // A toe's 53 ms stamp of 600 N: over the load, under a quarter of the reference's
+        // stance.
+        let [clean, touched] = touched_before_the_first_counted_stride(0.40..0.43, 600.0);
         assert_eq!(touched.strides, clean.strides, "{touched:?}");
         assert_eq!(touched.scuffs, clean.strides + 1, "{touched:?}");
         assert_eq!(touched.peak_grf_bw, clean.peak_grf_bw);

@@ -173,6 +173,8 @@ impl LegMetrics {
             cooperation: Vec::new(),
             phase_sync: None,
             walking: None,
+            step: None,
+            check_step: None,
         }
     }
 }

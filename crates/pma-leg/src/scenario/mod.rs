@@ -17,6 +17,9 @@ use pma_model::error::{non_negative, positive, within};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
+/// Most physics steps a control period takes (`physics_substeps`).
+pub const PHYSICS_SUBSTEPS_MAX: u32 = 100;
+
 /// A gait-training scenario (`crates/pma-leg/models/scenarios/*.toml`).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -156,11 +159,11 @@ impl Scenario {
             1e-2,
             "must be 0.0001..=0.01 s (the controllers are discretised for 0.1-10 ms)",
         )?;
-        if !(1..=100).contains(&self.physics_substeps) {
+        if !(1..=PHYSICS_SUBSTEPS_MAX).contains(&self.physics_substeps) {
             return Err(invalid(
                 "physics_substeps",
                 f64::from(self.physics_substeps),
-                "must be 1..=100",
+                "must be 1..=100 (PHYSICS_SUBSTEPS_MAX)",
             ));
         }
         pma_model::error::check(

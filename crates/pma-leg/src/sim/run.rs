@@ -413,6 +413,12 @@ impl LegSim {
         report.treadmill = ground.report(feet.iter().map(|f| f.inner.report()).collect());
         report.cooperation = cooperation.iter().map(|c| c.inner.report()).collect();
         report.phase_sync = self.controllers.phase_sync().map(|s| s.report());
+        report.step = Some(crate::metrics::StepReport {
+            period_s: sc.period_s,
+            physics_substeps: sc.physics_substeps,
+            physics_step_s: sc.period_s / f64::from(sc.physics_substeps.max(1)),
+            implicit_muscle_damping: sc.implicit_muscle_damping,
+        });
         let planned_s = if interrupted {
             ran_s
         } else {
