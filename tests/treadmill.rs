@@ -1094,3 +1094,88 @@ fn a_fixed_length_list_of_another_length_is_refused() {
     }
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// The `[plant.festo_scale.<muscle>]` tables that put each of the trainer's four muscles
+/// `field` times off its datasheet.
+fn festo_scaled(field: &str, factor: f64) -> String {
+    ["hip_flexor", "hip_extensor", "knee_flexor", "knee_extensor"]
+        .iter()
+        .map(|m| format!("[plant.festo_scale.{m}]\n{field} = {factor}\n\n"))
+        .collect()
+}
+
+#[test]
+fn a_festo_muscle_off_its_datasheet_is_simulated_and_bad_factors_are_named() {
+    let dir = temp_dir("festo-scale");
+    let run = |path: &std::path::Path| {
+        judged(&[
+            "simulate",
+            path.to_str().unwrap(),
+            "--controller",
+            "pid",
+            "--duration",
+            "8",
+            "--json",
+        ])
+    };
+    let peak_force = |v: &serde_json::Value| {
+        let muscles = v["safety"]["muscles"].as_object().unwrap();
+        muscles
+            .values()
+            .map(|m| m["peak_force_n"].as_f64().unwrap())
+            .fold(0.0, f64::max)
+    };
+    let nominal = run(&scenario_with(&dir, "nominal.toml", &[]));
+    // Four muscles 20 % stronger than their datasheet, the controllers assuming the
+    // datasheet's: PID still walks the patient, the muscles pull harder at the pressures it
+    // sets (995 -> 1146 N over 16 s, docs/treadmill.md), rated as the muscle bought.
+    let strong_tables = festo_scaled("force_scale", 1.2) + "[plant.valve]\n";
+    let strong = run(&scenario_with(
+        &dir,
+        "strong.toml",
+        &[("[plant.valve]\n", &strong_tables)],
+    ));
+    assert!(walked(&strong), "{}", strong["walking"]);
+    let ratio = peak_force(&strong) / peak_force(&nominal);
+    assert!(ratio > 1.1, "peak force {ratio} times the nominal's");
+    for m in strong["safety"]["muscles"].as_object().unwrap().values() {
+        assert_eq!(m["rated_force_n"], 1500.0, "{m}");
+    }
+    for (edit, needle) in [
+        (
+            festo_scaled("force_scale", 0.3),
+            "plant.festo_scale.hip_flexor.force_scale = 0.3 is invalid: must be 0.5..=1.5",
+        ),
+        (
+            "[plant.festo_scale.knee_flexor]\nstrength = 0.9\n\n".to_owned(),
+            "unknown field `strength`",
+        ),
+        (
+            "[plant.festo_scale.ankle_flexor]\nforce_scale = 0.9\n\n".to_owned(),
+            "plant.muscle_scale or plant.festo_scale names a muscle the geometry does not have",
+        ),
+        (
+            "[plant.muscle_scale.knee_flexor]\nf1_scale = 0.9\n\n".to_owned(),
+            "[plant.festo_scale.<muscle>] scales a Festo muscle",
+        ),
+    ] {
+        let tables = edit + "[plant.valve]\n";
+        let path = scenario_with(&dir, "bad.toml", &[("[plant.valve]\n", &tables)]);
+        assert_refused(&path, needle);
+    }
+    // On a Table I muscle the Festo factors are refused, pointing to the Table I ones.
+    let in_air = include_str!("../crates/pma-leg/models/scenarios/gait_training.toml");
+    let path = edited(
+        in_air,
+        &dir,
+        "in-air.toml",
+        &[(
+            "[plant.valve]\n",
+            "[plant.festo_scale.knee_flexor]\nforce_scale = 0.9\n\n[plant.valve]\n",
+        )],
+    );
+    assert_refused(
+        &path,
+        "plant.festo_scale applies to Festo muscles (`size`) only",
+    );
+}

@@ -112,8 +112,65 @@ pub const REST_LENGTH_RANGE_M: (f64, f64) = (0.04, 9.0);
 /// the working stroke of a muscle kept clear of the map's zero at 26 %.
 pub const FIT_STRAIN_MAX: f64 = 0.15;
 
+/// How far a Festo muscle is off its datasheet, for robustness studies (`[plant.festo_scale
+/// .<muscle>]`): the true muscle's static force `force_scale * map(strain * stiffness_scale)`
+/// and its damping `damping_scale` times the nominal one; 1.0 = as measured. The
+/// controllers keep assuming the nominal muscle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
+pub struct FestoScale {
+    /// Factor on the force map (the force per pascal at every strain).
+    pub force_scale: f64,
+    /// Factor on the map's strain axis: the force's slope against contraction times it,
+    /// its zero (the muscle's largest contraction) over it.
+    pub stiffness_scale: f64,
+    /// Factor on the damping.
+    pub damping_scale: f64,
+}
+
+impl Default for FestoScale {
+    fn default() -> Self {
+        Self {
+            force_scale: 1.0,
+            stiffness_scale: 1.0,
+            damping_scale: 1.0,
+        }
+    }
+}
+
+/// The factors [`FestoScale`] takes: a muscle within half its datasheet figure either
+/// way (the eq. (1) bench's `mismatch` plant is 10-25 % off); beyond that it is another
+/// muscle, which `size` would pick.
+pub const FESTO_SCALE_RANGE: (f64, f64) = (0.5, 1.5);
+
+impl FestoScale {
+    /// Every factor within [`FESTO_SCALE_RANGE`].
+    pub fn validate(&self) -> Result<(), Invalid> {
+        for (name, v) in [
+            ("force_scale", self.force_scale),
+            ("stiffness_scale", self.stiffness_scale),
+            ("damping_scale", self.damping_scale),
+        ] {
+            within(
+                name,
+                v,
+                FESTO_SCALE_RANGE.0,
+                FESTO_SCALE_RANGE.1,
+                "must be 0.5..=1.5 (a muscle within half its datasheet figure)",
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Whether every factor is 1.
+    pub fn is_nominal(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
 /// A Festo DMSP muscle of a size and nominal (rest) length: the measured static force map
-/// and a damping scaled from Table I's.
+/// and a damping scaled from Table I's, each as far off as its [`FestoScale`] says.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
@@ -122,6 +179,12 @@ pub struct FestoMuscle {
     pub size: DmspSize,
     /// Nominal length (m): contraction over it is the strain of the force map.
     pub rest_length_m: f64,
+    /// How far the muscle is off its datasheet (default: not at all).
+    #[cfg_attr(
+        feature = "serde",
+        serde(default, skip_serializing_if = "FestoScale::is_nominal")
+    )]
+    pub scale: FestoScale,
 }
 
 impl FestoMuscle {
@@ -137,7 +200,22 @@ impl FestoMuscle {
         Ok(Self {
             size,
             rest_length_m,
+            scale: FestoScale::default(),
         })
+    }
+
+    /// The same muscle as far off its datasheet as `scale` says (checked).
+    pub fn with_scale(self, scale: FestoScale) -> Result<Self, Invalid> {
+        scale.validate()?;
+        Ok(Self { scale, ..self })
+    }
+
+    /// The muscle as its datasheet gives it: what the controllers assume.
+    pub fn nominal(self) -> Self {
+        Self {
+            scale: FestoScale::default(),
+            ..self
+        }
     }
 
     /// Strain at contraction `x_m` (m).
@@ -147,7 +225,11 @@ impl FestoMuscle {
 
     /// Static pulling force (N) at gauge `pressure_pa` and contraction `x_m`.
     pub fn static_force_n(&self, pressure_pa: f64, x_m: f64) -> f64 {
-        self.size.static_force_n(pressure_pa, self.strain(x_m))
+        let s = &self.scale;
+        s.force_scale
+            * self
+                .size
+                .static_force_n(pressure_pa, self.strain(x_m) * s.stiffness_scale)
     }
 
     /// The factor on Table I's damping: the map's force per pascal at rest length over
@@ -158,9 +240,12 @@ impl FestoMuscle {
     /// assumption, stated as such: no measured damping of a DMSP was found, and the
     /// damping should be identified on the muscle before its figures are trusted
     /// (`pma-exo identify`).
+    /// The scale's `damping_scale` multiplies it (1 for the datasheet's muscle).
     pub fn damping_factor(&self) -> f64 {
         let f1_map = self.size.static_force_n(MAP_PRESSURE_PA, 0.0) / MAP_PRESSURE_PA;
-        f1_map / MuscleParams::TABLE_I.f1_n_per_pa * TABLE_I_REST_LENGTH_M / self.rest_length_m
+        self.scale.damping_scale * f1_map / MuscleParams::TABLE_I.f1_n_per_pa
+            * TABLE_I_REST_LENGTH_M
+            / self.rest_length_m
     }
 
     /// Damping `b(P)` (N s/m).
@@ -181,7 +266,7 @@ impl FestoMuscle {
 
     /// Contraction at which the muscle stops pulling (m): the map's zero.
     pub fn max_contraction_m(&self) -> f64 {
-        self.size.max_strain() * self.rest_length_m
+        self.size.max_strain() * self.rest_length_m / self.scale.stiffness_scale
     }
 
     /// Contraction speed (m/s) above which more pressure pulls less, at contraction `x_m`:
@@ -256,6 +341,46 @@ fn map_force(strain: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_scaled_muscle_is_the_map_stretched_and_scaled_and_the_nominal_one_is_unchanged() {
+        let nominal = FestoMuscle::new(DmspSize::Dmsp20, 1.2).unwrap();
+        let scale = FestoScale {
+            force_scale: 0.8,
+            stiffness_scale: 1.25,
+            damping_scale: 1.2,
+        };
+        let off = nominal.with_scale(scale).unwrap();
+        assert_eq!(off.nominal(), nominal);
+        for x in [0.0, 0.03, 0.1, 0.2] {
+            let f = off.static_force_n(5e5, x);
+            let expected = 0.8 * nominal.static_force_n(5e5, 1.25 * x);
+            assert!((f - expected).abs() < 1e-9, "{x}: {f} vs {expected}");
+        }
+        // The map's zero moves with the strain axis: the stiffer muscle stops pulling
+        // at 1 / 1.25 of the nominal contraction.
+        let ratio = off.max_contraction_m() / nominal.max_contraction_m();
+        assert!((ratio - 0.8).abs() < 1e-12, "{ratio}");
+        assert_eq!(off.static_force_n(6e5, off.max_contraction_m()), 0.0);
+        let b =
+            off.damping(3e5, DampingMode::Inflation) / nominal.damping(3e5, DampingMode::Inflation);
+        assert!((b - 1.2).abs() < 1e-12, "{b}");
+        // Outside half the datasheet figure either way, and NaN, each field by name.
+        for (field, bad) in [
+            ("force_scale", 0.4),
+            ("stiffness_scale", 1.6),
+            ("damping_scale", f64::NAN),
+        ] {
+            let mut s = FestoScale::default();
+            match field {
+                "force_scale" => s.force_scale = bad,
+                "stiffness_scale" => s.stiffness_scale = bad,
+                _ => s.damping_scale = bad,
+            }
+            let e = nominal.with_scale(s).unwrap_err().to_string();
+            assert!(e.contains(field) && e.contains("0.5..=1.5"), "{e}");
+        }
+    }
 
     #[test]
     fn the_map_reproduces_martens_and_boblans_measurements() {

@@ -27,11 +27,11 @@ pub struct MuscleActuator {
 impl MuscleActuator {
     /// The eq. (1) muscle its controller assumes: Table I for an eq. (1) muscle (its
     /// deviations from Table I are the plant's, unknown to the controller), the map's fit
-    /// for a Festo muscle (its size is known).
+    /// for a Festo muscle (its size is known; how far it is off its datasheet is not).
     pub fn assumed(&self) -> pma_model::MuscleParams {
         match self.model {
             MuscleModel::ThreeElement(_) => pma_model::MuscleParams::TABLE_I,
-            MuscleModel::Festo(f) => f.three_element_fit(),
+            MuscleModel::Festo(f) => f.nominal().three_element_fit(),
         }
     }
 
@@ -43,7 +43,7 @@ impl MuscleActuator {
             MuscleModel::ThreeElement(_) => {
                 MuscleModel::ThreeElement(pma_model::MuscleParams::TABLE_I)
             }
-            festo @ MuscleModel::Festo(_) => festo,
+            MuscleModel::Festo(f) => MuscleModel::Festo(f.nominal()),
         }
     }
 

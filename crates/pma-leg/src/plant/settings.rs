@@ -1,5 +1,6 @@
 use crate::base::LegError;
 use pma_model::error::within;
+use pma_model::festo::FestoScale;
 use pma_model::MuscleScale;
 use pma_model::{SensorParams, ValveParams};
 use serde::Deserialize;
@@ -46,6 +47,10 @@ pub struct PlantSettings {
     /// Per-muscle factors on Table I (muscle name -> factors); absent = nominal.
     #[serde(default)]
     pub muscle_scale: BTreeMap<String, MuscleScale>,
+    /// Per-muscle factors on a Festo muscle's force map, stiffness and damping (muscle
+    /// name -> factors, each 0.5..=1.5); absent = as measured.
+    #[serde(default)]
+    pub festo_scale: BTreeMap<String, FestoScale>,
     /// Rated pulling force of every eq. (1) muscle (N), against which the run's peak force
     /// is reported. Default: what Table I's muscle itself pulls at the valve's limit and no
     /// contraction (4124 N at 6 bar), the rating of the muscle it models. (A Festo

@@ -399,16 +399,28 @@ pub(crate) fn build_muscles(
             )));
         }
         let scale = sc.plant.muscle_scale.get(&g.name).copied();
+        let festo_scale = sc.plant.festo_scale.get(&g.name).copied();
         let (model, (rated_force_n, rating)) = match (g.festo()?, scale) {
-            (Some(festo), None) => (
-                MuscleModel::Festo(festo),
+            (Some(festo), None) => {
+                // The rating stays the datasheet's: a muscle off its figures is still
+                // rated as the one bought.
+                let festo = festo
+                    .with_scale(festo_scale.unwrap_or_default())
+                    .map_err(|e| LegError::from(e.within_section(&format!("plant.festo_scale.{}", g.name))))?;
                 (
-                    festo.size.rated_force_n(),
-                    format!("Festo {}", festo.size.name().to_uppercase()),
-                ),
-            ),
+                    MuscleModel::Festo(festo),
+                    (
+                        festo.size.rated_force_n(),
+                        format!("Festo {}", festo.size.name().to_uppercase()),
+                    ),
+                )
+            }
             (Some(_), Some(_)) => return Err(err(
-                "is a Festo muscle (`size`): plant.muscle_scale applies to Table I muscles only"
+                "is a Festo muscle (`size`): plant.muscle_scale applies to Table I muscles only; [plant.festo_scale.<muscle>] scales a Festo muscle's force map, stiffness and damping"
+                    .into(),
+            )),
+            (None, _) if festo_scale.is_some() => return Err(err(
+                "is a Table I muscle: plant.festo_scale applies to Festo muscles (`size`) only; [plant.muscle_scale.<muscle>] scales Table I"
                     .into(),
             )),
             (None, scale) => {
@@ -431,11 +443,16 @@ pub(crate) fn build_muscles(
             valve: Valve::new(sc.plant.valve_of(flow_valve.as_ref(), &model), 0.0)?,
         });
     }
-    for name in sc.plant.muscle_scale.keys() {
+    for name in sc
+        .plant
+        .muscle_scale
+        .keys()
+        .chain(sc.plant.festo_scale.keys())
+    {
         if !geometry.iter().any(|g| &g.name == name) {
             return Err(LegError::Muscle {
                 muscle: name.clone(),
-                message: "plant.muscle_scale names a muscle the geometry does not have".into(),
+                message: "plant.muscle_scale or plant.festo_scale names a muscle the geometry does not have".into(),
             });
         }
     }
