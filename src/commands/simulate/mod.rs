@@ -280,7 +280,13 @@ fn plot_recorders(
     }
     // The same samples as the report's tracking figures: after the first stride.
     let cycles = GaitCycles::new(sim, sc.gait.stride_period_s)?;
-    Ok((Some(trace), Some(cycles), norm_grf(sc)?))
+    // The weight the belt carries, in the patient's body weights: what one foot's ground
+    // reaction is compared with (the device's weight included, as on the belt).
+    let belt_load_bw = sim
+        .exo()
+        .ground()
+        .map(|g| g.unsupported_weight_n() / (g.settings().body_mass_kg * pma_model::GRAVITY_M_S2));
+    Ok((Some(trace), Some(cycles), norm_grf(sc, belt_load_bw)?))
 }
 
 /// What the figures of a finished run are drawn from.
@@ -398,17 +404,23 @@ pub const DID_NOT_WALK: i32 = 4;
 
 /// The adult data's vertical ground reaction at the scenario's speed, scaled by the
 /// body-weight support, for a treadmill on the adult reference (Fukuchi et al. 2018).
-fn norm_grf(sc: &Scenario) -> Result<Option<figures::NormGrf>> {
-    let (Some(t), Some(norms)) = (&sc.treadmill, pma_exo::setup::adult_norms(sc)?) else {
+/// The adults' vertical ground reaction scaled to the belt's load (`belt_load_bw`: `(1 -
+/// support)` times the patient's and the device's weight, in the patient's body weights),
+/// so that it compares like with like with the run's feet, which carry the device too.
+fn norm_grf(sc: &Scenario, belt_load_bw: Option<f64>) -> Result<Option<figures::NormGrf>> {
+    let (Some(t), Some(norms), Some(load)) = (
+        &sc.treadmill,
+        pma_exo::setup::adult_norms(sc)?,
+        belt_load_bw,
+    ) else {
         return Ok(None);
     };
-    let scale = 1.0 - t.bws_fraction;
-    let scaled = |v: &[f64]| v.iter().map(|x| x * scale).collect();
+    let scaled = |v: &[f64]| v.iter().map(|x| x * load).collect();
     Ok(Some(figures::NormGrf {
         mean_bw: scaled(&norms.curves.grf_vertical_bw),
         sd_bw: scaled(&norms.sd.grf_vertical_bw),
         label: format!(
-            "adults' mean (Fukuchi 2018, {:.2} m/s, {} subjects) x (1 - {:.2} body-weight support)",
+            "adults' mean (Fukuchi 2018, {:.2} m/s, {} subjects) x the belt's load, {load:.3} BW ((1 - {:.2} support) x patient and device)",
             norms.speed_m_s, norms.subjects, t.bws_fraction
         ),
     }))
@@ -731,4 +743,30 @@ fn print_safety(s: &pma_leg::SafetyReport) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn regression_strides_png_compared_the_feet_with_the_adults_without_the_device() {
+        // The feet carry the device as well as the patient: the belt's load on
+        // gait_treadmill is 0.859 of the patient's weight, and the adults' curve scaled by
+        // (1 - support) alone carried 0.70 of it. Scaled to the belt's load, the two feet's
+        // mean ground reaction over a stride is the belt's load again.
+        let loaded = Scenario::load("gait_treadmill").expect("embedded");
+        let sim = pma_leg::LegSim::new(&loaded).expect("builds");
+        let ground = sim.exo().ground().expect("a treadmill");
+        let load_bw = ground.unsupported_weight_n()
+            / (ground.settings().body_mass_kg * pma_model::GRAVITY_M_S2);
+        assert!((load_bw - 0.859).abs() < 0.001, "{load_bw}");
+        let norm = norm_grf(&loaded.scenario, Some(load_bw))
+            .expect("norms")
+            .expect("a treadmill on the adults' data");
+        let mean = norm.mean_bw.iter().sum::<f64>() / norm.mean_bw.len() as f64;
+        let carried = 2.0 * mean / load_bw;
+        assert!((carried - 1.0).abs() < 0.05, "two feet carry {carried} of the belt's load");
+        assert!(norm.label.contains("0.859 BW"), "{}", norm.label);
+    }
 }
