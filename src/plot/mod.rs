@@ -454,7 +454,15 @@ pub(crate) fn draw_line_panel(
             .filter(|(_, b)| b.is_finite())
             .map(move |(a, b)| (*a, b.clamp(lo, hi)));
         let series = if *dashed {
-            chart.draw_series(LineSeries::new(pts, colour.mix(0.35).stroke_width(5)))?
+            // A wide line as separate segments: a wide polyline's miter joins at sharp
+            // turns grow spikes that reach into the next panel (issue 49); segments have
+            // no joins.
+            let pts: Vec<(f64, f64)> = pts.collect();
+            let wide = colour.mix(0.35).stroke_width(5);
+            chart.draw_series(
+                pts.windows(2)
+                    .map(move |w| PathElement::new(vec![w[0], w[1]], wide)),
+            )?
         } else {
             chart.draw_series(LineSeries::new(pts, style))?
         };
@@ -496,6 +504,40 @@ mod wrap_tests {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn regression_a_wide_line_stays_inside_its_panel() {
+        // leg.png's wide cuff-force trace, a zigzag between its range's ends every sample,
+        // grew miter spikes hundreds of pixels into the panels above and below. Drawn in
+        // the lower of two panels, none of its pixels may land in the upper one.
+        register_font().unwrap();
+        let (w, h) = (400u32, 400u32);
+        let mut buf = vec![0u8; (w * h * 3) as usize];
+        {
+            let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+            root.fill(&WHITE).unwrap();
+            let (_, lower) = root.split_vertically(h / 2);
+            let t: Vec<f64> = (0..400).map(|k| f64::from(k) * 0.01).collect();
+            let v: Vec<f64> = (0..400)
+                .map(|k| if k % 2 == 0 { -600.0 } else { 600.0 })
+                .collect();
+            let panel = LinePanel {
+                y_desc: "force (N)",
+                lines: vec![(String::new(), &v, RGBColor(31, 119, 180), true)],
+                marks: Vec::new(),
+                spasms: Vec::new(),
+                event: None,
+            };
+            draw_line_panel(&lower, &t, 0.0..4.0, &panel).unwrap();
+            root.present().unwrap();
+        }
+        let upper = &buf[..(w * (h / 2) * 3) as usize];
+        let stray = upper.chunks(3).filter(|p| p != &[255, 255, 255]).count();
+        assert_eq!(
+            stray, 0,
+            "{stray} pixels of the lower panel's line in the upper one"
+        );
+    }
 
     #[test]
     fn ticks_never_print_negative_zero() {

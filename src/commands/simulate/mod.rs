@@ -766,7 +766,10 @@ mod tests {
             .expect("a treadmill on the adults' data");
         let mean = norm.mean_bw.iter().sum::<f64>() / norm.mean_bw.len() as f64;
         let carried = 2.0 * mean / load_bw;
-        assert!((carried - 1.0).abs() < 0.05, "two feet carry {carried} of the belt's load");
+        assert!(
+            (carried - 1.0).abs() < 0.05,
+            "two feet carry {carried} of the belt's load"
+        );
         assert!(norm.label.contains("0.859 BW"), "{}", norm.label);
     }
 }
