@@ -466,9 +466,15 @@ pub(crate) fn draw_line_panel(
         } else {
             chart.draw_series(LineSeries::new(pts, style))?
         };
+        // The legend draws each line as the panel does: wide and pale, or thin.
+        let key = if *dashed {
+            colour.mix(0.35).stroke_width(6)
+        } else {
+            colour.stroke_width(2)
+        };
         series
             .label(label.clone())
-            .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], colour.stroke_width(3)));
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], key));
     }
     if panel.lines.iter().all(|(label, ..)| label.is_empty()) {
         return Ok(());

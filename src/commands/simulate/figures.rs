@@ -176,16 +176,18 @@ fn limb_panels<'a>(w: &Window<'a>) -> Vec<LinePanel<'a>> {
     let (tr, first) = (w.tr, w.first);
     let active = tr.patient_nm.iter().flatten().any(|v| *v != 0.0);
     let mut torques: Vec<(String, &[f64], RGBColor, bool)> = Vec::new();
-    for (who, series, dashed, shown) in [
-        ("patient", &tr.patient_nm, false, active),
-        ("device on the limb", &tr.interaction_nm, true, true),
+    // The patient's torques in colours of their own: at one joint the patient's and the
+    // device's shared a colour, told apart only by the line's width (issue 49).
+    for (who, series, dashed, shown, colour_of) in [
+        ("patient", &tr.patient_nm, false, active, 2),
+        ("device on the limb", &tr.interaction_nm, true, true, 0),
     ] {
         if shown {
             for (j, name) in ["hip", "knee"].iter().enumerate() {
                 torques.push((
                     format!("{who}, {name}"),
                     tail(&series[j], first),
-                    colour(j),
+                    colour(colour_of + j),
                     dashed,
                 ));
             }
@@ -592,6 +594,36 @@ mod tests {
         // Five strides are drawn whole, uncaptioned; so is a run that is not a gait.
         assert_eq!(time_window(&t[..800], 1.6), (0, 0.0..8.0, None));
         assert_eq!(time_window(&t, 0.0), (0, 0.0..60.0, None));
+    }
+
+    #[test]
+    fn regression_the_patients_and_the_devices_torques_are_told_apart() {
+        // leg.png drew the patient's and the device's hip torque in one colour (and the
+        // knee's), the legend showing both as the same line.
+        let tr = LegTrace {
+            t_s: vec![0.0, 0.01],
+            patient_nm: [vec![1.0, 2.0], vec![3.0, 4.0]],
+            interaction_nm: [vec![5.0, 6.0], vec![7.0, 8.0]],
+            ..LegTrace::default()
+        };
+        let w = Window {
+            tr: &tr,
+            first: 0,
+            event: None,
+        };
+        let panels = limb_panels(&w);
+        let torques = &panels[0].lines;
+        assert_eq!(
+            torques.len(),
+            4,
+            "{:?}",
+            torques.iter().map(|l| &l.0).collect::<Vec<_>>()
+        );
+        for (i, a) in torques.iter().enumerate() {
+            for b in &torques[i + 1..] {
+                assert_ne!(a.2, b.2, "{} and {} share a colour", a.0, b.0);
+            }
+        }
     }
 
     /// A run interrupted before its second stride has nothing binned: `strides.png` still
