@@ -260,6 +260,15 @@ impl<B: pma_loop::Backend, O> pma_loop::Recorder<B, O> for Progress {
     }
 }
 
+/// What `--check-step` concludes, in the summary's words.
+pub fn step_verdict(converged: bool) -> &'static str {
+    if converged {
+        "within 2 %"
+    } else {
+        "moved more than 2 %: the step decides these figures (docs/convergence.md)"
+    }
+}
+
 /// The end of a run with optional CSV and Rerun outputs: the CSV completed, the viewer
 /// closed, a non-finite run refused (`non_finite` says what went), the report printed as
 /// JSON or by `summary`, and only then the viewer's error, so a failed viewer never hides

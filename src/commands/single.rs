@@ -41,10 +41,6 @@ pub struct Args {
     output: RunOutput,
 }
 
-/// How much a figure may move at half the step for the run to call it converged (the
-/// project's criterion for a published figure: `docs/convergence.md`).
-const STEP_TOLERANCE: f64 = 0.02;
-
 /// The run's figures again at half the step, and how far each moved.
 struct StepCheck {
     substeps: u32,
@@ -74,7 +70,7 @@ impl StepCheck {
         }
         r.check_finite(&res)?;
         let (a, b) = (first.stats, res.stats);
-        let rel = |x: f64, y: f64| (y - x).abs() / x.abs().max(f64::MIN_POSITIVE);
+        let rel = pma_loop::step::relative_move;
         Ok(Some(Self {
             substeps: plant.substeps_per_period,
             stats: b,
@@ -87,7 +83,7 @@ impl StepCheck {
     }
 
     fn converged(&self) -> bool {
-        self.moved.iter().all(|m| *m <= STEP_TOLERANCE)
+        pma_loop::step::converged(self.moved)
     }
 
     fn json(&self) -> serde_json::Value {
@@ -97,7 +93,7 @@ impl StepCheck {
             "rte_percent": self.stats.rte_percent,
             "rms_m": self.stats.rms_m,
             "moved": {"mae": self.moved[0], "rte": self.moved[1], "rms": self.moved[2]},
-            "tolerance": STEP_TOLERANCE,
+            "tolerance": pma_loop::step::STEP_TOLERANCE,
             "converged": self.converged(),
         })
     }
@@ -112,11 +108,7 @@ impl StepCheck {
             100.0 * self.moved[1],
             self.stats.rms_m,
             100.0 * self.moved[2],
-            if self.converged() {
-                "within 2 %".to_owned()
-            } else {
-                "moved more than 2 %: the step decides these figures (docs/convergence.md)".to_owned()
-            }
+            super::step_verdict(self.converged())
         )
     }
 }

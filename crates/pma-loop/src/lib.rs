@@ -67,6 +67,7 @@
 
 mod recorder;
 pub mod signals;
+pub mod step;
 
 pub use recorder::{FnRecorder, Recorder};
 pub use signals::{Channel, Schema, Signals};

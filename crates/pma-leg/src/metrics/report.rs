@@ -165,19 +165,17 @@ pub struct StepCheckReport {
     pub physics_substeps: u32,
     /// Per joint, as in [`LegReport::joints`].
     pub joints: BTreeMap<String, JointStepCheck>,
-    /// The largest relative move a converged figure may show (0.02).
+    /// The largest relative move a converged figure may show
+    /// ([`pma_loop::step::STEP_TOLERANCE`]).
     pub tolerance: f64,
     /// Whether every figure moved by at most `tolerance`.
     pub converged: bool,
 }
 
-/// How much a published figure may move at half the step (`docs/convergence.md`).
-pub const STEP_TOLERANCE: f64 = 0.02;
-
 impl StepCheckReport {
     /// `refined` (the run at `physics_substeps`) against `first`, joint by joint.
     pub fn of(first: &LegReport, refined: &LegReport, physics_substeps: u32) -> Self {
-        let rel = |a: f64, b: f64| (b - a).abs() / a.abs().max(f64::MIN_POSITIVE);
+        use pma_loop::step::{converged, relative_move as rel, STEP_TOLERANCE};
         let joints: BTreeMap<String, JointStepCheck> = first
             .joints
             .iter()
@@ -194,9 +192,7 @@ impl StepCheckReport {
                 ))
             })
             .collect();
-        let converged = joints
-            .values()
-            .all(|j| j.moved_rms <= STEP_TOLERANCE && j.moved_max <= STEP_TOLERANCE);
+        let converged = converged(joints.values().flat_map(|j| [j.moved_rms, j.moved_max]));
         Self {
             physics_substeps,
             joints,
