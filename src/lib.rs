@@ -1,7 +1,8 @@
 //! Library part of the `pma-exo` package: the glue between the simulations and the Rerun
 //! layer, the gait-cycle binning of `simulate --plot`, and the assembly of the `single`,
-//! `simulate` and `pendulum` runs, shared by the binary, the integration tests and the
+//! `simulate` and `pendulum` runs and the trainer's envelope, shared by the binary, the integration tests and the
 //! Python bindings (`crates/pma-py`).
+pub mod envelope;
 pub mod setup;
 pub mod strides;
 #[cfg(feature = "rerun")]

@@ -10,8 +10,8 @@ mod plot;
 mod provenance;
 
 use commands::{
-    compare_leg, compare_modes, fit_gait, identify, impedance, pendulum, rig, simulate, single,
-    size, sweep, tune, valve,
+    compare_leg, compare_modes, envelope, fit_gait, identify, impedance, pendulum, rig, simulate,
+    single, size, sweep, tune, valve,
 };
 
 #[derive(Parser)]
@@ -51,6 +51,10 @@ enum Command {
     /// speeds over a stride (inverse dynamics with the belt's forces), every DMSP size,
     /// length and pulley that supplies them, a recommendation and its muscles.toml.
     Size(size::Args),
+    /// Where a treadmill scenario walks its patient: body mass x support x walking speed x
+    /// mode, each cell walked, refused before it ran, or run and failed, with its reason;
+    /// a table, a JSON and a map (envelope.png).
+    Envelope(envelope::Args),
     /// A treadmill scenario's hip reference made consistent with its belt: servo-driven
     /// runs that change the hip where a stance foot runs ahead of or behind the belt, until
     /// it moves with it; prints (or writes) the scenario's `[gait.hip_correction]`.
@@ -179,6 +183,7 @@ fn run(cli: Cli) -> Result<i32> {
         Command::TuneLeg(a) => tune::run_leg(a),
         Command::CompareLeg(a) => compare_leg::run(a),
         Command::Size(a) => size::run(a),
+        Command::Envelope(a) => envelope::run(a),
         Command::FitGait(a) => fit_gait::run(a),
         Command::Impedance(a) => impedance::run(a),
         Command::CompareModes(a) => compare_modes::run(a),

@@ -209,7 +209,7 @@ pub struct LegArgs<'a> {
 }
 
 /// A control mode on the command line.
-#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Mode {
     /// Robot in charge: each muscle's controller tracks its length along the reference.
     Position,
@@ -279,7 +279,7 @@ pub struct LegRun {
 
 /// `e`, a leg that could not be built from scenario `arg`, naming the scenario's file where
 /// the error does not already name a file.
-fn in_scenario(e: pma_leg::LegError, arg: &str) -> pma_leg::LegError {
+pub fn in_scenario(e: pma_leg::LegError, arg: &str) -> pma_leg::LegError {
     use pma_leg::LegError as E;
     match e {
         E::Parse { .. } | E::InFile { .. } | E::Io { .. } | E::Urdf { .. } => e,
@@ -342,17 +342,54 @@ impl LegRun {
 /// speed or support the reference does not fit, on which the trainer cannot walk; refused
 /// before anything runs, in one line.
 fn check_fits_its_data(loaded: &LoadedScenario, scenario: &str) -> Result<()> {
+    match unfit_reason(loaded)? {
+        None => Ok(()),
+        Some((true, why)) => bail!("{scenario}: {why}; `pma-exo size {scenario} --closed-loop-s 0` shows the demand (--allow-unfit runs it)"),
+        Some((false, why)) => bail!("{scenario}: {why}; `pma-exo size {scenario}` recommends muscles for this patient (--allow-unfit runs it)"),
+    }
+}
+
+/// Why a treadmill on the adults' data cannot walk, found by one servo-driven stride
+/// before it runs: `(true, why)` where the stride asks more than
+/// [`pma_leg::tools::DEMAND_OVER_NORM_MAX`] times the adults' moments (the scenario does
+/// not fit its data), `(false, why)` where the scenario's own muscles cannot drive it;
+/// `None` if neither (or not a treadmill on the adults' data).
+pub fn unfit_reason(loaded: &LoadedScenario) -> Result<Option<(bool, String)>> {
     let sc = &loaded.scenario;
     let (Some(_), Some(adults)) = (&sc.treadmill, adult_norms(sc)?) else {
-        return Ok(());
+        return Ok(None);
     };
     let demand = pma_leg::tools::stride_demand(loaded, 1)?;
-    match beyond_norms(&norm_comparison(sc, &demand, &adults)) {
-        Some(why) => {
-            bail!("{scenario}: {why}; `pma-exo size {scenario} --closed-loop-s 0` shows the demand (--allow-unfit runs it)")
-        }
-        None => Ok(()),
+    if let Some(why) = beyond_norms(&norm_comparison(sc, &demand, &adults)) {
+        return Ok(Some((true, why)));
     }
+    Ok(fitted_muscles_short(loaded, &demand).map(|why| (false, why)))
+}
+
+/// Why the scenario's own muscles cannot drive its servo-driven stride (over their rating,
+/// beyond their stroke or the valve's pressure), said in one line; `None` if they can.
+/// Issue 47: a 95 kg patient ran the muscles sized for 75 kg to 1.14 times their rating
+/// and nothing said so before the run.
+fn fitted_muscles_short(
+    loaded: &LoadedScenario,
+    demand: &pma_leg::tools::Demand,
+) -> Option<String> {
+    let sc = &loaded.scenario;
+    let pairs = pma_leg::tools::fitted_pairs(
+        demand,
+        &loaded.muscles,
+        sc.control.cocontraction_pa,
+        sc.plant.valve.pressure_max_pa,
+    );
+    let why = pairs.iter().find_map(pma_leg::tools::FittedPair::why_not)?;
+    let patient = sc.treadmill.as_ref().map_or_else(String::new, |t| {
+        format!(
+            " of a {:.0} kg patient at {:.0} % support",
+            t.body_mass_kg,
+            100.0 * t.bws_fraction
+        )
+    });
+    Some(format!("on the servo-driven stride{patient} {why}"))
 }
 
 /// What drives the muscles of a run, as outputs name it: the controller, or the mode that
@@ -556,19 +593,19 @@ impl SizeArgs {
     pub fn check(&self) -> Result<()> {
         if !(self.max_length_m.is_finite() && (0.1..=2.0).contains(&self.max_length_m)) {
             bail!(
-                "--max-length-m must be 0.1..=2 m (the lengths searched; got {})",
+                "--max-length-m must be 0.1 to 2 m (the lengths searched; got {})",
                 self.max_length_m
             );
         }
         let most = pma_leg::tools::FORCE_MARGIN_MAX;
         if !(self.force_margin.is_finite() && (0.0..=most).contains(&self.force_margin)) {
             bail!(
-                "--force-margin must be 0..={most} (got {})",
+                "--force-margin must be 0 to {most} (got {})",
                 self.force_margin
             );
         }
         if !(1..=50).contains(&self.strides) {
-            bail!("--strides must be 1..=50 (got {})", self.strides);
+            bail!("--strides must be 1 to 50 (got {})", self.strides);
         }
         let (lo, hi) = (
             pma_leg::tools::CLOSED_LOOP_MIN_S,
@@ -578,7 +615,7 @@ impl SizeArgs {
             || (self.closed_loop_s.is_finite() && (lo..=hi).contains(&self.closed_loop_s)))
         {
             bail!(
-                "--closed-loop-s must be 0 (no check) or {lo}..={hi} s (got {})",
+                "--closed-loop-s must be 0 (no check) or {lo} to {hi} s (got {})",
                 self.closed_loop_s
             );
         }
@@ -604,6 +641,8 @@ pub struct SizeRun {
     /// [`pma_leg::tools::DEMAND_OVER_NORM_MAX`] times the adults' (the scenario does not
     /// fit its data); no closed-loop check runs then.
     pub beyond_norms: Option<String>,
+    /// The scenario's own muscles on the same stride, per joint (Festo pairs only).
+    pub fitted: Vec<pma_leg::tools::FittedPair>,
 }
 
 /// The first joint whose peak demand is beyond [`pma_leg::tools::DEMAND_OVER_NORM_MAX`]
@@ -612,7 +651,7 @@ fn beyond_norms(norms: &[pma_leg::tools::NormComparison]) -> Option<String> {
     let most = pma_leg::tools::DEMAND_OVER_NORM_MAX;
     norms.iter().find(|n| n.ratio() > most).map(|n| {
         format!(
-            "the {} asks {:.2} N m/kg at its peak, {:.1} times the adults' {:.2} N m/kg (at most {most} times): the scenario does not fit its gait data (a belt speed or support the reference was not recorded at?)",
+            "the {} asks {:.2} N m/kg at its peak, {:.1} times the adults' {:.2} N m/kg (at most {most} times): the scenario does not fit its gait data (a belt speed the reference's stance was not fitted to, or a swing foot dragging on the belt?)",
             n.joint,
             n.peak_demand_nm_kg,
             n.ratio(),
@@ -644,6 +683,12 @@ impl SizeRun {
             |margin: f64| pma_leg::tools::size_joints(&demand, p_max, args.max_length_m, margin);
         let mut sizing = size(args.force_margin);
         let beyond_norms = beyond_norms(&norms);
+        let fitted = pma_leg::tools::fitted_pairs(
+            &demand,
+            &loaded.muscles,
+            loaded.scenario.control.cocontraction_pa,
+            p_max,
+        );
         let mut closed_loop = Vec::new();
         let mut margin = args.force_margin;
         while args.closed_loop_s > 0.0
@@ -681,6 +726,7 @@ impl SizeRun {
             norm_loading,
             closed_loop,
             beyond_norms,
+            fitted,
         })
     }
 
@@ -699,6 +745,7 @@ impl SizeRun {
             "sizing": self.sizing,
             "closed_loop": self.closed_loop,
             "beyond_norms": self.beyond_norms,
+            "fitted": self.fitted,
         });
         match json {
             serde_json::Value::Object(map) => map,
@@ -822,4 +869,38 @@ pub fn fit_figures(fit: &pma_leg::GaitFit) -> serde_json::Map<String, serde_json
         }),
     );
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::in_scenario;
+    use pma_leg::LegError;
+
+    /// Issue 49 item 14: a run that left physical bounds (or a supervisor's fault) said so
+    /// without naming the scenario that ran.
+    #[test]
+    fn regression_a_run_that_left_physics_named_no_file() {
+        let left = || LegError::LeftPhysics {
+            t_s: 1.5,
+            what: "the right knee: 60 rad/s".into(),
+        };
+        let named = in_scenario(left(), "my_trainer.toml").to_string();
+        assert!(
+            named.starts_with("`my_trainer.toml`: the simulation left physical bounds at 1.500 s"),
+            "{named}"
+        );
+        let embedded = in_scenario(LegError::Supervisor("timing".into()), "gait_treadmill");
+        assert!(
+            embedded
+                .to_string()
+                .starts_with("`gait_treadmill (embedded scenario)`: "),
+            "{embedded}"
+        );
+        // A load error that already names its file is not named twice.
+        let parse = LegError::Io {
+            path: "x.toml".into(),
+            message: "gone".into(),
+        };
+        assert!(!in_scenario(parse, "x.toml").to_string().starts_with('`'));
+    }
 }

@@ -1340,6 +1340,12 @@ fn simulate_draws_the_run_when_asked() {
     assert!(matches!(out.status.code(), Some(0 | 4)), "{out:?}");
     let png = std::fs::read(belt.join("leg.png")).expect("leg.png");
     assert_eq!(height(&png), 2100);
+    // Issue 49 item 18: a two-legged run drew its right leg only; the left has its own
+    // figure (its own joints and muscles, not the right's again), a one-legged run none.
+    let left = std::fs::read(belt.join("leg_left.png")).expect("leg_left.png");
+    assert_eq!(height(&left), 2100);
+    assert_ne!(left, png, "the left leg's figure repeats the right's");
+    assert!(!dir.join("leg_left.png").exists());
     pma_exo_ok(&[
         "pendulum",
         "--spasticity",
@@ -1376,7 +1382,7 @@ fn impedance_mode_refuses_bad_input_in_one_line() {
     for (extra, needle) in [
         (
             "[control.impedance]\nhip = { stiffness_nm_per_rad = 200.0 }\n",
-            "control.impedance.hip.stiffness_nm_per_rad = 200 is out of reach: the hip's muscles reach 8.4..=10.9 N m/rad",
+            "control.impedance.hip.stiffness_nm_per_rad = 200 is out of reach: the hip's muscles reach 8.4 to 10.9 N m/rad",
         ),
         (
             "[control.impedance]\nknee = { stiffness_nm_per_rad = -1.0 }\n",

@@ -25,6 +25,9 @@ struct Image {
     path: String,
     command: Vec<String>,
     drawn: String,
+    /// The exit status the command must end with, where it is not a success.
+    #[serde(default)]
+    exit: Option<i32>,
     #[serde(default)]
     slow: bool,
 }
@@ -203,7 +206,7 @@ fn check(slow: bool) {
     }
     let write = std::env::var_os("PMA_BLESS").is_some();
     for image in m.image.iter().filter(|i| i.slow == slow) {
-        run(&image.command, &dir, None);
+        run(&image.command, &dir, image.exit);
         let drawn = image.drawn.replace("{dir}", &dir.display().to_string());
         let new = std::fs::read(&drawn).expect("the drawn image");
         let path = root().join(&image.path);

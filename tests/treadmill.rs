@@ -258,6 +258,13 @@ fn bad_trainer_input_is_a_one_line_error_naming_the_field() {
             "speed_m_per_s = 12.0",
             "treadmill.speed_m_per_s",
         ),
+        // Issue 47: a belt with no adult reference (recorded at 0.499 m/s only) ran and
+        // the patient collapsed, exit 0.
+        (
+            "speed_m_per_s = 0.4855",
+            "speed_m_per_s = 0.7",
+            "treadmill.speed_m_per_s = 0.7 is invalid: has no adult reference",
+        ),
         (
             "bws_fraction = 0.3",
             "bws_fraction = 1.5",
@@ -1144,7 +1151,7 @@ fn a_festo_muscle_off_its_datasheet_is_simulated_and_bad_factors_are_named() {
     for (edit, needle) in [
         (
             festo_scaled("force_scale", 0.3),
-            "plant.festo_scale.hip_flexor.force_scale = 0.3 is invalid: must be 0.5..=1.5",
+            "plant.festo_scale.hip_flexor.force_scale = 0.3 is invalid: must be 0.5 to 1.5",
         ),
         (
             "[plant.festo_scale.knee_flexor]\nstrength = 0.9\n\n".to_owned(),
@@ -1178,4 +1185,160 @@ fn a_festo_muscle_off_its_datasheet_is_simulated_and_bad_factors_are_named() {
         &path,
         "plant.festo_scale applies to Festo muscles (`size`) only",
     );
+}
+
+/// Issue 47: a patient whose servo-driven stride the scenario's own muscles cannot drive
+/// within their rating ran, and only the closed loop's verdict said so. Here the knee's
+/// muscles are DMSP-10s on 38 mm pulleys (1.03 times their rating on the stride): refused
+/// before anything runs, in one line naming the joint, the figure and `pma-exo size`.
+#[test]
+fn regression_muscles_over_their_rating_on_the_servo_stride_ran() {
+    let dir = temp_dir("fitted-rating");
+    let muscles = include_str!("../crates/pma-leg/models/muscles_treadmill.toml");
+    let knee_small: String = muscles
+        .split("[[muscles]]")
+        .enumerate()
+        .map(|(i, block)| {
+            let block = if block.contains("joint = \"knee\"") {
+                block
+                    .replace("size = \"dmsp-20\"", "size = \"dmsp-10\"")
+                    .replace("pulley_radius_m = 0.055", "pulley_radius_m = 0.038")
+            } else {
+                block.to_owned()
+            };
+            if i == 0 {
+                block
+            } else {
+                format!("[[muscles]]{block}")
+            }
+        })
+        .collect();
+    assert_eq!(knee_small.matches("dmsp-10").count(), 2);
+    let geometry = dir.join("knee_small.toml");
+    std::fs::write(&geometry, knee_small).unwrap();
+    let line = format!(
+        "physics_substeps = 1\nmuscle_geometry = \"{}\"",
+        geometry.display()
+    );
+    let path = scenario_with(&dir, "small.toml", &[("physics_substeps = 1", &line)]);
+    let out = pma_exo(&["simulate", path.to_str().unwrap(), "--duration", "4"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("the knee's muscles (Festo DMSP-10, 1.200 m on 38 mm) would pull 1.0")
+            && err.contains("times their rating")
+            && err.contains("pma-exo size"),
+        "{err}"
+    );
+    // `size` shows the scenario's own muscles beside its recommendation.
+    let v = pma_exo(&[
+        "size",
+        path.to_str().unwrap(),
+        "--closed-loop-s",
+        "0",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&v.stdout).expect("JSON");
+    let knee = &v["fitted"][1];
+    assert_eq!(knee["joint"], "knee");
+    assert!(
+        knee["peak_force_over_rated"].as_f64().unwrap() > 1.0,
+        "{knee}"
+    );
+    // The shipped muscles drive the shipped patient's stride at 0.59 of their rating (the
+    // figure `size` designed them for, at the 6 bar they were sized with).
+    let v = json_of(&["size", "gait_treadmill", "--closed-loop-s", "0", "--json"]);
+    for pair in v["fitted"].as_array().unwrap() {
+        let f = pair["peak_force_over_rated"].as_f64().unwrap();
+        assert!((0.55..0.65).contains(&f), "{pair}");
+    }
+}
+
+/// Issue 47 item 5: `pma-exo envelope` maps a treadmill scenario's patients: each cell
+/// walked, refused before it ran (with why), or ran and failed (with why); its bad
+/// arguments are one-line errors naming the flag and its range.
+#[test]
+fn envelope_maps_walked_refused_and_failed_cells() {
+    for (args, needle) in [
+        (
+            &["--mass-kg", "300"][..],
+            "--mass-kg 300 is invalid: a patient's mass, 15 to 200",
+        ),
+        (&["--support", "1.2"][..], "--support 1.2 is invalid"),
+        (&["--speed", "5"][..], "--speed 5 is invalid"),
+        (&["--speed", "0.5,0.5"][..], "--speed: 0.5 is given twice"),
+        (&["gait_training"][..], "has no [treadmill]"),
+        (&["--duration", "-1"][..], "duration"),
+    ] {
+        let mut all = vec!["envelope"];
+        all.extend_from_slice(args);
+        let out = pma_exo(&all);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+    let dir = temp_dir("envelope");
+    let out = pma_exo(&[
+        "envelope",
+        "--mass-kg",
+        "80",
+        "--support",
+        "0,0.5",
+        "--speed",
+        "0.5,0.7",
+        "--duration",
+        "8",
+        "--json",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let cells = v["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 4);
+    let cell = |support: f64, speed: f64| {
+        cells
+            .iter()
+            .find(|c| c["support"] == support && c["speed_m_s"] == speed)
+            .unwrap()
+    };
+    // No adult reference at 0.7 m/s: refused, whatever the support.
+    for support in [0.0, 0.5] {
+        let c = cell(support, 0.7);
+        assert_eq!(c["outcome"], "refused", "{c}");
+        assert_eq!(c["refusal"], "no_reference", "{c}");
+    }
+    // Without support or a foot lifter the servo-driven stride asks over 5 times the
+    // adults' moments (the swing toe digs into the belt): refused, with the figure.
+    let c = cell(0.0, 0.5);
+    assert_eq!(c["refusal"], "beyond_norms", "{c}");
+    assert!(
+        c["reasons"][0]
+            .as_str()
+            .unwrap()
+            .contains("times the adults'"),
+        "{c}"
+    );
+    // At half the weight carried it runs, and its figures are the verdict's.
+    let ran = cell(0.5, 0.5);
+    assert!(
+        matches!(ran["outcome"].as_str(), Some("walked" | "failed")),
+        "{ran}"
+    );
+    let [hip, knee] = [0, 1].map(|j| ran["stance_rms_deg"][j].as_f64().unwrap());
+    assert!(hip.is_finite() && knee.is_finite(), "{ran}");
+    assert_eq!(
+        ran["outcome"] == "walked",
+        hip <= 2.0 && knee <= 2.0,
+        "{ran}"
+    );
+    // The exit says whether a cell ran and did not walk.
+    let failed = cells
+        .iter()
+        .any(|c| c["outcome"] == "failed" || c["outcome"] == "simulation failed");
+    assert_eq!(out.status.code(), Some(if failed { 4 } else { 0 }));
+    for f in ["envelope.json", "envelope.md", "envelope.png"] {
+        assert!(dir.join(f).is_file(), "{f}");
+    }
 }

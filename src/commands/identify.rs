@@ -43,7 +43,7 @@ pub const MIN_FIT_PERCENT: f64 = 90.0;
 /// A `--min-fit` that is a percentage.
 pub fn check_min_fit(percent: f64) -> Result<()> {
     if !(percent.is_finite() && (0.0..=100.0).contains(&percent)) {
-        bail!("--min-fit {percent} must be 0..=100 (%)");
+        bail!("--min-fit {percent} must be 0 to 100 (%)");
     }
     Ok(())
 }
@@ -52,7 +52,7 @@ pub fn check_min_fit(percent: f64) -> Result<()> {
 pub fn run(a: Args) -> Result<i32> {
     if let Some(m) = a.load_kg {
         if !(m.is_finite() && (0.05..=pma_model::MAX_LOAD_KG).contains(&m)) {
-            anyhow::bail!("--load-kg = {m} is invalid: must be 0.05..=600 kg");
+            anyhow::bail!("--load-kg = {m} is invalid: must be 0.05 to 600 kg");
         }
     }
     let inputs: Vec<(&str, &std::path::Path)> =

@@ -99,7 +99,7 @@ pub fn run(a: Args) -> Result<i32> {
 /// The mode and the pose (deg) of `a`, every argument checked before anything runs.
 fn checked_args(a: &Args) -> Result<(ControlMode, [f64; 2])> {
     if !(a.settle.is_finite() && (0.2..=30.0).contains(&a.settle)) {
-        anyhow::bail!("--settle must be 0.2..=30 s (got {})", a.settle);
+        anyhow::bail!("--settle must be 0.2 to 30 s (got {})", a.settle);
     }
     let mode = a.mode.control_mode();
     if !matches!(mode, ControlMode::Impedance | ControlMode::Admittance) {
@@ -118,7 +118,7 @@ fn checked_args(a: &Args) -> Result<(ControlMode, [f64; 2])> {
         .iter()
         .find(|f| !(f.is_finite() && (lo..=hi).contains(*f)))
     {
-        anyhow::bail!("--frequencies {f}: each must be {lo}..={hi} Hz");
+        anyhow::bail!("--frequencies {f}: each must be {lo} to {hi} Hz");
     }
     let pose_deg = [a.pose_deg[0], a.pose_deg[1]];
     if pose_deg.iter().any(|d| !d.is_finite()) {
@@ -133,7 +133,7 @@ fn check_pose(sim: &LegSim, pose_deg: [f64; 2]) -> Result<()> {
         let [lo, hi] = sim.exo().limits_rad(0)[j].map(f64::to_degrees);
         if !(lo..=hi).contains(&pose_deg[j]) {
             anyhow::bail!(
-                "--pose-deg: the {name} at {} deg is outside its limits, {lo:.1}..={hi:.1} deg (the URDF's)",
+                "--pose-deg: the {name} at {} deg is outside its limits, {lo:.1} to {hi:.1} deg (the URDF's)",
                 pose_deg[j]
             );
         }

@@ -8,6 +8,7 @@ pub use pma_exo::setup::{check_duration, kind_of_gains, load_gains, RefName};
 
 pub mod compare_leg;
 pub mod compare_modes;
+pub mod envelope;
 pub mod fit_gait;
 pub mod identify;
 pub mod impedance;

@@ -90,7 +90,11 @@ pub fn run(a: Args) -> Result<i32> {
     let stop = output::stop_flag()?;
     let out_file = a.out.as_deref().map(OutFile::create).transpose()?;
     let sc = &loaded.scenario;
-    let run = SizeRun::of(&loaded, &args, &stop)?;
+    // A servo pass or closed-loop run that left physical bounds names the scenario.
+    let run = SizeRun::of(&loaded, &args, &stop).map_err(|e| match e.downcast() {
+        Ok(leg) => pma_exo::setup::in_scenario(leg, &a.scenario).into(),
+        Err(e) => e,
+    })?;
     if stop.load(std::sync::atomic::Ordering::Relaxed) {
         eprintln!("interrupted: nothing written");
         return Ok(output::INTERRUPTED);
@@ -138,6 +142,7 @@ pub fn run(a: Args) -> Result<i32> {
     } else {
         print_summary(sizing, demand, &sc.name)?;
         print_norms(norms, run.norm_loading.as_ref())?;
+        print_fitted(&run.fitted)?;
         print_closed_loop(&run.closed_loop)?;
         say!("{}", provenance.line());
     }
@@ -308,6 +313,31 @@ fn print_joint(j: &JointSizing) -> Result<()> {
 
 /// Each closed-loop check: the joints' peak force against the servo figure and the
 /// allowance, and whether the patient walked.
+/// The scenario's own muscles on the stride, beside the recommendation.
+fn print_fitted(pairs: &[pma_leg::tools::FittedPair]) -> Result<()> {
+    for p in pairs {
+        let figure = match (p.reject, p.peak_force_over_rated, p.max_strain) {
+            (None, Some(f), Some(s)) => format!(
+                "peak force {f:.2} of the rating, contraction up to {:.1} %, pressures asked {}",
+                100.0 * s,
+                p.pressure_range_bar
+                    .map_or("-".into(), |[lo, hi]| format!("{lo:.2} to {hi:.2} bar"))
+            ),
+            (Some(r), ..) => format!("cannot drive it ({})", r.as_str()),
+            _ => "-".into(),
+        };
+        let verdict = p
+            .why_not()
+            .map_or("fits".to_owned(), |_| "does not fit".into());
+        say!(
+            "  the scenario's {} muscles ({}): {figure}: {verdict}",
+            p.joint,
+            p.muscles
+        );
+    }
+    Ok(())
+}
+
 fn print_closed_loop(checks: &[pma_leg::tools::ClosedLoop]) -> Result<()> {
     for (i, c) in checks.iter().enumerate() {
         let joints: Vec<String> = c

@@ -125,10 +125,10 @@ const TUNING_PERIOD_S: f64 = 1e-6;
 /// per firefly per generation at most (the tuner's own count is reported after the run).
 pub(crate) fn evaluations(population: usize, generations: usize) -> Result<f64> {
     if !(2..=MAX_POPULATION).contains(&population) {
-        bail!("--population must be 2..={MAX_POPULATION} (got {population})");
+        bail!("--population must be 2 to {MAX_POPULATION} (got {population})");
     }
     if !(1..=MAX_GENERATIONS).contains(&generations) {
-        bail!("--generations must be 1..={MAX_GENERATIONS} (got {generations})");
+        bail!("--generations must be 1 to {MAX_GENERATIONS} (got {generations})");
     }
     let n = generations
         .checked_add(1)
@@ -140,7 +140,7 @@ pub(crate) fn evaluations(population: usize, generations: usize) -> Result<f64> 
 /// Checks `--robust`'s number of plants.
 pub(crate) fn check_robust(plants: usize) -> Result<()> {
     if !(1..=MAX_ROBUST).contains(&plants) {
-        bail!("--robust must be 1..={MAX_ROBUST} plants (got {plants})");
+        bail!("--robust must be 1 to {MAX_ROBUST} plants (got {plants})");
     }
     Ok(())
 }
@@ -310,7 +310,7 @@ pub struct LegArgs {
 fn leg_objective(a: &LegArgs) -> Result<pma_studies::leg_tune::LegObjective> {
     if !(a.variation_weight.is_finite() && (0.0..=10.0).contains(&a.variation_weight)) {
         bail!(
-            "--variation-weight = {} is invalid: must be 0..=10 deg per bar/s",
+            "--variation-weight = {} is invalid: must be 0 to 10 deg per bar/s",
             a.variation_weight
         );
     }

@@ -78,7 +78,7 @@ pub fn run(a: Args) -> Result<i32> {
     settings.validate().map_err(flag)?;
     let festo = pma_model::festo::FestoMuscle::new(a.muscle, a.length_m).context("--length-m")?;
     if !(a.step_s.is_finite() && (1e-5..=1e-2).contains(&a.step_s)) {
-        bail!("--step-s = {} is invalid: must be 1e-5..=1e-2 s", a.step_s);
+        bail!("--step-s = {} is invalid: must be 1e-5 to 1e-2 s", a.step_s);
     }
     if !(a.pressure_pa.is_finite() && a.pressure_pa > 0.0 && a.pressure_pa <= a.supply_pa) {
         bail!(
@@ -90,7 +90,7 @@ pub fn run(a: Args) -> Result<i32> {
     let stroke = festo.max_contraction_m();
     if !(a.contraction_m.is_finite() && (0.0..=stroke).contains(&a.contraction_m)) {
         bail!(
-            "--contraction-m = {} is invalid: must be 0..={stroke:.3} m (the muscle's stroke)",
+            "--contraction-m = {} is invalid: must be 0 to {stroke:.3} m (the muscle's stroke)",
             a.contraction_m
         );
     }

@@ -107,7 +107,7 @@ impl PlantConfig {
             (1..=1000).contains(&self.substeps_per_period),
             "substeps_per_period",
             f64::from(self.substeps_per_period),
-            "must be 1..=1000",
+            "must be 1 to 1000",
         )?;
         Ok(())
     }

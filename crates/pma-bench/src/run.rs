@@ -52,7 +52,7 @@ impl RunSpec {
             return Err(Invalid::new(
                 "period_s",
                 self.period_s,
-                "must be 0.0001..=0.01 s (the controllers are discretised for 0.1-10 ms; the paper ran at 1 ms)",
+                "must be 0.0001 to 0.01 s (the controllers are discretised for 0.1-10 ms; the paper ran at 1 ms)",
             )
             .into());
         }

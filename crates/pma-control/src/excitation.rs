@@ -112,7 +112,7 @@ impl ExcitationSpec {
             "steps_share",
             self.steps_share,
             (0.0..=1.0).contains(&self.steps_share),
-            "in 0..=1",
+            "in 0 to 1",
         )?;
         check(
             "step_hold_s",

@@ -153,7 +153,7 @@ pub fn check_bounds(
                 ),
                 Bound::At(_) => format!("at most {}", pma_model::error::number(max)),
                 Bound::Pressure => format!(
-                    "within the command's range 0..={} Pa (the pressure limit)",
+                    "within the command's range 0 to {} Pa (the pressure limit)",
                     pma_model::error::number(max)
                 ),
                 Bound::PressurePer(input) => format!(

@@ -132,7 +132,7 @@ impl NominalSpec {
             self.valve_time_constant_s,
             0.0,
             pma_model::MAX_VALVE_DELAY_S,
-            "must be 0..=1 s",
+            "must be 0 to 1 s",
         )?;
         non_negative("mode_switch_deadband_pa", self.mode_switch_deadband_pa)?;
         non_negative("mode_switch_fraction", self.mode_switch_fraction)?;

@@ -121,7 +121,7 @@ mod tests {
         );
         let e = finite("x", f64::NAN).unwrap_err().within_section("load");
         assert_eq!(e.name, "load.x");
-        assert!(within("t", 2.0, 0.0, 1.0, "must be 0..=1 s").is_err());
+        assert!(within("t", 2.0, 0.0, 1.0, "must be 0 to 1 s").is_err());
         assert!(non_negative("t", 0.0).is_ok());
     }
 
@@ -132,8 +132,8 @@ mod tests {
         assert_eq!(number(3e-9), "3e-9");
         assert_eq!(number(0.02), "0.02");
         assert_eq!(number(4294967295.0), "4294967295");
-        let e = within("t", 1e308, 0.0, 1.0, "must be 0..=1 s").unwrap_err();
-        assert_eq!(e.to_string(), "t = 1e308 is invalid: must be 0..=1 s");
+        let e = within("t", 1e308, 0.0, 1.0, "must be 0 to 1 s").unwrap_err();
+        assert_eq!(e.to_string(), "t = 1e308 is invalid: must be 0 to 1 s");
     }
 }
 

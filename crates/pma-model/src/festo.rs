@@ -157,7 +157,7 @@ impl FestoScale {
                 v,
                 FESTO_SCALE_RANGE.0,
                 FESTO_SCALE_RANGE.1,
-                "must be 0.5..=1.5 (a muscle within half its datasheet figure)",
+                "must be 0.5 to 1.5 (a muscle within half its datasheet figure)",
             )?;
         }
         Ok(())
@@ -195,7 +195,7 @@ impl FestoMuscle {
             rest_length_m,
             REST_LENGTH_RANGE_M.0,
             REST_LENGTH_RANGE_M.1,
-            "must be 0.04..=9 m (Festo's DMSP lengths)",
+            "must be 0.04 to 9 m (Festo's DMSP lengths)",
         )?;
         Ok(Self {
             size,
@@ -378,7 +378,7 @@ mod tests {
                 _ => s.damping_scale = bad,
             }
             let e = nominal.with_scale(s).unwrap_err().to_string();
-            assert!(e.contains(field) && e.contains("0.5..=1.5"), "{e}");
+            assert!(e.contains(field) && e.contains("0.5 to 1.5"), "{e}");
         }
     }
 

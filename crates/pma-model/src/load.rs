@@ -2,7 +2,7 @@ use crate::error::{non_negative, positive, within, Invalid};
 
 /// Heaviest load accepted (kg): a DMSP-40 pulls at most 6 kN (Festo Info 501), about 600 kg.
 pub const MAX_LOAD_KG: f64 = 600.0;
-const LOAD_RANGE: &str = "must be 0..=600 kg (a DMSP-40 lifts at most about 600 kg)";
+const LOAD_RANGE: &str = "must be 0 to 600 kg (a DMSP-40 lifts at most about 600 kg)";
 
 /// Standard gravity (m/s^2).
 pub const GRAVITY_M_S2: f64 = 9.81;

@@ -139,14 +139,14 @@ impl ValveSpec {
             self.spool_time_constant_s,
             1e-4,
             0.1,
-            "must be 0.1 ms..=100 ms (proportional valves have limit frequencies of 10-1000 Hz)",
+            "must be 0.1 ms to 100 ms (proportional valves have limit frequencies of 10-1000 Hz)",
         )?;
         within(
             "pressure_band_pa",
             self.pressure_band_pa,
             1e3,
             6e5,
-            "must be 1e3..=6e5 Pa (full opening at 0.01-6 bar of error)",
+            "must be 1e3 to 6e5 Pa (full opening at 0.01-6 bar of error)",
         )?;
         Ok(())
     }
@@ -209,35 +209,35 @@ impl PneumaticsSettings {
             self.supply_pressure_pa,
             1e5,
             1e6,
-            "must be 1..=10 bar gauge (a proportional valve's supply range)",
+            "must be 1 to 10 bar gauge (a proportional valve's supply range)",
         )?;
         within(
             "tube_length_m",
             self.tube_length_m,
             0.01,
             20.0,
-            "must be 0.01..=20 m (a tube of 0 m is no tube: put the valve on the muscle with 0.01)",
+            "must be 0.01 to 20 m (a tube of 0 m is no tube: put the valve on the muscle with 0.01)",
         )?;
         within(
             "tube_bore_m",
             self.tube_bore_m,
             1e-3,
             0.02,
-            "must be 1..=20 mm (pneumatic tubing's inner diameters)",
+            "must be 1 to 20 mm (pneumatic tubing's inner diameters)",
         )?;
         within(
             "fitting_volume_m3",
             self.fitting_volume_m3,
             0.0,
             1e-3,
-            "must be 0..=1e-3 m3 (one litre of fittings is a tank)",
+            "must be 0 to 1e-3 m3 (one litre of fittings is a tank)",
         )?;
         within(
             "polytropic_exponent",
             self.polytropic_exponent,
             1.0,
             1.4,
-            "must be 1..=1.4 (isothermal to adiabatic)",
+            "must be 1 to 1.4 (isothermal to adiabatic)",
         )?;
         Ok(())
     }

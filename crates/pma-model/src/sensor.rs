@@ -50,13 +50,13 @@ impl SensorParams {
             self.noise_rms_m,
             0.0,
             1e-2,
-            "must be 0..=0.01 RMS in the sensor's unit (m, or rad for an encoder): sensor noise is micrometres or millidegrees",
+            "must be 0 to 0.01 RMS in the sensor's unit (m, or rad for an encoder): sensor noise is micrometres or millidegrees",
         )?;
         check(
             self.resolution_bits <= 32,
             "resolution_bits",
             f64::from(self.resolution_bits),
-            "must be 0..=32",
+            "must be 0 to 32",
         )?;
         Ok(())
     }

@@ -73,7 +73,7 @@ impl ValveParams {
             self.time_constant_s,
             0.0,
             MAX_VALVE_DELAY_S,
-            "must be 0..=1 s (a proportional valve settles in tens of milliseconds)",
+            "must be 0 to 1 s (a proportional valve settles in tens of milliseconds)",
         )?;
         non_negative("dead_time_s", self.dead_time_s)?;
         within(
@@ -81,7 +81,7 @@ impl ValveParams {
             self.dead_time_s,
             0.0,
             MAX_VALVE_DELAY_S,
-            "must be 0..=1 s (a proportional valve settles in tens of milliseconds)",
+            "must be 0 to 1 s (a proportional valve settles in tens of milliseconds)",
         )?;
         if let Some(r) = self.rate_limit_pa_per_s {
             positive("rate_limit_pa_per_s", r)?;

@@ -139,7 +139,7 @@ impl Bench {
         let max = self.limits.pressure_max_pa;
         if !(pressure.is_finite() && (0.0..=max).contains(&pressure)) {
             return Err(PmaError::new_err(format!(
-                "pressure command {pressure} Pa is invalid: must be a finite pressure within 0..={max} Pa"
+                "pressure command {pressure} Pa is invalid: must be a finite pressure within 0 to {max} Pa"
             )));
         }
         let applied = self

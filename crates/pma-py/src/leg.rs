@@ -159,7 +159,7 @@ impl Leg {
         for (i, p) in flat.iter().enumerate() {
             if !(p.is_finite() && (0.0..=max).contains(p)) {
                 return Err(PmaError::new_err(format!(
-                    "pressure command {p} Pa for muscle {} of leg {} is invalid: must be a finite pressure within 0..={max} Pa",
+                    "pressure command {p} Pa for muscle {} of leg {} is invalid: must be a finite pressure within 0 to {max} Pa",
                     self.muscles[i % MUSCLES],
                     i / MUSCLES
                 )));

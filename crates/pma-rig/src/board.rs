@@ -94,7 +94,7 @@ impl BoardLayout {
             .get(name.subdevice as usize)
             .ok_or_else(|| {
                 error(format!(
-                    "no subdevice {}: the board ({}) has {count} (0..={})",
+                    "no subdevice {}: the board ({}) has {count} (0 to {})",
                     name.subdevice,
                     self.name,
                     count.saturating_sub(1)
@@ -108,7 +108,7 @@ impl BoardLayout {
         }
         if name.channel >= sub.channels {
             return Err(error(format!(
-                "no channel {}: subdevice {} has {} channels (0..={})",
+                "no channel {}: subdevice {} has {} channels (0 to {})",
                 name.channel,
                 name.subdevice,
                 sub.channels,
@@ -138,7 +138,7 @@ impl BoardLayout {
                 device: device.to_owned(),
                 channel: name,
                 message: format!(
-                    "no range {}: the channel has {} ranges (0..={})",
+                    "no range {}: the channel has {} ranges (0 to {})",
                     channel.range,
                     sub.ranges_v.len(),
                     sub.ranges_v.len().saturating_sub(1)

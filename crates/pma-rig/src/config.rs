@@ -264,7 +264,7 @@ impl MuscleRating {
             self.nominal_length_m.is_finite() && (0.03..=10.0).contains(&self.nominal_length_m),
             "muscle.nominal_length_m",
             self.nominal_length_m,
-            "must be 0.03..=10 m (Festo DMSP lengths are 40-9000 mm)",
+            "must be 0.03 to 10 m (Festo DMSP lengths are 40-9000 mm)",
         )?;
         check(
             self.contraction_max_fraction > 0.0 && self.contraction_max_fraction <= 0.3,
@@ -454,7 +454,7 @@ fn frequency(field: &'static str, v: f64) -> Result<f64, Invalid> {
         v,
         0.0,
         REFERENCE_FREQUENCY_MAX_HZ,
-        "must be 0..=5 Hz (a loaded muscle follows a few hertz at most)",
+        "must be 0 to 5 Hz (a loaded muscle follows a few hertz at most)",
     )
 }
 
@@ -474,7 +474,7 @@ fn volts(field: &'static str, v: f64) -> Result<f64, Invalid> {
         v,
         -CALIBRATION_VOLTS_MAX,
         CALIBRATION_VOLTS_MAX,
-        "must be -20..=20 V (the widest ranges of a DAQ board are +-10 V and 0..20 V)",
+        "must be -20 to 20 V (the widest ranges of a DAQ board are +-10 V and 0..20 V)",
     )
 }
 
@@ -487,7 +487,7 @@ impl Calibration {
                 && (lo..=hi).contains(&self.position_m_per_v.abs()),
             "calibration.position_m_per_v",
             self.position_m_per_v,
-            "must be 1e-6..=1 m/V in magnitude (10 um to 10 m over 10 V); negative if the sensor's voltage falls as the muscle contracts",
+            "must be 1e-6 to 1 m/V in magnitude (10 um to 10 m over 10 V); negative if the sensor's voltage falls as the muscle contracts",
         )?;
         volts("calibration.position_offset_v", self.position_offset_v)?;
         pressure_scale(
@@ -526,7 +526,7 @@ fn pressure_scale(field: &'static str, v: f64, why: &str) -> Result<f64, Invalid
         v.is_finite() && (lo..=hi).contains(&v),
         field,
         v,
-        format!("must be 1e3..=1e6 Pa/V (0.1 to 100 bar over 10 V); {why}"),
+        format!("must be 1e3 to 1e6 Pa/V (0.1 to 100 bar over 10 V); {why}"),
     )
 }
 
@@ -573,7 +573,7 @@ impl RigConfig {
             self.period_s >= PERIOD_RANGE_S.0 && self.period_s <= PERIOD_RANGE_S.1,
             "period_s",
             self.period_s,
-            "must be 0.0001..=0.01 s (the controllers are discretised for 0.1-10 ms; the paper ran at 1 ms)",
+            "must be 0.0001 to 0.01 s (the controllers are discretised for 0.1-10 ms; the paper ran at 1 ms)",
         )?;
         within(
             "duration_s",
@@ -596,7 +596,7 @@ impl RigConfig {
                 m,
                 0.05,
                 pma_model::MAX_LOAD_KG,
-                "must be 0.05..=600 kg",
+                "must be 0.05 to 600 kg",
             )?;
         }
         within(
@@ -604,7 +604,7 @@ impl RigConfig {
             self.load.added_mass_kg,
             0.0,
             pma_model::MAX_LOAD_KG,
-            "must be 0..=600 kg",
+            "must be 0 to 600 kg",
         )?;
         self.muscle.validate()?;
         self.limits_check()?;
@@ -615,7 +615,7 @@ impl RigConfig {
             (1..=99).contains(&self.realtime.priority),
             "realtime.priority",
             f64::from(self.realtime.priority),
-            "must be 1..=99",
+            "must be 1 to 99",
         )?;
         match (&self.device.driver, &self.virtual_rig) {
             (Driver::Virtual, None) => {
@@ -805,7 +805,7 @@ impl RigConfig {
             ramp_s,
             0.0,
             RAMP_MAX_S,
-            "must be 0..=60 s (a blend from rest into the reference; slower motion belongs in the reference itself)",
+            "must be 0 to 60 s (a blend from rest into the reference; slower motion belongs in the reference itself)",
         )
         .map(|_| ())
     }
@@ -1009,21 +1009,21 @@ impl VirtualConfig {
             self.converter_bits <= 24,
             "virtual.converter_bits",
             f64::from(self.converter_bits),
-            "must be 0..=24",
+            "must be 0 to 24",
         )?;
         check(
             self.sensor_latency_s.is_finite()
                 && (0.0..=VIRTUAL_LATENCY_MAX_S).contains(&self.sensor_latency_s),
             "virtual.sensor_latency_s",
             self.sensor_latency_s,
-            "must be 0..=1 s",
+            "must be 0 to 1 s",
         )?;
         check(
             self.sensor_noise_rms_m.is_finite()
                 && (0.0..=VIRTUAL_NOISE_MAX_M).contains(&self.sensor_noise_rms_m),
             "virtual.sensor_noise_rms_m",
             self.sensor_noise_rms_m,
-            "must be 0..=0.001 m RMS",
+            "must be 0 to 0.001 m RMS",
         )?;
         Ok(())
     }

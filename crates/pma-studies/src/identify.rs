@@ -118,22 +118,22 @@ pub fn read_log(path: &Path) -> Result<IdLog, StudyError> {
             )),
         }
     };
-    let period_s = checked("", "period_s", PERIOD_RANGE_S, "0.1..=10 ms, as a rig's")?
+    let period_s = checked("", "period_s", PERIOD_RANGE_S, "0.1 to 10 ms, as a rig's")?
         .ok_or_else(|| log_error(path, "the header has no period_s"))?;
     let pressure_max_pa = checked(
         "limits",
         "pressure_max_pa",
         (1e3, pma_model::MAX_VALVE_PRESSURE_PA),
-        "0.01..=10 bar (a proportional valve's range)",
+        "0.01 to 10 bar (a proportional valve's range)",
     )?
     .ok_or_else(|| log_error(path, "the header has no [limits] pressure_max_pa"))?;
     let loads = (0.05, pma_model::MAX_LOAD_KG);
-    let weighed_kg = checked("load", "mass_kg", loads, "0.05..=600 kg")?;
+    let weighed_kg = checked("load", "mass_kg", loads, "0.05 to 600 kg")?;
     let added_mass_kg = checked(
         "load",
         "added_mass_kg",
         (0.0, pma_model::MAX_LOAD_KG),
-        "0..=600 kg",
+        "0 to 600 kg",
     )?
     .unwrap_or(0.0);
     let mut lines = text.lines().filter(|l| !l.starts_with('#'));
@@ -692,7 +692,7 @@ pub fn identify_logs(
             m,
             0.05,
             pma_model::MAX_LOAD_KG,
-            "must be 0.05..=600 kg",
+            "must be 0.05 to 600 kg",
         )?;
     } else {
         let added: Vec<f64> = logs.iter().map(|l| l.added_mass_kg).collect();

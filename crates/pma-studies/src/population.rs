@@ -62,7 +62,7 @@ impl Population {
             return Err(StudyError::from(pma_model::Invalid::new(
                 "population.size",
                 self.size as f64,
-                "must be 1..=100000 (split larger studies into several sweeps)",
+                "must be 1 to 100000 (split larger studies into several sweeps)",
             )));
         }
         range_ok(

@@ -441,7 +441,7 @@ impl Aggregate {
 
 /// Refuses a robust tuning's spread outside 0..=0.5 (a factor of 1 - 0.5 halves a muscle).
 pub fn check_spread(spread: f64) -> Result<(), pma_model::Invalid> {
-    pma_model::error::within("spread", spread, 0.0, 0.5, "must be 0..=0.5").map(|_| ())
+    pma_model::error::within("spread", spread, 0.0, 0.5, "must be 0 to 0.5").map(|_| ())
 }
 
 /// `n` plants around `base` for a robust tuning: each muscle scale, the load and the

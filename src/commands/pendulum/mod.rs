@@ -95,7 +95,7 @@ pub fn run(a: Args) -> Result<i32> {
     let trace = a
         .plot
         .as_ref()
-        .map(|_| super::simulate::Trace::with_capacity(periods));
+        .map(|_| super::simulate::Trace::with_capacity(periods, 1));
     let mut recorders = (csv, viz, trace);
     let report = pendulum::run(sim, setup, &settings, &mut recorders)?;
     let (csv, viz, trace) = recorders;
@@ -112,7 +112,7 @@ pub fn run(a: Args) -> Result<i32> {
             provenance.patient.as_deref().unwrap_or("-")
         );
         output::write_via_temp(path, |tmp| {
-            figure::pendulum_run(tmp, &title, &provenance.command, &trace.0, &marks)
+            figure::pendulum_run(tmp, &title, &provenance.command, &trace.0[0], &marks)
         })?;
         output::wrote(path);
     }

@@ -129,7 +129,7 @@ pub fn run(a: Args) -> Result<i32> {
     let plot_files = a
         .plot
         .as_ref()
-        .map(|dir| (dir.join("leg.png"), dir.join("strides.png")));
+        .map(|dir| PlotFiles::in_dir(dir, sim.leg_count()));
     check_outputs(&a, &loaded, plot_files.as_ref())?;
     let csv = a
         .output
@@ -150,13 +150,15 @@ pub fn run(a: Args) -> Result<i32> {
     let mut recorders = (csv, viz, progress, trace, cycles);
     let outcome = sim.run_until_fault(&settings, &mut recorders);
     bar.finish_and_clear();
-    let (mut report, fault) = outcome?;
+    // A run that left physical bounds names the scenario it ran, as a load error does.
+    let (mut report, fault) = outcome.map_err(|e| pma_exo::setup::in_scenario(e, &a.scenario))?;
     // A supervisor's fault fails the run; a collapse the trainer stopped is its result.
     if let Some(f) = fault.as_ref().filter(|f| f.name != "collapse") {
-        return Err(pma_leg::LegError::Supervisor(f.message.clone()).into());
+        let e = pma_leg::LegError::Supervisor(f.message.clone());
+        return Err(pma_exo::setup::in_scenario(e, &a.scenario).into());
     }
     if let Some(refined) = refined.filter(|_| !report.interrupted) {
-        report.check_step = check_step(refined, &report, &stop)?;
+        report.check_step = check_step(refined, &report, &stop, &a.scenario)?;
     }
     let (csv, viz, _, trace, cycles) = recorders;
     if let (Some(files), Some(trace), Some(cycles)) = (&plot_files, trace, cycles) {
@@ -201,6 +203,7 @@ fn check_step(
     refined: LegRun,
     first: &LegReport,
     stop: &std::sync::atomic::AtomicBool,
+    scenario: &str,
 ) -> Result<Option<pma_leg::metrics::StepCheckReport>> {
     let LegRun {
         loaded,
@@ -209,11 +212,11 @@ fn check_step(
         ..
     } = refined;
     let settings = settings.with_stop_flag(stop);
-    let (report, fault) = sim.run_until_fault(&settings, &mut ())?;
+    let in_file = |e| pma_exo::setup::in_scenario(e, scenario);
+    let (report, fault) = sim.run_until_fault(&settings, &mut ()).map_err(in_file)?;
     if let Some(f) = fault.as_ref().filter(|f| f.name != "collapse") {
-        return Err(
-            pma_leg::LegError::Supervisor(format!("at half the step: {}", f.message)).into(),
-        );
+        let e = pma_leg::LegError::Supervisor(format!("at half the step: {}", f.message));
+        return Err(in_file(e).into());
     }
     if report.interrupted {
         return Ok(None);
@@ -229,12 +232,12 @@ fn check_step(
 fn check_outputs(
     a: &Args,
     loaded: &pma_leg::LoadedScenario,
-    plot_files: Option<&(PathBuf, PathBuf)>,
+    plot_files: Option<&PlotFiles>,
 ) -> Result<()> {
     let mut outputs = a.output.files();
-    if let Some((leg, strides)) = plot_files {
-        outputs.push(("--plot", leg));
-        outputs.push(("--plot", strides));
+    if let Some(files) = plot_files {
+        outputs.extend(files.legs.iter().map(|leg| ("--plot", leg.as_path())));
+        outputs.push(("--plot", &files.strides));
     }
     output::refuse_input_as_output(
         &super::scenario_inputs(&a.scenario, loaded, a.gains.as_deref()),
@@ -273,10 +276,10 @@ fn plot_recorders(
     if plot.is_none() {
         return Ok((None, None, None));
     }
-    let mut trace = Trace::with_capacity(periods);
+    let mut trace = Trace::with_capacity(periods, sim.leg_count());
     if let Some(g) = sim.exo().ground() {
         let n = (periods / 10 + 2) as usize;
-        trace.0.ground = Some(crate::plot::GroundTrace {
+        trace.0[0].ground = Some(crate::plot::GroundTrace {
             foot_n: (0..sim.leg_count())
                 .map(|_| Vec::with_capacity(n))
                 .collect(),
@@ -306,34 +309,32 @@ struct FigureRun<'a> {
     names: Vec<String>,
 }
 
-/// `leg.png` and `strides.png` of `run`, committed together.
-fn draw_figures(
-    run: &FigureRun,
-    (path, strides_path): &(PathBuf, PathBuf),
-    mut trace: Trace,
-    cycles: &GaitCycles,
-    norm: Option<figures::NormGrf>,
-) -> Result<()> {
-    let (sc, sim, report) = (run.sc, run.sim, run.report);
-    trace.0.collapse_s = report
-        .walking
-        .as_ref()
-        .and_then(|w| w.collapse.as_ref())
-        .map(|c| c.t_s);
-    trace.0.muscles = run.names.clone();
-    trace.0.legs = sim.leg_count();
-    trace.0.stride_s = sc.gait.stride_period_s;
-    trace.0.pressure_max_bar = sc.plant.valve.pressure_max_pa / 1e5;
-    // One mark for the four: the lowest rating, which every force is held against.
-    trace.0.rated_force_n = sim
-        .muscles()
-        .iter()
-        .map(|m| m.rated_force_n)
-        .fold(f64::INFINITY, f64::min);
-    trace.0.spasms = report
+/// Where `--plot DIR` draws: one figure over time per leg (`leg.png` the first, the right
+/// leg of a trainer; `leg_left.png` its left: issue 49 found the left leg drawn nowhere)
+/// and `strides.png`.
+struct PlotFiles {
+    legs: Vec<PathBuf>,
+    strides: PathBuf,
+}
+
+impl PlotFiles {
+    fn in_dir(dir: &Path, legs: usize) -> Self {
+        let names = ["leg.png", "leg_left.png"];
+        Self {
+            legs: names.iter().take(legs).map(|n| dir.join(n)).collect(),
+            strides: dir.join("strides.png"),
+        }
+    }
+}
+
+/// Leg `leg`'s spasms of `report` as `leg.png` shades them: joint (0 hip, 1 knee), onset
+/// and end.
+fn spasms_of_leg(report: &LegReport, leg: usize, legs: usize) -> Vec<(usize, f64, f64)> {
+    let left = |e: &&pma_leg::metrics::SpasmReport| e.joint.starts_with("left/");
+    report
         .spasms
         .iter()
-        .filter(|e| !e.joint.starts_with("left/"))
+        .filter(|e| legs < 2 || left(e) == (leg == 1))
         .map(|e| {
             (
                 usize::from(e.joint.ends_with("knee")),
@@ -341,31 +342,70 @@ fn draw_figures(
                 e.t_s + e.duration_s,
             )
         })
-        .collect();
+        .collect()
+}
+
+/// Every `leg*.png` and `strides.png` of `run`, committed together.
+fn draw_figures(
+    run: &FigureRun,
+    files: &PlotFiles,
+    mut trace: Trace,
+    cycles: &GaitCycles,
+    norm: Option<figures::NormGrf>,
+) -> Result<()> {
+    let (sc, sim, report) = (run.sc, run.sim, run.report);
+    let legs = sim.leg_count();
+    // One mark for the four: the lowest rating, which every force is held against.
+    let rated_force_n = sim
+        .muscles()
+        .iter()
+        .map(|m| m.rated_force_n)
+        .fold(f64::INFINITY, f64::min);
+    // Both legs stood on the same ground: its panels are drawn beside each.
+    let ground = trace.0[0].ground.clone();
+    for (leg, tr) in trace.0.iter_mut().enumerate() {
+        tr.collapse_s = report
+            .walking
+            .as_ref()
+            .and_then(|w| w.collapse.as_ref())
+            .map(|c| c.t_s);
+        tr.muscles.clone_from(&run.names);
+        tr.legs = legs;
+        tr.stride_s = sc.gait.stride_period_s;
+        tr.pressure_max_bar = sc.plant.valve.pressure_max_pa / 1e5;
+        tr.rated_force_n = rated_force_n;
+        tr.spasms = spasms_of_leg(report, leg, legs);
+        tr.ground.clone_from(&ground);
+    }
     crate::plot::register_font()?;
     let title = figure_title(sc, run.config);
-    let leg_title = if sim.leg_count() > 1 {
-        format!("{title} ({} leg)", pma_leg::SIDES[0])
-    } else {
-        title.clone()
-    };
-    let leg = output::stage(path, |tmp| {
-        figures::leg_run(tmp, &leg_title, run.command, &trace.0)
-    })?;
+    let mut staged = Vec::new();
+    for (leg, (path, tr)) in files.legs.iter().zip(&trace.0).enumerate() {
+        let leg_title = if legs > 1 {
+            format!("{title} ({} leg)", pma_leg::SIDES[leg])
+        } else {
+            title.clone()
+        };
+        let file = output::stage(path, |tmp| {
+            figures::leg_run(tmp, &leg_title, run.command, tr)
+        })?;
+        staged.push((file, path));
+    }
     let figure = figures::StrideFigure {
         cycles,
         norm_grf: norm,
         treadmill: sc.treadmill.is_some(),
     };
     let title = format!("{title}, over the gait cycle");
-    let strides = output::stage(strides_path, |tmp| {
+    let strides = output::stage(&files.strides, |tmp| {
         figures::strides_run(tmp, &title, run.command, &figure)
     })?;
-    // Both figures, or neither: an earlier run's pair is never left half replaced.
-    leg.commit()?;
-    output::wrote(path);
-    strides.commit()?;
-    output::wrote(strides_path);
+    staged.push((strides, &files.strides));
+    // Every figure, or none: an earlier run's set is never left half replaced.
+    for (file, path) in staged {
+        file.commit()?;
+        output::wrote(path);
+    }
     Ok(())
 }
 
@@ -433,15 +473,16 @@ fn norm_grf(sc: &Scenario, belt_load_bw: Option<f64>) -> Result<Option<figures::
     }))
 }
 
-/// Every 10th period of a leg run, for `--plot`.
-pub struct Trace(pub crate::plot::LegTrace);
+/// Every 10th period of a leg run, for `--plot`: one trace per leg (the ground's side in
+/// the first).
+pub struct Trace(pub Vec<crate::plot::LegTrace>);
 
 impl Trace {
-    /// Room for a run of `periods` periods.
-    pub fn with_capacity(periods: u64) -> Self {
+    /// Room for a run of `periods` periods of `legs` legs.
+    pub fn with_capacity(periods: u64, legs: usize) -> Self {
         let n = (periods / 10 + 2) as usize;
         let v = || Vec::with_capacity(n);
-        Self(crate::plot::LegTrace {
+        let leg = || crate::plot::LegTrace {
             t_s: v(),
             reference_deg: [v(), v()],
             angle_deg: [v(), v()],
@@ -451,12 +492,13 @@ impl Trace {
             interaction_nm: [v(), v()],
             cuff_force_n: [v(), v()],
             ..Default::default()
-        })
+        };
+        Self((0..legs.max(1)).map(|_| leg()).collect())
     }
 }
 
 impl pma_loop::Recorder<pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutput>> for Trace {
-    /// Every 10th period: the first leg's joints and muscles, every foot's ground reaction.
+    /// Every 10th period: each leg's joints and muscles, every foot's ground reaction.
     fn record(
         &mut self,
         p: &pma_loop::Period<'_, pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutput>>,
@@ -464,19 +506,21 @@ impl pma_loop::Recorder<pma_leg::SupervisedLeg, pma_leg::PerLeg<pma_leg::LegOutp
         if !p.index.is_multiple_of(10) {
             return;
         }
-        let (s, o, t) = (&p.truth.legs[0], &p.output[0], &mut self.0);
-        t.t_s.push(p.t_s);
-        for (j, torque) in s.patient.total().into_iter().enumerate() {
-            t.reference_deg[j].push(o.reference_rad[j].to_degrees());
-            t.angle_deg[j].push(s.angle_rad[j].to_degrees());
-            t.patient_nm[j].push(torque);
-            t.interaction_nm[j].push(s.interaction_nm[j]);
-            t.cuff_force_n[j].push(s.cuff_force_n[j]);
+        for ((s, o), t) in p.truth.legs.iter().zip(p.output.iter()).zip(&mut self.0) {
+            t.t_s.push(p.t_s);
+            for (j, torque) in s.patient.total().into_iter().enumerate() {
+                t.reference_deg[j].push(o.reference_rad[j].to_degrees());
+                t.angle_deg[j].push(s.angle_rad[j].to_degrees());
+                t.patient_nm[j].push(torque);
+                t.interaction_nm[j].push(s.interaction_nm[j]);
+                t.cuff_force_n[j].push(s.cuff_force_n[j]);
+            }
+            for (i, (p, f)) in s.pressure_pa.iter().zip(&s.force_n).enumerate() {
+                t.pressure_bar[i].push(p / 1e5);
+                t.force_n[i].push(*f);
+            }
         }
-        for (i, (p, f)) in s.pressure_pa.iter().zip(&s.force_n).enumerate() {
-            t.pressure_bar[i].push(p / 1e5);
-            t.force_n[i].push(*f);
-        }
+        let t = &mut self.0[0];
         if let (Some(g), Some(r)) = (&mut t.ground, p.truth.ground) {
             for (foot, f) in g.foot_n.iter_mut().zip(r.feet.iter()) {
                 foot.push(f.vertical_n);

@@ -8,7 +8,7 @@
 //! the air; [`Mount`]) or slides on a treadmill's harness ([`crate::ground`]).
 use crate::base::{LegError, PerLeg, MAX_LEGS};
 use crate::body::{
-    carried_links, foot_spheres, keep_legs, leg_inertia, leg_prefixes, parse_urdf,
+    carried_links, foot_spheres, keep_legs, leg_inertia, leg_prefixes, parse_urdf, patient_legs,
     patient_on_pelvis, sagittal_chain, urdf_err, visuals_of, JointRef, JointSettings, LegInertia,
     LegJoints, VisualShape, G,
 };
@@ -140,6 +140,7 @@ impl Exoskeleton {
             feet.push((link, spheres));
         }
         let chain = sagittal_chain(&raw, file, &prefixes[0], feet[0].1.clone())?;
+        patient_legs(&mut raw, file, treadmill.body_mass_kg, &prefixes)?;
         let carried = patient_on_pelvis(&mut raw, file, treadmill.body_mass_kg, prefixes.len())?;
         let mut exo = Self::build(&raw, file, &prefixes, period_s, substeps, Mount::default())?;
         exo.set_joint_dynamics(settings);

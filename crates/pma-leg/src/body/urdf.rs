@@ -284,6 +284,73 @@ pub(crate) fn carried_links(raw: &urdf_rs::Robot, root: &str) -> Vec<String> {
 /// Winter's (2009, Table 4.1) mass fractions of one leg's segments: thigh, leg, foot.
 pub const LEG_MASS_FRACTION: f64 = 0.100 + 0.0465 + 0.0145;
 
+/// The patient the trainer's leg links were built for: each carries a 75 kg, 1.75 m
+/// person's segment (Winter 2009, Table 4.1; `models/leg-sources.md`) beside its frame.
+pub const URDF_PATIENT_MASS_KG: f64 = 75.0;
+
+/// That patient's height (m): segment lengths and centres of mass below.
+pub const URDF_PATIENT_HEIGHT_M: f64 = 1.75;
+
+/// One leg's human segments (Winter 2009, Table 4.1): link suffix, mass fraction of the
+/// body, centre of mass from the proximal joint and radius of gyration about it (fractions
+/// of the segment's length), the segment's length (fraction of the height). The foot's
+/// centre of mass is its link's own (the foot link is the foot alone), its length 0.152 H
+/// (Drillis and Contini, Winter Fig. 4.1).
+const LEG_SEGMENTS: [(&str, f64, f64, f64, f64); 3] = [
+    ("thigh", 0.100, 0.433, 0.323, 0.245),
+    ("shank", 0.0465, 0.433, 0.302, 0.246),
+    ("foot", 0.0145, f64::NAN, 0.475, 0.152),
+];
+
+/// The patient's leg segments scaled to `body_mass_kg` (issue 47: a 110 kg patient's legs
+/// weighed what a 75 kg patient's do): each leg link of `prefixes` gains the difference
+/// `fraction x (body_mass_kg - URDF_PATIENT_MASS_KG)` at the human segment's centre of
+/// mass, with its radius of gyration, combined with the link about their common centre of
+/// mass (parallel axes; a lighter patient removes mass the same way). The height stays
+/// the URDF's: segment lengths and the frame do not move. Only the flexion and roll axes'
+/// moments (`iyy`, `ixx`) change: the axial one does not act in the sagittal plane.
+pub(crate) fn patient_legs(
+    raw: &mut urdf_rs::Robot,
+    file: &str,
+    body_mass_kg: f64,
+    prefixes: &[String],
+) -> Result<(), LegError> {
+    let extra = body_mass_kg - URDF_PATIENT_MASS_KG;
+    if extra == 0.0 {
+        return Ok(());
+    }
+    for prefix in prefixes {
+        for (segment, fraction, com, gyration, length) in LEG_SEGMENTS {
+            let name = format!("{prefix}{segment}");
+            let link = raw
+                .links
+                .iter_mut()
+                .find(|l| l.name == name)
+                .ok_or_else(|| urdf_err(file, format!("no link named `{name}`")))?;
+            let i = &mut link.inertial;
+            let length_m = length * URDF_PATIENT_HEIGHT_M;
+            let dm = fraction * extra;
+            let (m1, m) = (i.mass.value, i.mass.value + dm);
+            if m <= 0.0 {
+                return Err(urdf_err(
+                    file,
+                    format!("`{name}` weighs {m1} kg: too light for a {body_mass_kg} kg patient's segment"),
+                ));
+            }
+            let c1 = i.origin.xyz[2];
+            let c2 = if com.is_nan() { c1 } else { -com * length_m };
+            let c = (m1 * c1 + dm * c2) / m;
+            let shift = m1 * (c1 - c).powi(2) + dm * (c2 - c).powi(2);
+            let own = dm * (gyration * length_m).powi(2);
+            i.inertia.iyy += own + shift;
+            i.inertia.ixx += own + shift;
+            i.origin.xyz[2] = c;
+            i.mass.value = m;
+        }
+    }
+    Ok(())
+}
+
 /// Adds the patient's trunk (and any leg the model lacks) to the pelvis link: the body
 /// mass less `legs` legs' human segments; returns the mass added (kg). The pelvis only
 /// slides, so where that mass sits does not matter.
@@ -311,4 +378,65 @@ pub(crate) fn patient_on_pelvis(
     let carried = body_mass_kg * (1.0 - legs as f64 * LEG_MASS_FRACTION);
     pelvis.inertial.mass.value += carried;
     Ok(carried)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The trainer with a patient of `mass_kg`: each link's (mass, COM below its joint,
+    /// moment about its joint's flexion axis).
+    fn legs_of(mass_kg: f64) -> Vec<(String, f64, f64, f64)> {
+        let mut raw = parse_urdf(EMBEDDED_TRAINER_URDF, "trainer").unwrap();
+        let prefixes = ["right_".to_owned(), "left_".to_owned()];
+        patient_legs(&mut raw, "trainer", mass_kg, &prefixes).unwrap();
+        let mut out = Vec::new();
+        for p in &prefixes {
+            for s in ["thigh", "shank", "foot"] {
+                let l = raw
+                    .links
+                    .iter()
+                    .find(|l| l.name == format!("{p}{s}"))
+                    .unwrap();
+                let (m, c) = (l.inertial.mass.value, l.inertial.origin.xyz[2]);
+                out.push((l.name.clone(), m, c, l.inertial.inertia.iyy + m * c * c));
+            }
+        }
+        out
+    }
+
+    /// Issue 47: a 110 kg patient's legs weighed a 75 kg patient's. Each segment gains
+    /// Winter's fraction of the 35 kg more, and its moment about the joint the segment's
+    /// `dm ((com L)^2 + (k L)^2)`; a 75 kg patient leaves the URDF as it is.
+    #[test]
+    fn regression_a_heavier_patients_legs_weighed_the_same() {
+        let (base, heavy) = (legs_of(URDF_PATIENT_MASS_KG), legs_of(110.0));
+        let unchanged = parse_urdf(EMBEDDED_TRAINER_URDF, "trainer").unwrap();
+        for (name, m, c, _) in &base {
+            let l = unchanged.links.iter().find(|l| &l.name == name).unwrap();
+            assert_eq!((*m, *c), (l.inertial.mass.value, l.inertial.origin.xyz[2]));
+        }
+        for ((name, m0, _, i0), (_, m1, _, i1)) in base.iter().zip(&heavy) {
+            let (_, fraction, com, k, len) = LEG_SEGMENTS
+                .iter()
+                .copied()
+                .find(|s| name.ends_with(s.0))
+                .unwrap();
+            let dm = fraction * (110.0 - URDF_PATIENT_MASS_KG);
+            assert!((m1 - m0 - dm).abs() < 1e-12, "{name}: {m0} -> {m1}");
+            if !com.is_nan() {
+                let l = len * URDF_PATIENT_HEIGHT_M;
+                let expected = dm * ((com * l).powi(2) + (k * l).powi(2));
+                assert!((i1 - i0 - expected).abs() < 1e-12, "{name}: {i0} -> {i1}");
+            }
+        }
+        // Both legs' human part now weighs Winter's 2 x 0.161 of the patient.
+        let human: f64 =
+            heavy.iter().map(|l| l.1).sum::<f64>() - base.iter().map(|l| l.1).sum::<f64>();
+        assert!((human - 2.0 * LEG_MASS_FRACTION * 35.0).abs() < 1e-9);
+        // A patient too light for the links' frames is an error naming the link.
+        let mut raw = parse_urdf(EMBEDDED_TRAINER_URDF, "trainer").unwrap();
+        let e = patient_legs(&mut raw, "trainer", -1000.0, &["right_".into()]).unwrap_err();
+        assert!(e.to_string().contains("right_thigh"), "{e}");
+    }
 }

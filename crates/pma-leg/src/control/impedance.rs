@@ -171,7 +171,7 @@ impl ImpedanceSettings {
                 j.damping_nm_s_per_rad,
                 0.0,
                 1000.0,
-                "must be 0..=1000 N m s/rad",
+                "must be 0 to 1000 N m s/rad",
             )?;
         }
         within(
@@ -179,21 +179,21 @@ impl ImpedanceSettings {
             self.velocity_filter_s,
             0.0,
             0.1,
-            "must be 0..=0.1 s",
+            "must be 0 to 0.1 s",
         )?;
         within(
             "control.impedance.cuff_filter_s",
             self.cuff_filter_s,
             0.0,
             0.5,
-            "must be 0..=0.5 s",
+            "must be 0 to 0.5 s",
         )?;
         within(
             "control.impedance.patient_moment_share",
             self.patient_moment_share,
             0.0,
             1.0,
-            "must be 0..=1 (the share of the adults' walking moments left to the patient)",
+            "must be 0 to 1 (the share of the adults' walking moments left to the patient)",
         )?;
         for (leg, side) in ["right", "left"].iter().enumerate() {
             if let Some(by_leg) = self.patient_moment_share_by_leg {
@@ -202,7 +202,7 @@ impl ImpedanceSettings {
                     by_leg[leg],
                     0.0,
                     1.0,
-                    "must be 0..=1 (the share of the adults' walking moments left to the patient)",
+                    "must be 0 to 1 (the share of the adults' walking moments left to the patient)",
                 )?;
             }
         }
@@ -212,7 +212,7 @@ impl ImpedanceSettings {
                 l.forgetting,
                 0.0,
                 1.0,
-                "must be 0..=1 (the share of the learned torque kept per stride)",
+                "must be 0 to 1 (the share of the learned torque kept per stride)",
             )?;
             // On a spring the learned torque follows F(i+1) = (f - gain) F(i) + ...: it
             // converges for |f - gain| < 1.

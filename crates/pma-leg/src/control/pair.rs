@@ -244,7 +244,7 @@ impl MusclePair {
                 name: field,
                 value: k,
                 message: format!(
-                    "the {name}'s muscles reach {:.1}..={:.1} N m/rad at rest by co-contraction (`pma-exo impedance SCENARIO` shows the ranges)",
+                    "the {name}'s muscles reach {:.1} to {:.1} N m/rad at rest by co-contraction (`pma-exo impedance SCENARIO` shows the ranges)",
                     range.min_nm_per_rad, range.max_nm_per_rad
                 ),
             });

@@ -44,21 +44,21 @@ impl PathSettings {
             self.width_deg,
             0.0,
             30.0,
-            "must be 0..=30 deg (a tunnel half-width in the hip-knee plane)",
+            "must be 0 to 30 deg (a tunnel half-width in the hip-knee plane)",
         )?;
         within(
             "control.path.wall_nm_per_rad",
             self.wall_nm_per_rad,
             0.0,
             STIFFNESS_MAX_NM_PER_RAD,
-            "must be 0..=15000 N m/rad",
+            "must be 0 to 15000 N m/rad",
         )?;
         within(
             "control.path.support_nm",
             self.support_nm,
             0.0,
             100.0,
-            "must be 0..=100 N m",
+            "must be 0 to 100 N m",
         )?;
         Ok(())
     }

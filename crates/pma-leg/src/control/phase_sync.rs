@@ -94,7 +94,7 @@ impl PhaseSync {
             gain_per_s,
             0.0,
             GAIN_MAX_PER_S,
-            "must be 0..=20 per second (0: the reference keeps its own clock)",
+            "must be 0 to 20 per second (0: the reference keeps its own clock)",
         )?;
         within(
             "gait stride period",

@@ -38,28 +38,28 @@ impl ContactParams {
             self.stiffness_n_per_m2,
             1e4,
             1e9,
-            "must be 1e4..=1e9 N/m^2 (from a soft pad to a hard sole; gait models use 1e6-2e6)",
+            "must be 1e4 to 1e9 N/m^2 (from a soft pad to a hard sole; gait models use 1e6-2e6)",
         )?;
         within(
             "treadmill.contact.dissipation_s_per_m",
             self.dissipation_s_per_m,
             0.0,
             10.0,
-            "must be 0..=10 s/m (Hunt-Crossley; gait models use 1-2)",
+            "must be 0 to 10 s/m (Hunt-Crossley; gait models use 1-2)",
         )?;
         within(
             "treadmill.contact.friction",
             self.friction,
             0.0,
             2.0,
-            "must be 0..=2 (shoe on belt: models use 0.7-0.9)",
+            "must be 0 to 2 (shoe on belt: models use 0.7-0.9)",
         )?;
         within(
             "treadmill.contact.viscous_friction_s_per_m",
             self.viscous_friction_s_per_m,
             0.0,
             10.0,
-            "must be 0..=10 s/m (gait models use 0.5)",
+            "must be 0 to 10 s/m (gait models use 0.5)",
         )?;
         Ok(())
     }

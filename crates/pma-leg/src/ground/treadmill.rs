@@ -89,14 +89,14 @@ impl AnkleSettings {
             self.stiffness_nm_per_rad,
             0.0,
             2000.0,
-            "must be 0..=2000 N m/rad (a free hinge to a stiff orthosis)",
+            "must be 0 to 2000 N m/rad (a free hinge to a stiff orthosis)",
         )?;
         within(
             "treadmill.ankle.damping_nm_s_per_rad",
             self.damping_nm_s_per_rad,
             0.0,
             20.0,
-            "must be 0..=20 N m s/rad",
+            "must be 0 to 20 N m s/rad",
         )?;
         let [lo, hi] = self.range_deg;
         if !(lo.is_finite()
@@ -336,7 +336,7 @@ impl TreadmillSettings {
                 v,
                 0.0,
                 BELT_SPEED_MAX_M_S,
-                "a gait trainer's belt, 0..=3 m/s",
+                "a gait trainer's belt, 0 to 3 m/s",
             )?;
         }
         within(
@@ -373,7 +373,7 @@ impl TreadmillSettings {
             self.body_mass_kg,
             BODY_MASS_RANGE_KG.0,
             BODY_MASS_RANGE_KG.1,
-            "a patient's mass, 15..=200 kg",
+            "a patient's mass, 15 to 200 kg",
         )?;
         if self.bws == BwsKind::Spring {
             within(
@@ -381,7 +381,7 @@ impl TreadmillSettings {
                 self.bws_spring_n_per_m,
                 1.0,
                 1e6,
-                "a harness spring, 1..=1e6 N/m (stiffer is a fixed pelvis)",
+                "a harness spring, 1 to 1e6 N/m (stiffer is a fixed pelvis)",
             )?;
         }
         within(
@@ -389,28 +389,28 @@ impl TreadmillSettings {
             self.pelvis_fore_aft_n_per_m,
             0.0,
             1e6,
-            "must be 0..=1e6 N/m",
+            "must be 0 to 1e6 N/m",
         )?;
         within(
             "treadmill.pelvis_fore_aft_damping_n_s_per_m",
             self.pelvis_fore_aft_damping_n_s_per_m,
             0.0,
             1e5,
-            "must be 0..=1e5 N s/m",
+            "must be 0 to 1e5 N s/m",
         )?;
         within(
             "treadmill.pelvis_held_until_s",
             self.pelvis_held_until_s,
             0.0,
             60.0,
-            "must be 0..=60 s",
+            "must be 0 to 60 s",
         )?;
         within(
             "treadmill.self_paced_gain_per_s",
             self.self_paced_gain_per_s,
             0.0,
             5.0,
-            "must be 0..=5 per second (0: a belt at constant speed)",
+            "must be 0 to 5 per second (0: a belt at constant speed)",
         )?;
         self.contact.validate()?;
         self.ankle.validate()

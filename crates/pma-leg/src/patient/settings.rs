@@ -372,7 +372,7 @@ impl ActiveSettings {
                 t,
                 0.5,
                 10.0,
-                "must be 0.5..=10 s",
+                "must be 0.5 to 10 s",
             )?;
         }
         within(
@@ -380,21 +380,21 @@ impl ActiveSettings {
             self.stride_cv,
             0.0,
             0.2,
-            "must be 0..=0.2 (healthy adults about 0.02)",
+            "must be 0 to 0.2 (healthy adults about 0.02)",
         )?;
         within(
             "patient.active.amplitude",
             self.amplitude,
             0.0,
             1.5,
-            "must be 0..=1.5",
+            "must be 0 to 1.5",
         )?;
         within(
             "patient.active.strength",
             self.strength(),
             0.0,
             2.0,
-            "must be 0..=2",
+            "must be 0 to 2",
         )?;
         for (leg, side) in ["right", "left"].iter().enumerate() {
             if let Some(by_leg) = self.strength_by_leg {
@@ -403,7 +403,7 @@ impl ActiveSettings {
                     by_leg[leg],
                     0.0,
                     2.0,
-                    "must be 0..=2",
+                    "must be 0 to 2",
                 )?;
             }
         }
@@ -413,14 +413,14 @@ impl ActiveSettings {
                 self.stiffness_nm_per_rad[j],
                 0.0,
                 2000.0,
-                "must be 0..=2000 N m/rad",
+                "must be 0 to 2000 N m/rad",
             )?;
             within(
                 format!("patient.active.damping_nm_s_per_rad[{j}] ({name})"),
                 self.damping_nm_s_per_rad[j],
                 0.0,
                 200.0,
-                "must be 0..=200 N m s/rad",
+                "must be 0 to 200 N m s/rad",
             )?;
         }
         Ok(())
@@ -684,7 +684,7 @@ impl EffortSettings {
             return Err(invalid(
                 format!("{at}.fraction"),
                 self.fraction,
-                "must be -1..=1 (a patient resists or assists with at most the whole of the gait's own joint torque)",
+                "must be -1 to 1 (a patient resists or assists with at most the whole of the gait's own joint torque)",
             ));
         }
         non_negative(format!("{at}.delay_s"), self.delay_s)?;

@@ -692,7 +692,7 @@ impl LegPlant {
 
 /// Why a joint at `q` (rad) turning at `qd` (rad/s) within `[lo, hi]` has left the
 /// physics, if it has.
-fn left_physics(q: f64, qd: f64, [lo, hi]: [f64; 2]) -> Option<String> {
+pub(crate) fn left_physics(q: f64, qd: f64, [lo, hi]: [f64; 2]) -> Option<String> {
     let beyond = (lo - q).max(q - hi);
     if !(q.is_finite() && qd.is_finite()) {
         Some(format!("its state is not finite ({q} rad, {qd} rad/s)"))

@@ -114,7 +114,7 @@ fn check_muscles(f: &MuscleFile) -> Result<(), LegError> {
             m.pulley_radius_m,
             PULLEY_RADIUS_RANGE_M.0,
             PULLEY_RADIUS_RANGE_M.1,
-            "must be 0.005..=0.2 m (an exoskeleton's pulley or lever arm)",
+            "must be 0.005 to 0.2 m (an exoskeleton's pulley or lever arm)",
         )?;
         if !m.contraction_at_zero_m.is_finite() || m.anchor_m.iter().any(|v| !v.is_finite()) {
             return Err(LegError::Muscle {

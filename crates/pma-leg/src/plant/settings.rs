@@ -117,7 +117,7 @@ impl CuffSettings {
                 v,
                 CUFF_BELOW_JOINT_MIN_M,
                 0.6,
-                "must be 0.05..=0.6 m below the joint, along the segment",
+                "must be 0.05 to 0.6 m below the joint, along the segment",
             )?;
         }
         Ok(())
@@ -154,7 +154,7 @@ impl CuffSensorSettings {
             self.noise_rms_nm,
             0.0,
             CUFF_ERROR_MAX_NM,
-            "must be 0..=100 N m (a tenth of the sensor's 1000 N m full scale)",
+            "must be 0 to 100 N m (a tenth of the sensor's 1000 N m full scale)",
         )?;
         for (j, name) in ["hip", "knee"].iter().enumerate() {
             within(
@@ -162,7 +162,7 @@ impl CuffSensorSettings {
                 self.bias_nm[j],
                 -CUFF_ERROR_MAX_NM,
                 CUFF_ERROR_MAX_NM,
-                "must be -100..=100 N m (a tenth of the sensor's 1000 N m full scale)",
+                "must be -100 to 100 N m (a tenth of the sensor's 1000 N m full scale)",
             )?;
         }
         Ok(())

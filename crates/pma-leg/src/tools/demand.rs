@@ -146,11 +146,17 @@ pub fn stride_demand(loaded: &LoadedScenario, strides: usize) -> Result<Demand, 
         }
         for leg in 0..legs {
             let (q, qd) = (exo.angles(leg), exo.velocities(leg));
-            if !(q.iter().chain(&qd).all(|v| v.is_finite())) {
-                return Err(LegError::LeftPhysics {
-                    t_s: t,
-                    what: "the servo-driven leg: its state is not finite".into(),
-                });
+            // A diverging servo run is caught as the closed loop's is: before it turns
+            // into demands of 1e28 N m/kg (issue 47: a 55 kg patient's light foot at one
+            // physics substep).
+            let limits = exo.limits_rad(leg);
+            for (j, joint) in ["hip", "knee"].iter().enumerate() {
+                if let Some(why) = crate::plant::left_physics(q[j], qd[j], limits[j]) {
+                    return Err(LegError::LeftPhysics {
+                        t_s: t,
+                        what: format!("the servo-driven {joint}: {why}"),
+                    });
+                }
             }
             let g = gaits[leg].sample(t);
             let error_deg = [

@@ -90,14 +90,14 @@ impl GaitFitSettings {
             return Err(invalid(
                 "iterations",
                 self.iterations as f64,
-                "must be 1..=100",
+                "must be 1 to 100",
             ));
         }
         if !(self.gain > 0.0 && self.gain <= 1.0) {
             return Err(invalid("gain", self.gain, "must be in (0, 1]"));
         }
         if !(1..=50).contains(&self.strides) {
-            return Err(invalid("strides", self.strides as f64, "must be 1..=50"));
+            return Err(invalid("strides", self.strides as f64, "must be 1 to 50"));
         }
         Ok(())
     }
@@ -229,7 +229,7 @@ pub fn fit_gait(
                 name: "fit-gait".into(),
                 value: format!("run {iteration}"),
                 message: format!(
-                    "the stance foot moved at {} m/s, which no belt runs (0..={} m/s): the fit diverges; lower --gain or give more --strides",
+                    "the stance foot moved at {} m/s, which no belt runs (0 to {} m/s): the fit diverges; lower --gain or give more --strides",
                     pma_model::error::number(-next),
                     crate::ground::BELT_SPEED_MAX_M_S
                 ),

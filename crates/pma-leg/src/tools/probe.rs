@@ -224,7 +224,7 @@ pub fn probe_frequency(
         frequency_hz,
         lo,
         hi,
-        "must be 0.05..=10 Hz (a frequency-response test's load)",
+        "must be 0.05 to 10 Hz (a frequency-response test's load)",
     )?;
     let (name, mut sim) = held_in_mode(loaded, at)?;
     let load_nm = stiffness * PROBE_DEFLECTION_RAD;

@@ -143,8 +143,83 @@ fn joint_samples(demand: &Demand, j: usize) -> JointSamples {
         .collect()
 }
 
+/// What a pair's muscles do over a joint's samples.
+struct PairLoad {
+    /// Largest force of either muscle (N).
+    peak_n: f64,
+    /// Smallest distance of either pressure to 0 or the valve's maximum, over the maximum.
+    headroom: f64,
+    /// Largest contraction speed over the useful speed.
+    speed_ratio: f64,
+    /// Largest contraction of either muscle (m).
+    max_contraction_m: f64,
+    /// Lowest and highest pressure asked of either muscle (Pa).
+    pressure_range_pa: [f64; 2],
+}
+
+/// What a pair of `muscle`s on a pulley of `r` does at mean pressure `p_cc` over the
+/// joint's `samples`, the flexor contracted by `c_f` and the extensor by `c_e` at zero
+/// angle; the first rule a sample breaks if any (all but the rating, which the caller
+/// weighs). Unless `strict`, only [`Reject::Speed`] ends it: the pressures the stride asks
+/// are recorded wherever they are, and a muscle asked to push is not a rule (what a built
+/// trainer's muscles do is measured, not designed: its controller saturates the valve).
+fn pair_load(
+    muscle: FestoMuscle,
+    r: f64,
+    (c_f, c_e): (f64, f64),
+    (p_cc, p_max): (f64, f64),
+    samples: &JointSamples,
+    strict: bool,
+) -> Result<PairLoad, Reject> {
+    let (b0, b1) = {
+        let b = |p: f64| muscle.damping(p, DampingMode::Inflation);
+        (b(0.0), (b(1e5) - b(0.0)) / 1e5)
+    };
+    let mut load = PairLoad {
+        peak_n: 0.0,
+        headroom: 1.0,
+        speed_ratio: 0.0,
+        max_contraction_m: f64::NEG_INFINITY,
+        pressure_range_pa: [f64::INFINITY, f64::NEG_INFINITY],
+    };
+    for &(q, qd, tau) in samples {
+        // Contraction and its rate of each muscle: the flexor shortens with flexion.
+        let muscles = [(c_f + r * q, r * qd), (c_e - r * q, -r * qd)];
+        let [(alpha_f, beta_f), (alpha_e, beta_e)] = muscles.map(|(x, v)| {
+            let per_pa = muscle.static_force_n(1e5, x) / 1e5;
+            (per_pa - b1 * v, b0 * v)
+        });
+        if alpha_f <= 0.0 || alpha_e <= 0.0 {
+            return Err(Reject::Speed);
+        }
+        for (x, v) in muscles {
+            let useful = muscle.useful_speed_m_s(x, DampingMode::Inflation);
+            load.speed_ratio = load.speed_ratio.max(v / useful);
+            load.max_contraction_m = load.max_contraction_m.max(x);
+        }
+        let delta = (tau / r - p_cc * (alpha_f - alpha_e) + beta_f - beta_e) / (alpha_f + alpha_e);
+        let (p_f, p_e) = (p_cc + delta, p_cc - delta);
+        let (f_f, f_e) = (p_f * alpha_f - beta_f, p_e * alpha_e - beta_e);
+        if strict && (p_f.min(p_e) < 0.0 || p_f.max(p_e) > p_max) {
+            return Err(Reject::Pressure);
+        }
+        if strict && f_f.min(f_e) < 0.0 {
+            return Err(Reject::Slack);
+        }
+        let [lo, hi] = &mut load.pressure_range_pa;
+        *lo = lo.min(p_f.min(p_e));
+        *hi = hi.max(p_f.max(p_e));
+        load.peak_n = load.peak_n.max(f_f.max(f_e));
+        load.headroom = load
+            .headroom
+            .min(p_f.min(p_e).min(p_max - p_f.max(p_e)) / p_max);
+    }
+    Ok(load)
+}
+
 /// Evaluates a pair of `muscle`s on a pulley of `r` at mean pressure `p_cc` over the
-/// joint's `samples` ranging over `[lo, hi]` rad; the first rule a sample breaks if any.
+/// joint's `samples` ranging over `[lo, hi]` rad, each muscle [`PRE_CONTRACTION`]
+/// contracted at its end of the range; the first rule a sample breaks if any.
 fn evaluate(
     muscle: FestoMuscle,
     r: f64,
@@ -160,40 +235,12 @@ fn evaluate(
         return Err(Reject::Stroke);
     }
     let rated = muscle.size.rated_force_n();
-    let (b0, b1) = {
-        let b = |p: f64| muscle.damping(p, DampingMode::Inflation);
-        (b(0.0), (b(1e5) - b(0.0)) / 1e5)
-    };
-    let (mut peak, mut headroom, mut speed_ratio) = (0.0f64, 1.0f64, 0.0f64);
-    for &(q, qd, tau) in samples {
-        // Contraction and its rate of each muscle: the flexor shortens with flexion.
-        let muscles = [(pre + r * (q - lo), r * qd), (pre + r * (hi - q), -r * qd)];
-        let [(alpha_f, beta_f), (alpha_e, beta_e)] = muscles.map(|(x, v)| {
-            let per_pa = muscle.static_force_n(1e5, x) / 1e5;
-            (per_pa - b1 * v, b0 * v)
-        });
-        if alpha_f <= 0.0 || alpha_e <= 0.0 {
-            return Err(Reject::Speed);
-        }
-        for (x, v) in muscles {
-            let useful = muscle.useful_speed_m_s(x, DampingMode::Inflation);
-            speed_ratio = speed_ratio.max(v / useful);
-        }
-        let delta = (tau / r - p_cc * (alpha_f - alpha_e) + beta_f - beta_e) / (alpha_f + alpha_e);
-        let (p_f, p_e) = (p_cc + delta, p_cc - delta);
-        let (f_f, f_e) = (p_f * alpha_f - beta_f, p_e * alpha_e - beta_e);
-        if p_f.min(p_e) < 0.0 || p_f.max(p_e) > p_max {
-            return Err(Reject::Pressure);
-        }
-        if f_f.min(f_e) < 0.0 {
-            return Err(Reject::Slack);
-        }
-        peak = peak.max(f_f.max(f_e));
-        headroom = headroom.min(p_f.min(p_e).min(p_max - p_f.max(p_e)) / p_max);
-    }
-    if peak > rated {
+    let offsets = (pre - r * lo, pre + r * hi);
+    let load = pair_load(muscle, r, offsets, (p_cc, p_max), samples, true)?;
+    if load.peak_n > rated {
         return Err(Reject::Rating);
     }
+    let (peak, headroom, speed_ratio) = (load.peak_n, load.headroom, load.speed_ratio);
     Ok(PairDesign {
         size: muscle.size.name(),
         rest_length_m: l0,
@@ -205,6 +252,113 @@ fn evaluate(
         pressure_headroom: headroom,
         margin: headroom.min(1.0 - peak / rated).min(1.0 - speed_ratio),
     })
+}
+
+/// A joint's fitted pair (the scenario's own muscles) against a servo-driven stride.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct FittedPair {
+    /// `hip` or `knee`.
+    pub joint: String,
+    /// The muscles, as the datasheet names them (`Festo DMSP-20, 1.200 m on 110 mm`).
+    pub muscles: String,
+    /// Largest force of either muscle over its rating, if the pair can drive the stride.
+    pub peak_force_over_rated: Option<f64>,
+    /// The first rule the pair breaks on the stride besides the rating, the pressure's
+    /// range and a push, if one: [`Reject::Speed`].
+    pub reject: Option<Reject>,
+    /// The lowest and highest pressure the stride asks of either muscle (bar), beyond the
+    /// valve's range where the controller would saturate it.
+    pub pressure_range_bar: Option<[f64; 2]>,
+    /// Largest strain of either muscle, if the pair can drive the stride.
+    pub max_strain: Option<f64>,
+}
+
+impl FittedPair {
+    /// Whether the pair drives the stride within its rating and its stroke.
+    pub fn fits(&self) -> bool {
+        self.reject.is_none()
+            && self.peak_force_over_rated.is_some_and(|f| f <= 1.0)
+            && self.max_strain.is_some_and(|s| s <= MAX_CONTRACTION)
+    }
+
+    /// Why it does not fit, in words (`None` if it does).
+    pub fn why_not(&self) -> Option<String> {
+        if self.fits() {
+            return None;
+        }
+        Some(
+            match (self.reject, self.peak_force_over_rated, self.max_strain) {
+                (Some(r), ..) => format!(
+                    "the {}'s muscles ({}) cannot drive the stride ({})",
+                    self.joint,
+                    self.muscles,
+                    r.as_str()
+                ),
+                (None, Some(f), Some(s)) if f <= 1.0 => format!(
+                    "the {}'s muscles ({}) would contract by {:.0} % (at most {:.0} %)",
+                    self.joint,
+                    self.muscles,
+                    100.0 * s,
+                    100.0 * MAX_CONTRACTION
+                ),
+                (None, f, _) => format!(
+                    "the {}'s muscles ({}) would pull {} times their rating",
+                    self.joint,
+                    self.muscles,
+                    f.map_or("-".into(), |f| format!("{f:.2}"))
+                ),
+            },
+        )
+    }
+}
+
+/// Each joint's fitted pair (`muscles`, one leg's geometry: Festo muscles only) against
+/// `demand` at mean pressure `p_cc` with a valve of `p_max`; empty where the muscles are
+/// not a Festo pair per joint (Table I muscles: no datasheet to rate them against).
+pub fn fitted_pairs(
+    demand: &Demand,
+    muscles: &[MuscleGeometry],
+    p_cc: f64,
+    p_max: f64,
+) -> Vec<FittedPair> {
+    let mut out = Vec::new();
+    for (j, joint) in JOINT_NAMES.iter().take(2).enumerate() {
+        let side = |s: Side| muscles.iter().find(|m| m.joint == *joint && m.side == s);
+        let (Some(f), Some(e)) = (side(Side::Flexor), side(Side::Extensor)) else {
+            continue;
+        };
+        let (Ok(Some(muscle)), Ok(Some(other))) = (f.festo(), e.festo()) else {
+            continue;
+        };
+        // The sizing's pairs are alike on one pulley: a mixed pair is not rated here.
+        if muscle != other || f.pulley_radius_m != e.pulley_radius_m {
+            continue;
+        }
+        let r = f.pulley_radius_m;
+        let offsets = (f.contraction_at_zero_m, e.contraction_at_zero_m);
+        let samples = joint_samples(demand, j);
+        let load = pair_load(muscle, r, offsets, (p_cc, p_max), &samples, false);
+        let l0 = muscle.rest_length_m;
+        out.push(FittedPair {
+            joint: (*joint).to_owned(),
+            muscles: format!(
+                "Festo {}, {l0:.3} m on {:.0} mm",
+                muscle.size.name().to_uppercase(),
+                1e3 * r
+            ),
+            peak_force_over_rated: load
+                .as_ref()
+                .ok()
+                .map(|l| l.peak_n / muscle.size.rated_force_n()),
+            reject: load.as_ref().err().copied(),
+            pressure_range_bar: load
+                .as_ref()
+                .ok()
+                .map(|l| l.pressure_range_pa.map(|p| p / 1e5)),
+            max_strain: load.ok().map(|l| l.max_contraction_m / l0),
+        });
+    }
+    out
 }
 
 /// Every candidate of a joint at mean pressure `p_cc`: what works, and per size why the

@@ -622,7 +622,7 @@ impl<L: ComediLib> Probe<'_, L> {
         let count = self.lib.n_subdevices().map_err(|e| self.query_failed(&e))?;
         if subdevice >= count {
             return Err(self.error(format!(
-                "no subdevice {subdevice}: the board ({}) has {count} (0..={})",
+                "no subdevice {subdevice}: the board ({}) has {count} (0 to {})",
                 self.board,
                 count.saturating_sub(1)
             )));
@@ -651,7 +651,7 @@ impl<L: ComediLib> Probe<'_, L> {
             .map_err(|e| self.query_failed(&e))?;
         if channel >= count {
             return Err(self.error(format!(
-                "no channel {channel}: subdevice {subdevice} has {count} channels (0..={})",
+                "no channel {channel}: subdevice {subdevice} has {count} channels (0 to {})",
                 count.saturating_sub(1)
             )));
         }
@@ -669,7 +669,7 @@ impl<L: ComediLib> Probe<'_, L> {
             .map_err(|e| self.query_failed(&e))?;
         if index >= count {
             return Err(self.error(format!(
-                "no range {index}: the channel has {count} ranges (0..={})",
+                "no range {index}: the channel has {count} ranges (0 to {})",
                 count.saturating_sub(1)
             )));
         }

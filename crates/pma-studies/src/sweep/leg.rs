@@ -170,7 +170,7 @@ impl PatientPopulation {
             return Err(StudyError::from(pma_model::Invalid::new(
                 "population.size",
                 self.size as f64,
-                "must be 1..=100000 (split larger studies into several sweeps)",
+                "must be 1 to 100000 (split larger studies into several sweeps)",
             )));
         }
         if self.spasticity[0] > self.spasticity[1] {

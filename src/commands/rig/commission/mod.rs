@@ -220,7 +220,7 @@ impl Load {
                 m,
                 0.05,
                 pma_model::MAX_LOAD_KG,
-                "must be 0.05..=600 kg",
+                "must be 0.05 to 600 kg",
             )?;
         }
         match (a.load_kg.or(cfg.load.mass_kg), a.added_mass_kg) {
@@ -238,7 +238,7 @@ impl Load {
                     m,
                     0.05,
                     pma_model::MAX_LOAD_KG,
-                    "must be 0.05..=600 kg (a known mass hung on the load)",
+                    "must be 0.05 to 600 kg (a known mass hung on the load)",
                 )?;
                 Ok(Self::Added(m, Box::new(with_added_mass(cfg.clone(), m)?)))
             }
