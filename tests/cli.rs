@@ -94,7 +94,8 @@ fn check_step_says_how_far_the_figures_move_at_half_the_step() {
     assert_eq!(c["converged"], true, "{c}");
     assert!(c["moved"]["rte"].as_f64().unwrap() < 1e-3, "{c}");
     // Behind the realistic plant's 20 ms valve its RTE is 4.8 % at 4 substeps and 13.9 %
-    // at 8: the step decides the figure, and the run says so.
+    // at 8: the step decides this one run's figure, and the run says so (over the noise's
+    // seeds the means do not move: `seeds_report_each_figure_over_the_sensor_noise`).
     let lagging = json(&["single", "--plant", "realistic", "--check-step", "--json"]);
     let c = &lagging["check_step"];
     assert_eq!(c["converged"], false, "{c}");
@@ -122,6 +123,85 @@ fn check_step_says_how_far_the_figures_move_at_half_the_step() {
     assert_one_line_error(
         &["single", "--plant", plant.to_str().unwrap(), "--check-step"],
         "--check-step doubles the plant's substeps_per_period (600)",
+    );
+}
+
+/// Issue 50: where a loop chatters behind a noisy sensor, one run's figure is one draw;
+/// `--seeds N` reports the spread over N seeds, and the step is judged on the means.
+#[test]
+fn seeds_report_each_figure_over_the_sensor_noise() {
+    let json = |args: &[&str]| -> serde_json::Value {
+        serde_json::from_slice(&pma_exo_ok(args).stdout).expect("JSON")
+    };
+    let base = [
+        "single",
+        "--plant",
+        "realistic",
+        "--duration",
+        "4",
+        "--json",
+    ];
+    let v = json(&[&base[..], &["--seeds", "4", "--check-step"]].concat());
+    let s = &v["seeds"];
+    assert_eq!(
+        (s["n"].as_u64(), s["first_seed"].as_u64()),
+        (Some(4), Some(20200525))
+    );
+    let rte = |x: &serde_json::Value, k: &str| x["rte_percent"][k].as_f64().unwrap();
+    // The first seed's run is the run's own figure; the others differ.
+    let own = v["rte_percent"].as_f64().unwrap();
+    assert!(rte(s, "min") <= own && own <= rte(s, "max"), "{s}");
+    assert!(rte(s, "min") < rte(s, "max") && rte(s, "sd") > 0.0, "{s}");
+    assert!(rte(s, "min") <= rte(s, "mean") && rte(s, "mean") <= rte(s, "max"));
+    // The fourth seed's run, by hand, lies within the spread.
+    let dir = temp("seeds");
+    let plant = dir.join("seed.toml");
+    let text = include_str!("../crates/pma-bench/models/plants/realistic.toml");
+    std::fs::write(&plant, text.replace("seed = 20200525", "seed = 20200528")).unwrap();
+    let other = json(&[
+        "single",
+        "--plant",
+        plant.to_str().unwrap(),
+        "--duration",
+        "4",
+        "--json",
+    ]);
+    let o = other["rte_percent"].as_f64().unwrap();
+    assert!(
+        rte(s, "min") <= o && o <= rte(s, "max") && o != own,
+        "{o} {s}"
+    );
+    // At half the step, the same seeds, and whether the mean moved beyond their scatter.
+    let c = &v["check_step"]["seeds"];
+    assert_eq!(c["n"].as_u64(), Some(4));
+    assert!(c["within_scatter"]["rte"].is_boolean(), "{c}");
+    let text = pma_exo_ok(&[
+        "single",
+        "--plant",
+        "realistic",
+        "--duration",
+        "4",
+        "--seeds",
+        "3",
+        "--check-step",
+    ]);
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.contains("at the step over 3 seeds (20200525..=20200527)"),
+        "{text}"
+    );
+    assert!(text.contains("the mean RTE moved"), "{text}");
+    assert_one_line_error(
+        &["single", "--seeds", "3"],
+        "plant `ideal` has no sensor noise",
+    );
+    assert_one_line_error(
+        &["single", "--plant", "realistic", "--seeds", "1"],
+        "--seeds 1 is invalid: 2 to 100",
+    );
+    assert_one_line_error(
+        &["single", "--plant", "realistic", "--seeds", "101"],
+        "--seeds 101 is invalid",
     );
 }
 

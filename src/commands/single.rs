@@ -7,6 +7,7 @@ use anyhow::Result;
 use pma_bench::{run_single_until, Sample};
 use pma_control::ControllerKind;
 use pma_exo::setup::{SingleArgs, SingleRun};
+use pma_loop::step::SeedSpread;
 use std::path::PathBuf;
 
 /// Estimated wall time of one bench period (release build, with margin).
@@ -37,8 +38,106 @@ pub struct Args {
     /// much the figures moved (`docs/convergence.md`).
     #[arg(long)]
     check_step: bool,
+    /// Also run with the sensor noise's next N - 1 seeds (N 2 to 100) and report each
+    /// figure's mean, standard deviation and range over the N runs; with --check-step at
+    /// both steps, and whether the step's move stands out of the seeds' scatter (a loop
+    /// that chatters has no single-run figure to converge). Needs a plant with noise.
+    #[arg(long, value_name = "N")]
+    seeds: Option<u32>,
     #[command(flatten)]
     output: RunOutput,
+}
+
+/// Most runs of `--seeds`.
+const SEEDS_MAX: u32 = 100;
+
+/// Each figure over runs that differ only in the sensor noise's seed.
+struct SeedRuns {
+    first_seed: u64,
+    /// MAE, RTE, RMS.
+    spreads: [SeedSpread; 3],
+}
+
+impl SeedRuns {
+    /// `r` on `plant` with the sensor seeds `plant`'s, its next, ... (`n` runs); `None` if
+    /// the operator stopped them.
+    fn run(
+        r: &SingleRun,
+        plant: &pma_bench::PlantConfig,
+        n: u32,
+        stop: &std::sync::atomic::AtomicBool,
+    ) -> Result<Option<Self>> {
+        let mut figures = [vec![], vec![], vec![]];
+        for k in 0..n {
+            let mut p = plant.clone();
+            p.sensor.seed = plant.sensor.seed.wrapping_add(u64::from(k));
+            let res =
+                run_single_until(&r.config, &p, r.reference.as_ref(), &r.spec, stop, &mut ())?;
+            if res.interrupted {
+                return Ok(None);
+            }
+            r.check_finite(&res)?;
+            let s = res.stats;
+            for (f, v) in figures.iter_mut().zip([s.mae_m, s.rte_percent, s.rms_m]) {
+                f.push(v);
+            }
+        }
+        let spread =
+            |v: &[f64]| SeedSpread::of(v).ok_or_else(|| anyhow::anyhow!("--seeds: no run"));
+        Ok(Some(Self {
+            first_seed: plant.sensor.seed,
+            spreads: [
+                spread(&figures[0])?,
+                spread(&figures[1])?,
+                spread(&figures[2])?,
+            ],
+        }))
+    }
+
+    fn json(&self, against: Option<&SeedRuns>) -> serde_json::Value {
+        let figure = |s: &SeedSpread| serde_json::json!({"mean": s.mean, "sd": s.sd, "min": s.min, "max": s.max});
+        let [mae, rte, rms] = &self.spreads;
+        let mut v = serde_json::json!({
+            "n": mae.n,
+            "first_seed": self.first_seed,
+            "mae_m": figure(mae),
+            "rte_percent": figure(rte),
+            "rms_m": figure(rms),
+        });
+        if let Some(first) = against {
+            let within = |i: usize| first.spreads[i].within_scatter(&self.spreads[i]);
+            v["within_scatter"] =
+                serde_json::json!({"mae": within(0), "rte": within(1), "rms": within(2)});
+        }
+        v
+    }
+
+    fn line(&self, what: &str, against: Option<&SeedRuns>) -> String {
+        let [mae, rte, _] = &self.spreads;
+        let verdict = against.map_or(String::new(), |first| {
+            let within = first.spreads[1].within_scatter(rte);
+            format!(
+                ": the mean RTE moved {:+.1} %, {} the seeds' scatter (2 standard errors: {:.3} %)",
+                100.0 * (rte.mean - first.spreads[1].mean) / first.spreads[1].mean,
+                if within { "within" } else { "beyond" },
+                2.0 * first.spreads[1].difference_error(rte)
+            )
+        });
+        format!(
+            "  {what} over {} seeds ({}..={}): MAE {:.3e} +- {:.1e} m ({:.3e}..{:.3e}), RTE {:.3} +- {:.3} % ({:.3}..{:.3}){verdict}",
+            mae.n,
+            self.first_seed,
+            self.first_seed.wrapping_add(mae.n as u64 - 1),
+            mae.mean,
+            mae.sd,
+            mae.min,
+            mae.max,
+            rte.mean,
+            rte.sd,
+            rte.min,
+            rte.max
+        )
+    }
 }
 
 /// The run's figures again at half the step, and how far each moved.
@@ -144,7 +243,20 @@ pub fn run(a: Args) -> Result<i32> {
         },
         ..Provenance::of_this_run()
     };
-    let runs = if a.check_step { 3.0 } else { 1.0 };
+    if let Some(n) = a.seeds {
+        if !(2..=SEEDS_MAX).contains(&n) {
+            anyhow::bail!("--seeds {n} is invalid: 2 to {SEEDS_MAX} runs");
+        }
+        if plant.sensor.noise_rms_m <= 0.0 {
+            anyhow::bail!(
+                "--seeds: plant `{}` has no sensor noise, so every seed gives the same run (a longer --duration is the statistic there)",
+                plant.name
+            );
+        }
+    }
+    // The check costs about twice a run (twice the substeps); every seed as much again.
+    let per_setting = 1.0 + f64::from(a.seeds.unwrap_or(0));
+    let runs = per_setting * if a.check_step { 3.0 } else { 1.0 };
     output::check_wall_time(
         "this run",
         runs * spec.periods()? as f64,
@@ -197,10 +309,29 @@ pub fn run(a: Args) -> Result<i32> {
         true => StepCheck::run(&r, &res, &stop)?,
         false => None,
     };
+    let seeds = match a.seeds.filter(|_| !res.interrupted) {
+        Some(n) => SeedRuns::run(&r, plant, n, &stop)?,
+        None => None,
+    };
+    let refined_seeds = match (a.seeds, &check, &seeds) {
+        (Some(n), Some(_), Some(_)) => {
+            let mut refined = plant.clone();
+            refined.substeps_per_period *= 2;
+            SeedRuns::run(&r, &refined, n, &stop)?
+        }
+        _ => None,
+    };
+    let stopped = stop.load(std::sync::atomic::Ordering::Relaxed);
     if a.output.json {
         let mut v = r.metrics(&res);
         if let Some(c) = &check {
             v["check_step"] = c.json();
+            if let Some(s) = &refined_seeds {
+                v["check_step"]["seeds"] = s.json(seeds.as_ref());
+            }
+        }
+        if let Some(s) = &seeds {
+            v["seeds"] = s.json(None);
         }
         say!("{}", provenance.attach(&v)?);
     } else {
@@ -229,11 +360,21 @@ pub fn run(a: Args) -> Result<i32> {
         if let Some(c) = &check {
             say!("{}", c.line());
         }
+        if let Some(s) = &seeds {
+            say!("{}", s.line("at the step", None));
+        }
+        if let Some(s) = &refined_seeds {
+            say!("{}", s.line("at half the step", seeds.as_ref()));
+        }
         say!("  ({})", provenance.line());
     }
     viz_result?;
     if res.interrupted {
         eprintln!("interrupted after {ran_s} s: the figures and the CSV cover the run so far");
+        return Ok(INTERRUPTED);
+    }
+    if stopped && (a.check_step || a.seeds.is_some()) {
+        eprintln!("interrupted: the first run's figures are complete; the step's check or the seeds' runs were cut short and are not reported");
         return Ok(INTERRUPTED);
     }
     Ok(0)
