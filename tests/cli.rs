@@ -1619,14 +1619,33 @@ fn valve_steps_a_muscle_behind_a_flow_limited_valve() {
     std::fs::remove_dir_all(dir).ok();
 }
 
-/// Issue 49: `compare-modes`, `size --out --csv` and `compare-leg --out` had no stop
+/// Issue 49: `compare-modes`, `size --out --csv` and `compare-leg --out` (and now `envelope`) had no stop
 /// handler: SIGINT or SIGTERM killed them (143), printing nothing and leaving `.part`
 /// files. Each now exits 130, says what it kept (nothing), and leaves no file behind.
 #[cfg(unix)]
 #[test]
 fn compare_modes_size_and_compare_leg_stop_on_a_signal_and_leave_nothing() {
-    let cases: [(&[&str], i32); 3] = [
+    let cases: [(&[&str], i32); 4] = [
         (&["compare-modes", "--duration", "60"], libc::SIGTERM),
+        // Issue 47's envelope, under the same rule from the start.
+        (
+            &[
+                "envelope",
+                "--out",
+                "env",
+                "--duration",
+                "60",
+                "--mass-kg",
+                "75,80",
+                "--support",
+                "0.5,0.7,0.9",
+                "--speed",
+                "0.5",
+                "--threads",
+                "1",
+            ],
+            libc::SIGINT,
+        ),
         (
             &[
                 "size",
