@@ -249,6 +249,12 @@ pub fn create_dir(dir: &Path) -> Result<()> {
     if dir.is_dir() {
         return Ok(());
     }
+    if dir.exists() {
+        bail!(
+            "`{}` exists and is not a directory: give a directory for the outputs",
+            dir.display()
+        );
+    }
     let parent = match dir.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),

@@ -1270,6 +1270,11 @@ fn envelope_maps_walked_refused_and_failed_cells() {
         (&["--speed", "0.5,0.5"][..], "--speed: 0.5 is given twice"),
         (&["gait_training"][..], "has no [treadmill]"),
         (&["--duration", "-1"][..], "duration"),
+        (&["--threads", "0"][..], "--threads must be at least 1"),
+        (
+            &["--out", "Cargo.toml"][..],
+            "exists and is not a directory",
+        ),
     ] {
         let mut all = vec!["envelope"];
         all.extend_from_slice(args);

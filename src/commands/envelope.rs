@@ -106,6 +106,8 @@ fn check_args(a: &Args) -> Result<()> {
         bail!("--modes: give at least one mode");
     }
     super::check_duration(a.duration)?;
+    // The pool's size is checked before any output exists.
+    super::with_threads(a.threads, || ())?;
     let cells = a.mass_kg.len() * a.support.len() * a.speed.len() * a.modes.len();
     if cells > CELLS_MAX {
         bail!("the map has {cells} cells, more than {CELLS_MAX}: give fewer values");
