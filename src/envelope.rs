@@ -200,12 +200,14 @@ fn set_point(base: &LoadedScenario, p: &Point) -> Result<(LoadedScenario, Option
     Ok((loaded, belt))
 }
 
-/// Which refusal a validation error is.
-fn refusal_of(message: &str) -> Refusal {
-    if message.contains("has no adult reference") {
-        Refusal::NoReference
-    } else {
-        Refusal::Invalid
+/// Which refusal a validation error is, by the field it names: the belt's speed (within
+/// the flag's 0.01-3 m/s, checked before) is refused for having no adult reference.
+fn refusal_of(e: &pma_leg::LegError) -> Refusal {
+    match e {
+        pma_leg::LegError::Invalid(i) if i.name == "treadmill.speed_m_per_s" => {
+            Refusal::NoReference
+        }
+        _ => Refusal::Invalid,
     }
 }
 
@@ -219,8 +221,7 @@ pub fn run_cell(base: &LoadedScenario, p: &Point, duration_s: f64, stop: &Atomic
         Err(e) => return Cell::refused(p, None, Refusal::Invalid, format!("{e:#}")),
     };
     if let Err(e) = loaded.scenario.validate() {
-        let why = e.to_string();
-        return Cell::refused(p, belt, refusal_of(&why), why);
+        return Cell::refused(p, belt, refusal_of(&e), e.to_string());
     }
     match unfit_reason(&loaded) {
         Ok(None) => {}
