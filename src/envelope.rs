@@ -23,6 +23,17 @@ pub struct Point {
     pub mode: Mode,
 }
 
+/// What every cell of a map runs beside its point: the muscles' controller (`None`: the
+/// scenario's APRC-NDO) with the scenario's gains for it, and the physics step (`None`: the
+/// scenario's substeps).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CellSettings {
+    /// The controller of every muscle (position and admittance modes).
+    pub controller: Option<pma_control::ControllerKind>,
+    /// Physics substeps per control period.
+    pub physics_substeps: Option<u32>,
+}
+
 /// How a cell ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -34,6 +45,7 @@ pub enum Outcome {
     /// Refused before it ran.
     Refused,
     /// The simulation left physical bounds (a diverging step, not the patient): no verdict.
+    #[serde(rename = "simulation_failed")]
     Unphysical,
     /// The operator stopped it.
     Interrupted,
@@ -182,9 +194,16 @@ pub fn check_base(loaded: &LoadedScenario, arg: &str) -> Result<()> {
 
 /// `base` set to `p`: the patient's mass, the support (a start's support raised to it),
 /// the belt scaled with the walking speed, the mode.
-fn set_point(base: &LoadedScenario, p: &Point) -> Result<(LoadedScenario, Option<f64>)> {
+fn set_point(
+    base: &LoadedScenario,
+    p: &Point,
+    settings: &CellSettings,
+) -> Result<(LoadedScenario, Option<f64>)> {
     let mut loaded = base.clone();
     let sc = &mut loaded.scenario;
+    if let Some(n) = settings.physics_substeps {
+        sc.physics_substeps = n;
+    }
     let reference_speed = sc.gait.speed_m_per_s.unwrap_or(p.speed_m_s);
     let mut belt = None;
     if let Some(t) = sc.treadmill.as_mut() {
@@ -196,7 +215,7 @@ fn set_point(base: &LoadedScenario, p: &Point) -> Result<(LoadedScenario, Option
         t.speed_m_per_s = Some(scaled);
         belt = Some(scaled);
     }
-    apply_mode(&mut loaded, Some(p.mode), None)?;
+    apply_mode(&mut loaded, Some(p.mode), settings.controller)?;
     Ok((loaded, belt))
 }
 
@@ -211,12 +230,18 @@ fn refusal_of(e: &pma_leg::LegError) -> Refusal {
     }
 }
 
-/// Runs cell `p` of `base` for `duration_s` (stopped early by `stop`).
-pub fn run_cell(base: &LoadedScenario, p: &Point, duration_s: f64, stop: &AtomicBool) -> Cell {
+/// Runs cell `p` of `base` with `settings` for `duration_s` (stopped early by `stop`).
+pub fn run_cell(
+    base: &LoadedScenario,
+    p: &Point,
+    settings: &CellSettings,
+    duration_s: f64,
+    stop: &AtomicBool,
+) -> Cell {
     if stop.load(Ordering::Relaxed) {
         return Cell::new(p, Outcome::Interrupted);
     }
-    let (loaded, belt) = match set_point(base, p) {
+    let (loaded, belt) = match set_point(base, p, settings) {
         Ok(l) => l,
         Err(e) => return Cell::refused(p, None, Refusal::Invalid, format!("{e:#}")),
     };
@@ -235,7 +260,7 @@ pub fn run_cell(base: &LoadedScenario, p: &Point, duration_s: f64, stop: &Atomic
         }
         Err(e) => return Cell::failed(p, belt, &e),
     }
-    match walk(&loaded, duration_s, stop) {
+    match walk(&loaded, settings.controller, duration_s, stop) {
         Ok(Some(cell)) => Cell {
             belt_m_s: belt,
             ..cell.at(p)
@@ -271,9 +296,14 @@ impl Ran {
     }
 }
 
-/// Runs `loaded` with its own controller; `None` if stopped.
-fn walk(loaded: &LoadedScenario, duration_s: f64, stop: &AtomicBool) -> Result<Option<Ran>> {
-    let config = leg_config(None, None, loaded)?;
+/// Runs `loaded` with `controller` (`None`: its own); `None` if stopped.
+fn walk(
+    loaded: &LoadedScenario,
+    controller: Option<pma_control::ControllerKind>,
+    duration_s: f64,
+    stop: &AtomicBool,
+) -> Result<Option<Ran>> {
+    let config = leg_config(controller, None, loaded)?;
     let mut sim = LegSim::with_controller(loaded, &config)?;
     let settings = sim.settings(duration_s)?.with_stop_flag(stop);
     let (report, fault) = sim.run_until_fault(&settings, &mut ())?;

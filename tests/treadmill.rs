@@ -1272,6 +1272,14 @@ fn envelope_maps_walked_refused_and_failed_cells() {
         (&["--duration", "-1"][..], "duration"),
         (&["--threads", "0"][..], "--threads must be at least 1"),
         (
+            &["--physics-substeps", "0"][..],
+            "--physics-substeps 0 is invalid: 1 to 100",
+        ),
+        (
+            &["--controller", "pid", "--modes", "impedance"][..],
+            "--controller pid: impedance mode runs no muscle controller",
+        ),
+        (
             &["--out", "Cargo.toml"][..],
             "exists and is not a directory",
         ),
@@ -1341,9 +1349,38 @@ fn envelope_maps_walked_refused_and_failed_cells() {
     // The exit says whether a cell ran and did not walk.
     let failed = cells
         .iter()
-        .any(|c| c["outcome"] == "failed" || c["outcome"] == "simulation failed");
+        .any(|c| c["outcome"] == "failed" || c["outcome"] == "simulation_failed");
     assert_eq!(out.status.code(), Some(if failed { 4 } else { 0 }));
     for f in ["envelope.json", "envelope.md", "envelope.png"] {
         assert!(dir.join(f).is_file(), "{f}");
     }
+    // A 50 kg patient's feet diverge at the shipped step; at two substeps the cell runs
+    // and gets its verdict (docs/envelope.md: PID there walks or misses on rating only).
+    let light = |extra: &[&str]| -> serde_json::Value {
+        let mut args = vec![
+            "envelope",
+            "--mass-kg",
+            "50",
+            "--support",
+            "0.5",
+            "--speed",
+            "0.5",
+            "--duration",
+            "4",
+            "--controller",
+            "pid",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        let out = pma_exo(&args);
+        serde_json::from_slice(&out.stdout).expect("JSON")
+    };
+    assert_eq!(light(&[])["cells"][0]["outcome"], "simulation_failed");
+    let fine = light(&["--physics-substeps", "2"]);
+    let c = &fine["cells"][0];
+    assert!(
+        matches!(c["outcome"].as_str(), Some("walked" | "failed")),
+        "{c}"
+    );
+    assert_eq!(fine["provenance"]["controller"], "pid");
 }

@@ -38,6 +38,14 @@ pub struct Args {
         value_name = "position,impedance,admittance,path,transparent"
     )]
     modes: Vec<Mode>,
+    /// The controller of every muscle, with the scenario's gains for it (default: the
+    /// scenario's APRC-NDO); position and admittance modes only.
+    #[arg(long, value_name = pma_control::ControllerKind::NAMES)]
+    controller: Option<pma_control::ControllerKind>,
+    /// Physics substeps per control period in every cell (default: the scenario's; 1 to
+    /// 100): a finer step for the patients the shipped one cannot simulate.
+    #[arg(long)]
+    physics_substeps: Option<u32>,
     /// Simulated seconds per cell; at least two strides.
     #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
     duration: f64,
@@ -101,6 +109,19 @@ fn check_args(a: &Args) -> Result<()> {
         if a.modes[..i].contains(m) {
             bail!("--modes: `{}` is given twice", m.control_mode());
         }
+        if let (false, Some(k)) = (m.control_mode().runs_muscle_controllers(), a.controller) {
+            bail!(
+                "--controller {}: {} mode runs no muscle controller (give --modes position or admittance)",
+                k.as_str(),
+                m.control_mode()
+            );
+        }
+    }
+    if let Some(n) = a.physics_substeps {
+        let max = pma_leg::scenario::PHYSICS_SUBSTEPS_MAX;
+        if !(1..=max).contains(&n) {
+            bail!("--physics-substeps {n} is invalid: 1 to {max}");
+        }
     }
     if a.modes.is_empty() {
         bail!("--modes: give at least one mode");
@@ -127,7 +148,17 @@ pub fn run(a: Args) -> Result<i32> {
     envelope::check_base(&loaded, &a.scenario)?;
     loaded.scenario.check_run_duration(a.duration)?;
     let points = envelope::points(&a.mass_kg, &a.support, &a.speed, &a.modes);
-    let periods = points.len() as f64 * a.duration / loaded.scenario.period_s;
+    let settings = envelope::CellSettings {
+        controller: a.controller,
+        physics_substeps: a.physics_substeps,
+    };
+    // A finer step costs about as much more.
+    let substeps_factor = f64::from(
+        a.physics_substeps
+            .unwrap_or(loaded.scenario.physics_substeps),
+    ) / f64::from(loaded.scenario.physics_substeps.max(1));
+    let periods =
+        points.len() as f64 * a.duration / loaded.scenario.period_s * substeps_factor.max(1.0);
     output::check_wall_time(
         "this envelope",
         periods,
@@ -160,7 +191,7 @@ pub fn run(a: Args) -> Result<i32> {
         points
             .par_iter()
             .map(|p| {
-                let cell = envelope::run_cell(&loaded, p, a.duration, &stop);
+                let cell = envelope::run_cell(&loaded, p, &settings, a.duration, &stop);
                 DONE.fetch_add(1, Ordering::Relaxed);
                 cell
             })
@@ -177,7 +208,10 @@ pub fn run(a: Args) -> Result<i32> {
     }
     let provenance = crate::provenance::Provenance {
         scenario: Some(crate::provenance::named(&a.scenario, &loaded.scenario.name)),
-        controller: Some("the scenario's, per mode".into()),
+        controller: Some(
+            a.controller
+                .map_or("the scenario's, per mode".into(), |k| k.as_str().to_owned()),
+        ),
         gains: Some("scenario".into()),
         patient: Some("passive, the mass and support of each cell".into()),
         valve: Some(loaded.scenario.plant.valve_label()?),
