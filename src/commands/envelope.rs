@@ -222,13 +222,14 @@ pub fn run(a: Args) -> Result<i32> {
         table(&cells, &a, &loaded.scenario.name),
         provenance.line()
     );
+    // One JSON for the file and for --json.
+    let json = serde_json::json!({
+        "provenance": provenance,
+        "duration_s": a.duration,
+        "cells": cells,
+    });
     if let (Some(dir), Some((_, json_file, md_file))) = (&a.out, staged) {
         let files = out_files(dir);
-        let json = serde_json::json!({
-            "provenance": provenance,
-            "duration_s": a.duration,
-            "cells": cells,
-        });
         let title = format!(
             "{}: where the trainer walks its patient",
             loaded.scenario.name
@@ -250,14 +251,7 @@ pub fn run(a: Args) -> Result<i32> {
         }
     }
     if a.json {
-        say!(
-            "{}",
-            serde_json::to_string(&serde_json::json!({
-                "provenance": provenance,
-                "duration_s": a.duration,
-                "cells": cells,
-            }))?
-        );
+        say!("{}", serde_json::to_string(&json)?);
     } else {
         say!("{md}");
     }

@@ -363,12 +363,13 @@ fn draw_figures(
         .fold(f64::INFINITY, f64::min);
     // Both legs stood on the same ground: its panels are drawn beside each.
     let ground = trace.0[0].ground.clone();
+    let collapse_s = report
+        .walking
+        .as_ref()
+        .and_then(|w| w.collapse.as_ref())
+        .map(|c| c.t_s);
     for (leg, tr) in trace.0.iter_mut().enumerate() {
-        tr.collapse_s = report
-            .walking
-            .as_ref()
-            .and_then(|w| w.collapse.as_ref())
-            .map(|c| c.t_s);
+        tr.collapse_s = collapse_s;
         tr.muscles.clone_from(&run.names);
         tr.legs = legs;
         tr.stride_s = sc.gait.stride_period_s;
