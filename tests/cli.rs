@@ -832,7 +832,49 @@ fn tune_leg_refuses_scenarios_whose_controllers_differ_before_writing() {
         ],
         "`nope`: unknown scenario",
     );
+    for bad in ["0", "101", "1,0"] {
+        assert_one_line_error(
+            &[
+                "tune-leg",
+                "gait_training",
+                "--physics-substeps",
+                bad,
+                "--out",
+                out_arg,
+            ],
+            "--physics-substeps",
+        );
+    }
     assert!(!out.exists(), "a refused tuning wrote {out_arg}");
+}
+
+#[test]
+fn tune_leg_at_several_steps_runs_each_and_records_them() {
+    let dir = temp("tune-steps");
+    let out = dir.join("gains.toml");
+    let run = pma_exo(&[
+        "tune-leg",
+        "gait_training",
+        "--population",
+        "2",
+        "--generations",
+        "1",
+        "--duration",
+        "3.2",
+        "--physics-substeps",
+        "1,3",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let text = std::fs::read_to_string(&out).unwrap();
+    // The file's command gives these gains again: the steps are part of it.
+    assert!(text.contains("--physics-substeps 1,3`"), "{text}");
+    assert!(text.contains("kp_per_s2"), "{text}");
 }
 
 #[test]

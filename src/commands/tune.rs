@@ -301,6 +301,12 @@ pub struct LegArgs {
     /// tenth free).
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     max_rating: f64,
+    /// Physics substeps per control period (comma-separated, each 1 to 100): every
+    /// scenario runs at each, and the objective is the worst, so that the gains found
+    /// hold at a finer step too (a loop tuned at one step can rely on its integrator's
+    /// damping). Default: each scenario's own.
+    #[arg(long, value_delimiter = ',')]
+    physics_substeps: Vec<u32>,
     /// Run even if it would take over an hour.
     #[arg(long)]
     yes: bool,
@@ -326,16 +332,34 @@ fn leg_objective(a: &LegArgs) -> Result<pma_studies::leg_tune::LegObjective> {
     })
 }
 
-/// The scenario and the `--also` ones, each checked for the run's duration.
-fn tuning_scenarios(a: &LegArgs) -> Result<Vec<pma_leg::LoadedScenario>> {
-    let mut loaded = Vec::with_capacity(1 + a.also.len());
+/// The scenario and the `--also` ones, each checked for the run's duration, each at every
+/// `--physics-substeps` count, with each run's cost relative to its scenario's own step.
+fn tuning_scenarios(a: &LegArgs) -> Result<(Vec<pma_leg::LoadedScenario>, Vec<f64>)> {
+    let max = pma_leg::scenario::PHYSICS_SUBSTEPS_MAX;
+    if let Some(n) = a.physics_substeps.iter().find(|n| !(1..=max).contains(*n)) {
+        bail!("--physics-substeps {n} is invalid: 1 to {max}");
+    }
+    let mut loaded = Vec::with_capacity((1 + a.also.len()) * a.physics_substeps.len().max(1));
+    let mut cost = Vec::with_capacity(loaded.capacity());
     for name in std::iter::once(&a.scenario).chain(&a.also) {
         let l = pma_leg::Scenario::load(name)?;
         l.scenario.check_run_duration(a.duration)?;
-        loaded.push(l);
+        if a.physics_substeps.is_empty() {
+            loaded.push(l);
+            cost.push(1.0);
+            continue;
+        }
+        let own = f64::from(l.scenario.physics_substeps.max(1));
+        for &n in &a.physics_substeps {
+            let mut at_n = l.clone();
+            at_n.scenario.physics_substeps = n;
+            loaded.push(at_n);
+            // rapier's step dominates a leg's period, so a run costs about its substeps.
+            cost.push(f64::from(n) / own);
+        }
     }
     pma_studies::leg_tune::common_base(&loaded, a.controller)?;
-    Ok(loaded)
+    Ok((loaded, cost))
 }
 
 /// Runs `tune-leg`.
@@ -343,17 +367,19 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
     check_duration(a.duration)?;
     let evaluations = evaluations(a.population, a.generations)?;
     let weigh = leg_objective(&a)?;
-    let scenarios = tuning_scenarios(&a)?;
+    let (scenarios, cost) = tuning_scenarios(&a)?;
     let periods: f64 = scenarios
         .iter()
-        .map(|l| a.duration / l.scenario.period_s * evaluations)
+        .zip(&cost)
+        .map(|(l, c)| a.duration / l.scenario.period_s * evaluations * c)
         .sum();
     output::check_wall_time("this tuning", periods, LEG_PERIOD_S, a.yes)?;
     if let Some(out) = &a.out {
         let inputs: Vec<_> = std::iter::once(&a.scenario)
             .chain(&a.also)
-            .zip(&scenarios)
-            .flat_map(|(name, l)| super::scenario_inputs(name, l, None))
+            // One loaded scenario per name and substep count: the files are the name's.
+            .zip(scenarios.chunks(a.physics_substeps.len().max(1)))
+            .flat_map(|(name, l)| super::scenario_inputs(name, &l[0], None))
             .collect();
         output::refuse_input_as_output(&inputs, &[("--out", out)])?;
     }
@@ -413,6 +439,10 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
     };
     if a.polish > 0 {
         weights.push_str(&format!(" --polish {}", a.polish));
+    }
+    if !a.physics_substeps.is_empty() {
+        let list: Vec<String> = a.physics_substeps.iter().map(u32::to_string).collect();
+        weights.push_str(&format!(" --physics-substeps {}", list.join(",")));
     }
     let rating = if a.max_rating < 1.0 {
         format!("within {} of its rating", a.max_rating)
