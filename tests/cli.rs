@@ -849,7 +849,7 @@ fn tune_leg_refuses_scenarios_whose_controllers_differ_before_writing() {
 }
 
 #[test]
-fn tune_leg_at_several_steps_runs_each_and_records_them() {
+fn tune_leg_at_several_steps_and_requiring_walking_records_both() {
     let dir = temp("tune-steps");
     let out = dir.join("gains.toml");
     let run = pma_exo(&[
@@ -863,6 +863,7 @@ fn tune_leg_at_several_steps_runs_each_and_records_them() {
         "3.2",
         "--physics-substeps",
         "1,3",
+        "--require-walking",
         "--out",
         out.to_str().unwrap(),
     ]);
@@ -873,7 +874,10 @@ fn tune_leg_at_several_steps_runs_each_and_records_them() {
     );
     let text = std::fs::read_to_string(&out).unwrap();
     // The file's command gives these gains again: the steps are part of it.
-    assert!(text.contains("--physics-substeps 1,3`"), "{text}");
+    assert!(
+        text.contains("--physics-substeps 1,3 --require-walking`"),
+        "{text}"
+    );
     assert!(text.contains("kp_per_s2"), "{text}");
 }
 

@@ -307,6 +307,11 @@ pub struct LegArgs {
     /// damping). Default: each scenario's own.
     #[arg(long, value_delimiter = ',')]
     physics_substeps: Vec<u32>,
+    /// On a treadmill, a run that does not walk by its verdict (strides, stance RMS within
+    /// 2 deg, the belt's load) scores 50 deg more: walking becomes a constraint the
+    /// variation weight cannot trade away.
+    #[arg(long)]
+    require_walking: bool,
     /// Run even if it would take over an hour.
     #[arg(long)]
     yes: bool,
@@ -329,6 +334,7 @@ fn leg_objective(a: &LegArgs) -> Result<pma_studies::leg_tune::LegObjective> {
     Ok(pma_studies::leg_tune::LegObjective {
         variation_weight_deg_per_bar_s: a.variation_weight,
         rating_max: a.max_rating,
+        require_walking: a.require_walking,
     })
 }
 
@@ -444,11 +450,17 @@ pub fn run_leg(a: LegArgs) -> Result<i32> {
         let list: Vec<String> = a.physics_substeps.iter().map(u32::to_string).collect();
         weights.push_str(&format!(" --physics-substeps {}", list.join(",")));
     }
-    let rating = if a.max_rating < 1.0 {
+    if a.require_walking {
+        weights.push_str(" --require-walking");
+    }
+    let mut rating = if a.max_rating < 1.0 {
         format!("within {} of its rating", a.max_rating)
     } else {
-        "within its rating".into()
+        String::from("within its rating")
     };
+    if a.require_walking {
+        rating.push_str(", every run walking by its verdict (50 more where not)");
+    }
     let text = format!(
         "# Tuned by `pma-exo tune-leg {}{also} --controller {} --population {} --generations {} --duration {} --seed {}{weights}`\n# ({} runs, objective {:.4}: {} + {} x bar/s, the worst of the scenarios, every muscle {rating})\n{}",
         a.scenario,

@@ -16,6 +16,11 @@ pub const FAILED_RUN: f64 = 1000.0;
 /// any tracking figure, below a failed run, so the search climbs back within the rating.
 pub const OVER_RATING: f64 = 100.0;
 
+/// Added to the objective of a treadmill run the walking verdict says did not walk, where
+/// the tuning requires walking ([`LegObjective::require_walking`]): above any walking run's
+/// tracking and chatter, below [`OVER_RATING`], so the search climbs back to walking.
+pub const NOT_WALKING: f64 = 50.0;
+
 /// What a tuning weighs: command activity against tracking, and the share of each
 /// muscle's rating its force may reach.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -24,6 +29,10 @@ pub struct LegObjective {
     pub variation_weight_deg_per_bar_s: f64,
     /// Largest peak force over rating a run may reach before it is rejected.
     pub rating_max: f64,
+    /// A treadmill run that does not walk by its verdict scores [`NOT_WALKING`] more: the
+    /// verdict (every foot's strides, stance RMS within 2 deg, the belt's load) becomes a
+    /// constraint instead of something the weighted sum may trade away.
+    pub require_walking: bool,
 }
 
 impl Default for LegObjective {
@@ -32,6 +41,7 @@ impl Default for LegObjective {
         Self {
             variation_weight_deg_per_bar_s: VARIATION_WEIGHT_DEG_PER_BAR_S,
             rating_max: 1.0,
+            require_walking: false,
         }
     }
 }
@@ -59,7 +69,15 @@ pub fn objective(
         let v = if worst > weigh.rating_max {
             OVER_RATING + 100.0 * (worst - weigh.rating_max)
         } else {
-            tracking_deg(&r) + weigh.variation_weight_deg_per_bar_s * r.command_variation_bar_per_s
+            let walked = r.walking.as_ref().is_none_or(|w| w.walking);
+            let penalty = if weigh.require_walking && !walked {
+                NOT_WALKING
+            } else {
+                0.0
+            };
+            penalty
+                + tracking_deg(&r)
+                + weigh.variation_weight_deg_per_bar_s * r.command_variation_bar_per_s
         };
         (r.finite && v.is_finite()).then_some(v)
     };
@@ -249,6 +267,44 @@ mod tests {
             worst_objective(&both[..1], &config, 3.2, &LegObjective::default()),
             each[0]
         );
+    }
+
+    #[test]
+    fn a_tuning_that_requires_walking_adds_its_penalty_to_a_run_that_does_not_walk_only() {
+        // Over the rating the objective would not look at walking: let it pass here.
+        let lax = LegObjective {
+            rating_max: 2.0,
+            ..LegObjective::default()
+        };
+        let strict = LegObjective {
+            require_walking: true,
+            ..lax
+        };
+        // The trainer walks; with its muscles 20 % stronger than their datasheet it tracks
+        // as well and pulls them past their rating, which its verdict counts.
+        let nominal = loaded("gait_treadmill");
+        let mut stronger = nominal.clone();
+        for m in ["hip_flexor", "hip_extensor", "knee_flexor", "knee_extensor"] {
+            stronger.scenario.plant.festo_scale.insert(
+                m.into(),
+                pma_model::festo::FestoScale {
+                    force_scale: 1.2,
+                    ..Default::default()
+                },
+            );
+        }
+        for (name, s, walks) in [("nominal", nominal, true), ("stronger", stronger, false)] {
+            let config =
+                common_base(std::slice::from_ref(&s), ControllerKind::AprcNdo).expect("one base");
+            let plain = objective(&s, &config, 4.0, &lax);
+            let required = objective(&s, &config, 4.0, &strict);
+            assert!(plain < NOT_WALKING, "{name}: {plain}");
+            let penalty = if walks { 0.0 } else { NOT_WALKING };
+            assert!(
+                (required - plain - penalty).abs() < 1e-9,
+                "{name}: {required} vs {plain}"
+            );
+        }
     }
 
     #[test]
