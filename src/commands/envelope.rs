@@ -118,10 +118,7 @@ fn check_args(a: &Args) -> Result<()> {
         }
     }
     if let Some(n) = a.physics_substeps {
-        let max = pma_leg::scenario::PHYSICS_SUBSTEPS_MAX;
-        if !(1..=max).contains(&n) {
-            bail!("--physics-substeps {n} is invalid: 1 to {max}");
-        }
+        super::check_physics_substeps(n)?;
     }
     if a.modes.is_empty() {
         bail!("--modes: give at least one mode");

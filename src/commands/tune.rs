@@ -341,9 +341,8 @@ fn leg_objective(a: &LegArgs) -> Result<pma_studies::leg_tune::LegObjective> {
 /// The scenario and the `--also` ones, each checked for the run's duration, each at every
 /// `--physics-substeps` count, with each run's cost relative to its scenario's own step.
 fn tuning_scenarios(a: &LegArgs) -> Result<(Vec<pma_leg::LoadedScenario>, Vec<f64>)> {
-    let max = pma_leg::scenario::PHYSICS_SUBSTEPS_MAX;
-    if let Some(n) = a.physics_substeps.iter().find(|n| !(1..=max).contains(*n)) {
-        bail!("--physics-substeps {n} is invalid: 1 to {max}");
+    for &n in &a.physics_substeps {
+        super::check_physics_substeps(n)?;
     }
     let mut loaded = Vec::with_capacity((1 + a.also.len()) * a.physics_substeps.len().max(1));
     let mut cost = Vec::with_capacity(loaded.capacity());
