@@ -778,8 +778,14 @@ fn print_safety(s: &pma_leg::SafetyReport) -> Result<()> {
         normal.join(", ")
     );
     for (name, m) in &s.muscles {
+        // Said only where a force limit ([control] force_max_of_rating) lowered a command.
+        let limited = if m.force_limited_s > 0.0 {
+            format!(", command at its force limit {:.2} s", m.force_limited_s)
+        } else {
+            String::new()
+        };
         say!(
-            "  {name:13} peak force {:.0} N = {:.2}x its {:.0} N rating ({}; {:.3} s above it, margin {:.0} N), valve at a limit {:.2} s, peak pressure rate {:.0} bar/s",
+            "  {name:13} peak force {:.0} N = {:.2}x its {:.0} N rating ({}; {:.3} s above it, margin {:.0} N), valve at a limit {:.2} s, peak pressure rate {:.0} bar/s{limited}",
             m.peak_force_n,
             m.peak_over_rated,
             m.rated_force_n,

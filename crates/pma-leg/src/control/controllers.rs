@@ -3,7 +3,8 @@
 use crate::base::{invalid, LegError, PerLeg};
 use crate::body::LegInertia;
 use crate::control::{
-    Admittance, ControlMode, ControlSettings, ExpectedMoments, ImpedanceLaw, PhaseSync, StanceLoad,
+    Admittance, ControlMode, ControlSettings, ExpectedMoments, ForceLimit, ImpedanceLaw, PhaseSync,
+    StanceLoad,
 };
 use crate::gait::{GaitReference, GaitSample, JointSample};
 use crate::plant::{
@@ -90,6 +91,9 @@ pub struct LegOutput {
     pub diagnostics: [Diagnostics; 4],
     /// Whether the reference's foot is in stance (the normative cycle's timing).
     pub reference_in_stance: bool,
+    /// Whether each muscle's command was lowered to its force limit
+    /// (`[control] force_max_of_rating`).
+    pub force_limited: [bool; 4],
 }
 
 /// The four muscle controllers, two co-contraction regulators and the gait reference.
@@ -113,6 +117,8 @@ pub struct LegControllers {
     /// Whether the muscles' pressure sensors feed the controllers' observers
     /// (`control.pressure_feedback`).
     pressure_feedback: bool,
+    /// The ceiling on the commands from each muscle's force (`control.force_max_of_rating`).
+    force_limit: Option<ForceLimit>,
 }
 
 fn joint(g: &GaitSample, joint: usize) -> &JointSample {
@@ -206,6 +212,10 @@ impl LegControllers {
             stance_load: None,
             expected: None,
             pressure_feedback: settings.pressure_feedback,
+            force_limit: settings
+                .force_max_of_rating
+                .map(|share| ForceLimit::new(muscles, share, pressure_max_pa))
+                .transpose()?,
         })
     }
 
@@ -331,6 +341,9 @@ impl LegControllers {
         if let Some(a) = &mut self.admittance {
             a.reset();
         }
+        if let Some(l) = &mut self.force_limit {
+            l.reset();
+        }
         let g = self.reference(t_s);
         for (lever, c) in self.levers.iter().zip(self.controllers.iter_mut()) {
             let measured = Measurement {
@@ -356,6 +369,30 @@ impl LegControllers {
         reading: &LegReading,
         dt_s: f64,
     ) -> LegOutput {
+        let mut out = self.commands_at(t_s, clock_s, rate, reading, dt_s);
+        // The force limit bounds every mode's commands, after the law that made them.
+        if let Some(l) = &mut self.force_limit {
+            l.apply(
+                &mut out.pressure_cmd_pa,
+                reading_angles(reading),
+                reading_pressures_pa(reading),
+                dt_s,
+            );
+            out.force_limited = l.bound();
+        }
+        self.commands = out.pressure_cmd_pa;
+        out
+    }
+
+    /// The commands of the leg's mode, before the force limit.
+    fn commands_at(
+        &mut self,
+        t_s: f64,
+        clock_s: f64,
+        rate: f64,
+        reading: &LegReading,
+        dt_s: f64,
+    ) -> LegOutput {
         let angles = &reading_angles(reading);
         let g = at_rate(self.reference(clock_s), rate);
         let load = self.planned_load_nm(t_s, clock_s, angles);
@@ -374,6 +411,7 @@ impl LegControllers {
                 pressure_cmd_pa,
                 diagnostics: [Diagnostics::NONE; 4],
                 reference_in_stance: self.hold.is_some() || self.gait.in_stance(clock_s),
+                force_limited: [false; 4],
             };
         }
         let cm = self.common_mode_pa();
@@ -388,6 +426,7 @@ impl LegControllers {
             pressure_cmd_pa: [0.0; 4],
             diagnostics: [Diagnostics::NONE; 4],
             reference_in_stance: self.hold.is_some() || self.gait.in_stance(clock_s),
+            force_limited: [false; 4],
         };
         // The tracked reference: the gait's, or admittance mode's displacement of it (the
         // outputs keep the gait's, against which every mode's tracking is measured).
@@ -629,6 +668,7 @@ impl Vented {
             pressure_cmd_pa: [0.0; 4],
             diagnostics: [Diagnostics::NONE; 4],
             reference_in_stance,
+            force_limited: [false; 4],
         }
     }
 

@@ -4,6 +4,7 @@
 mod admittance;
 mod controllers;
 mod feedforward;
+mod force_limit;
 mod gains;
 mod impedance;
 mod law;
@@ -16,6 +17,7 @@ mod settings;
 pub use admittance::*;
 pub use controllers::*;
 pub use feedforward::*;
+pub use force_limit::*;
 pub use gains::*;
 pub use impedance::*;
 pub use law::*;

@@ -42,6 +42,12 @@ pub struct ControlSettings {
     /// lower one to see what a slower valve path does.
     #[serde(default = "default_rate_max")]
     pub pressure_rate_max_pa_per_s: f64,
+    /// The share of each muscle's rating its commands may ask ([`crate::control::ForceLimit`]):
+    /// every period each command is lowered to the pressure at which the muscle's datasheet
+    /// model, at the measured contraction and its rate, pulls this share. In (0, 1]; none
+    /// by default (the treadmill scenarios set 0.9).
+    #[serde(default)]
+    pub force_max_of_rating: Option<f64>,
     /// Which shipped gains the other controllers take (`--controller NAME` without
     /// `--gains`, `compare-leg`): `in-air` (default) or `treadmill`.
     #[serde(default)]

@@ -109,6 +109,9 @@ pub struct MuscleSafety {
     pub margin_n: f64,
     /// Time the controller's command sat at 0 or at the valve's maximum (s).
     pub valve_saturated_s: f64,
+    /// Time its command was lowered to its force limit (s; `[control] force_max_of_rating`,
+    /// 0 without one).
+    pub force_limited_s: f64,
     /// Largest |dp/dt| of the muscle's pressure over the run (bar/s).
     pub peak_pressure_rate_bar_s: f64,
 }
@@ -154,6 +157,7 @@ pub struct PatientMetrics {
     peak_force: [f64; 4],
     over_rated_s: [f64; 4],
     saturated_s: [f64; 4],
+    force_limited_s: [f64; 4],
     peak_rate: [f64; 4],
     previous_p: [f64; 4],
     /// The same run without its spasms: per period, the joints' errors (deg) and velocities
@@ -236,6 +240,7 @@ impl PatientMetrics {
             peak_force: [0.0; 4],
             over_rated_s: [0.0; 4],
             saturated_s: [0.0; 4],
+            force_limited_s: [0.0; 4],
             peak_rate: [0.0; 4],
             previous_p: [f64::NAN; 4],
             baseline,
@@ -355,6 +360,7 @@ impl PatientMetrics {
                             time_over_rated_s: self.over_rated_s[i],
                             margin_n: self.rated_force_n[i] - self.peak_force[i],
                             valve_saturated_s: self.saturated_s[i],
+                            force_limited_s: self.force_limited_s[i],
                             peak_pressure_rate_bar_s: self.peak_rate[i] / 1e5,
                         },
                     )
@@ -403,6 +409,9 @@ impl LegRecorder for PatientMetrics {
             let u = p.output.pressure_cmd_pa[i];
             if u <= 1.0 || u >= self.pressure_max_pa - 1.0 {
                 self.saturated_s[i] += dt;
+            }
+            if p.output.force_limited[i] {
+                self.force_limited_s[i] += dt;
             }
         }
         // Against the run without spasms, period by period, when there is one.

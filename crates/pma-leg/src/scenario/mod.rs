@@ -263,6 +263,9 @@ impl Scenario {
             "control.pressure_rate_max_pa_per_s",
             self.control.pressure_rate_max_pa_per_s,
         )?;
+        if let Some(share) = self.control.force_max_of_rating {
+            crate::control::check_share(share)?;
+        }
         pma_control::ControllerConfig::AprcNdo(self.control.gains).validate()?;
         self.patient.validate()?;
         if let Some(t) = &self.treadmill {
