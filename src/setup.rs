@@ -660,6 +660,21 @@ fn beyond_norms(norms: &[pma_leg::tools::NormComparison]) -> Option<String> {
     })
 }
 
+/// How much a closed-loop check that does not hold raises the margin of the next sizing
+/// (`None`: it holds, or no margin can fix it). Over its allowance: by the controller's
+/// share. Not walking (or faulting) under a force limit: by
+/// [`pma_leg::tools::FORCE_MARGIN_STEP`], a larger muscle whose limit leaves the
+/// controller more force above the servo's stride. Not walking without a limit: no margin
+/// fixes it, the controller would take any larger muscle to its cap too.
+fn margin_step(check: &pma_leg::tools::ClosedLoop) -> Option<f64> {
+    match (check.holds, &check.why_not, check.force_max_of_rating) {
+        (true, _, _) => None,
+        (false, None, _) => Some(check.controller_share()),
+        (false, Some(_), Some(_)) => Some(pma_leg::tools::FORCE_MARGIN_STEP),
+        (false, Some(_), None) => None,
+    }
+}
+
 /// Most closed-loop checks (and re-sizings) of one `size`.
 pub const CLOSED_LOOP_ROUNDS: usize = 3;
 
@@ -705,14 +720,15 @@ impl SizeRun {
             else {
                 break;
             };
-            let (holds, share) = (check.holds, check.controller_share());
+            let Some(step) = margin_step(&check) else {
+                closed_loop.push(check);
+                break;
+            };
             closed_loop.push(check);
-            // A run that did not walk or faulted is not a force margin the sizing can fix.
-            let only_force = closed_loop.last().is_some_and(|c| c.why_not.is_none());
-            if holds || !only_force || stop.load(Ordering::Relaxed) {
+            if stop.load(Ordering::Relaxed) {
                 break;
             }
-            let raised = (margin + share).min(pma_leg::tools::FORCE_MARGIN_MAX);
+            let raised = (margin + step).min(pma_leg::tools::FORCE_MARGIN_MAX);
             if raised <= margin {
                 break;
             }

@@ -494,8 +494,11 @@ fn size_recommends_muscles_the_two_legs_then_run_on() {
 /// Issue 46 item 5: `size` runs its recommendation in closed loop. On the in-air leg the
 /// controller takes more of the rating than the servo (0.75 against 0.60 at the hip), so
 /// the muscles are sized again with the margin raised by that share, and the second
-/// recommendation holds; on the trainer the scenario's controller, tuned for the shipped
-/// muscles, does not walk the recommended ones: nothing is written, exit 1, one line.
+/// recommendation holds. The trainer holds its muscles with a force limit: the check runs
+/// under it lowered to the margin (0.60 of the rating), the patient walks and every joint
+/// stays within the margin plus a tenth, and the file says which limit to set; without the
+/// limit, the scenario's controller takes the recommended muscles to their rating and the
+/// patient does not walk: nothing is written, exit 1, one line.
 #[test]
 fn size_checks_its_recommendation_in_closed_loop_and_sizes_again_or_says_why_not() {
     let dir = temp_dir("size-closed-loop");
@@ -538,19 +541,50 @@ fn size_checks_its_recommendation_in_closed_loop_and_sizes_again_or_says_why_not
         let d = &j["recommended"];
         assert!(d["peak_force_over_rated"].as_f64().unwrap() <= 1.0 - raised + 1e-9);
     }
-    // The trainer's recommendation under the trainer's controller: no walking, no file.
+    // The trainer's recommendation under its force limit lowered to the margin: it walks
+    // within the margin, and the file says which limit to run it with.
     let out = dir.join("m.toml");
-    let run = pma_exo(&[
-        "size",
-        "gait_treadmill",
-        "--strides",
-        "1",
-        "--closed-loop-s",
-        "8",
-        "--out",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
+    let args = |scenario: &str| {
+        [
+            "size",
+            scenario,
+            "--strides",
+            "1",
+            "--closed-loop-s",
+            "8",
+            "--out",
+            out.to_str().unwrap(),
+            "--json",
+        ]
+        .map(str::to_owned)
+    };
+    let run = pma_exo(&args("gait_treadmill").each_ref().map(String::as_str));
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(0), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let last = v["closed_loop"].as_array().unwrap().last().unwrap().clone();
+    assert!(last["holds"].as_bool().unwrap(), "{last}");
+    assert_eq!(last["walking"].as_bool(), Some(true), "{last}");
+    let stated = last["stated_margin"].as_f64().unwrap();
+    assert_eq!(last["force_max_of_rating"].as_f64(), Some(1.0 - stated));
+    assert!(!over(&last), "{last}");
+    let written = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        written.contains(&format!("force_max_of_rating to {:.2}", 1.0 - stated)),
+        "{written}"
+    );
+    std::fs::remove_file(&out).unwrap();
+    // Without a force limit: no walking, no file.
+    let unlimited = scenario_with(
+        &dir,
+        "unlimited.toml",
+        &[("force_max_of_rating = 0.85\n", "")],
+    );
+    let run = pma_exo(
+        &args(unlimited.to_str().unwrap())
+            .each_ref()
+            .map(String::as_str),
+    );
     let err = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(1), "{err}");
     assert!(!out.exists());
@@ -559,6 +593,10 @@ fn size_checks_its_recommendation_in_closed_loop_and_sizes_again_or_says_why_not
     let v: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     let checks = v["closed_loop"].as_array().unwrap();
     assert!(checks.iter().all(|c| !c["holds"].as_bool().unwrap()), "{v}");
+    assert!(
+        checks.iter().all(|c| c["force_max_of_rating"].is_null()),
+        "{v}"
+    );
     // The check that ends the sizing says why (the patient did not walk, or collapsed), and
     // the one line says the same.
     let last = checks.last().unwrap();

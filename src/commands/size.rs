@@ -118,12 +118,13 @@ pub fn run(a: Args) -> Result<i32> {
     let written = match (&geometry, out_file) {
         (Some(muscles), Some(out_file)) => {
             let header = format!(
-                "Muscle geometry recommended by `{}` (docs/treadmill.md).\nEach joint: the smallest Festo size that supplies the stride's torques with\n{:.0} % of its rating free, within a 25 % contraction and with 10 % of the valve's\nrange and of its useful speed to spare, then the most compact. Set the scenario's\ncontrol.cocontraction_pa to {}.\n{}",
+                "Muscle geometry recommended by `{}` (docs/treadmill.md).\nEach joint: the smallest Festo size that supplies the stride's torques with\n{:.0} % of its rating free, within a 25 % contraction and with 10 % of the valve's\nrange and of its useful speed to spare, then the most compact. Set the scenario's\ncontrol.cocontraction_pa to {}.\n{}{}",
                 provenance.command,
                 100.0 * margin,
                 sizing
                     .cocontraction_pa
                     .map_or_else(|| "(none common)".to_owned(), |p| format!("{p:.4e}")),
+                force_limit_line(&run.closed_loop),
                 provenance.line()
             );
             out_file.finish_with(&muscles_toml(muscles, &header))?;
@@ -355,8 +356,11 @@ fn print_closed_loop(checks: &[pma_leg::tools::ClosedLoop]) -> Result<()> {
             (Some(true), None) => "; the patient walked".into(),
             _ => String::new(),
         };
+        let limit = c.force_max_of_rating.map_or_else(String::new, |f| {
+            format!(", every command held to {f:.2} of its muscle's rating")
+        });
         say!(
-            "  closed loop {} ({:.0} s, margin {:.2}, the scenario's controller and valves): {}{walked}: {}",
+            "  closed loop {} ({:.0} s, margin {:.2}, the scenario's controller and valves{limit}): {}{walked}: {}",
             i + 1,
             c.duration_s,
             c.force_margin,
@@ -365,6 +369,19 @@ fn print_closed_loop(checks: &[pma_leg::tools::ClosedLoop]) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The header's line on the force limit the closed loop held (with its newline), or
+/// nothing when no check ran.
+fn force_limit_line(checks: &[pma_leg::tools::ClosedLoop]) -> String {
+    checks
+        .last()
+        .and_then(|c| c.force_max_of_rating)
+        .map_or_else(String::new, |f| {
+            format!(
+                "Checked in closed loop with every muscle's command held to {f:.2} of its rating: set\nthe scenario's control.force_max_of_rating to {f:.2} to stay within the margin.\n"
+            )
+        })
 }
 
 /// One line on why the recommendation does not hold in closed loop, and what to do.

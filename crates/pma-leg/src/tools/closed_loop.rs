@@ -2,7 +2,12 @@
 //! its own controller, valves and patient, and each joint's peak force against the servo
 //! figure the sizing kept its margin on. A servo drives the joints exactly along the
 //! reference; a controller behind a real valve adds its own activity (co-contraction,
-//! corrections, chatter), which the margin is there to absorb.
+//! corrections, chatter), which the margin is there to absorb. APRC-NDO behind the trainer's
+//! valves drives them to their cap whatever the muscle (docs/treadmill.md), so a larger
+//! muscle does not shrink its share: a scenario that holds its muscles with a force limit
+//! (`[control] force_max_of_rating`, the shipped treadmill scenarios) is checked with that
+//! limit lowered to the stated margin (`1 - margin`), and the question becomes whether the
+//! patient still walks under it.
 use crate::base::LegError;
 use crate::scenario::LoadedScenario;
 use crate::sim::LegSim;
@@ -45,6 +50,11 @@ pub struct ClosedLoop {
     /// The force margin this sizing was made with: the stated one, or one raised after an
     /// earlier check.
     pub force_margin: f64,
+    /// The force limit the run held every muscle's command to (`[control]
+    /// force_max_of_rating`): `1 - stated_margin` or the scenario's own where lower, when
+    /// the scenario sets one (`None` otherwise). A run of the recommendation needs it in its
+    /// scenario to stay within the margin.
+    pub force_max_of_rating: Option<f64>,
     /// Each joint's peaks.
     pub joints: Vec<ClosedLoopJoint>,
     /// Whether the patient walked (a treadmill run's verdict; `None` in the air).
@@ -67,9 +77,17 @@ impl ClosedLoop {
     }
 }
 
+/// The force limit a closed-loop check holds the muscles to, where the scenario sets one:
+/// the share of the rating the stated margin leaves, or the scenario's own where lower.
+pub fn force_limit_of(stated_margin: f64, loaded: &LoadedScenario) -> Option<f64> {
+    let scenario = loaded.scenario.control.force_max_of_rating?;
+    Some((1.0 - stated_margin).min(scenario))
+}
+
 /// Runs `loaded` for `duration_s` with `sizing`'s recommended muscles and co-contraction
 /// (made with `margins.1`) under the scenario's controller, each joint held to the stated
-/// margin `margins.0`; `None` when the sizing recommends nothing. `stop` ends the run
+/// margin `margins.0` (a scenario's force limit lowered to `1 - margins.0`); `None` when
+/// the sizing recommends nothing. `stop` ends the run
 /// early: the check then covers what ran.
 pub fn closed_loop(
     loaded: &LoadedScenario,
@@ -87,6 +105,8 @@ pub fn closed_loop(
     sized.muscles = muscles;
     sized.muscles_source = "the sizing's recommendation".into();
     sized.scenario.control.cocontraction_pa = cocontraction_pa;
+    let force_max_of_rating = force_limit_of(stated_margin, loaded);
+    sized.scenario.control.force_max_of_rating = force_max_of_rating;
     let mut sim = LegSim::new(&sized)?;
     let settings = sim.settings(duration_s)?.with_stop_flag(stop);
     let (report, fault) = sim.run_until_fault(&settings, &mut ())?;
@@ -127,6 +147,7 @@ pub fn closed_loop(
         duration_s: report.duration_s,
         stated_margin,
         force_margin,
+        force_max_of_rating,
         holds: within && why_not.is_none() && report.finite,
         joints,
         walking,

@@ -416,6 +416,11 @@ pub const FORCE_MARGIN_MIN: f64 = 0.4;
 /// Largest force margin a sizing is asked for: a muscle kept at a tenth of its rating.
 pub const FORCE_MARGIN_MAX: f64 = 0.9;
 
+/// How much a closed-loop check in which the patient does not walk under the force limit
+/// raises the margin of the next sizing (`size`): a tenth of the rating, the closed loop's
+/// tolerance ([`crate::tools::CLOSED_LOOP_TOLERANCE`]).
+pub const FORCE_MARGIN_STEP: f64 = 0.1;
+
 /// Whether `d` keeps `force_margin` of its rating and [`MARGIN_MIN`] of the valve's range
 /// and of its useful speed.
 fn keeps(d: &PairDesign, force_margin: f64) -> bool {
