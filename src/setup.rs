@@ -889,8 +889,47 @@ pub fn fit_figures(fit: &pma_leg::GaitFit) -> serde_json::Map<String, serde_json
 
 #[cfg(test)]
 mod tests {
-    use super::in_scenario;
+    use super::{in_scenario, margin_step};
+    use pma_leg::tools::{ClosedLoop, ClosedLoopJoint, FORCE_MARGIN_STEP};
     use pma_leg::LegError;
+
+    /// A closed-loop check of a sizing: one joint at `peak` (servo 0.45, allowed 0.70).
+    fn check(peak: f64, why_not: Option<&str>, limit: Option<f64>) -> ClosedLoop {
+        ClosedLoop {
+            duration_s: 20.0,
+            stated_margin: 0.4,
+            force_margin: 0.4,
+            force_max_of_rating: limit,
+            joints: vec![ClosedLoopJoint {
+                joint: "knee".into(),
+                servo_peak_over_rated: 0.45,
+                peak_over_rated: peak,
+                allowed_over_rated: 0.7,
+            }],
+            walking: Some(why_not.is_none()),
+            why_not: why_not.map(str::to_owned),
+            holds: why_not.is_none() && peak <= 0.7,
+        }
+    }
+
+    /// Issue 46 item 5: what a check that does not hold does to the next sizing. Over its
+    /// allowance: the controller's share is added to the margin. Not walking under a force
+    /// limit: a step, for a larger muscle whose limit leaves more force above the stride.
+    /// Not walking without one: nothing (the controller takes any muscle to its cap).
+    #[test]
+    fn a_check_raises_the_margin_by_what_it_shows() {
+        assert_eq!(margin_step(&check(0.64, None, Some(0.6))), None);
+        let share = margin_step(&check(0.85, None, None)).expect("over: a share");
+        assert!((share - 0.40).abs() < 1e-12, "{share}");
+        assert_eq!(
+            margin_step(&check(0.63, Some("the patient did not walk"), Some(0.6))),
+            Some(FORCE_MARGIN_STEP)
+        );
+        assert_eq!(
+            margin_step(&check(0.99, Some("the patient did not walk"), None)),
+            None
+        );
+    }
 
     /// Issue 49 item 14: a run that left physical bounds (or a supervisor's fault) said so
     /// without naming the scenario that ran.
