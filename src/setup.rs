@@ -720,14 +720,11 @@ impl SizeRun {
             else {
                 break;
             };
-            let Some(step) = margin_step(&check) else {
-                closed_loop.push(check);
+            let step = margin_step(&check);
+            closed_loop.push(check);
+            let Some(step) = step.filter(|_| !stop.load(Ordering::Relaxed)) else {
                 break;
             };
-            closed_loop.push(check);
-            if stop.load(Ordering::Relaxed) {
-                break;
-            }
             let raised = (margin + step).min(pma_leg::tools::FORCE_MARGIN_MAX);
             if raised <= margin {
                 break;

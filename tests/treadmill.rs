@@ -49,6 +49,10 @@ const IDEAL_VALVE: [(&str, &str); 4] = [
     ("gain_set = \"treadmill\"", "gain_set = \"treadmill-ideal\""),
 ];
 
+/// The edit that takes the shipped force limit (`[control] force_max_of_rating`) out of a
+/// treadmill scenario.
+const FORCE_LIMIT_OFF: (&str, &str) = ("force_max_of_rating = 0.85\n", "");
+
 /// `base` (a treadmill scenario's text) as the trainer was before issue 46's real valves:
 /// [`IDEAL_VALVE`]'s edits and the APRC-NDO gains tuned there (the scenario's own gains).
 fn ideal_valve(base: &str) -> String {
@@ -544,8 +548,9 @@ fn size_checks_its_recommendation_in_closed_loop_and_sizes_again_or_says_why_not
     // The trainer's recommendation under its force limit lowered to the margin: it walks
     // within the margin, and the file says which limit to run it with.
     let out = dir.join("m.toml");
-    let args = |scenario: &str| {
-        [
+    let out_path = out.to_str().unwrap();
+    let size = |scenario: &str| {
+        pma_exo(&[
             "size",
             scenario,
             "--strides",
@@ -553,12 +558,11 @@ fn size_checks_its_recommendation_in_closed_loop_and_sizes_again_or_says_why_not
             "--closed-loop-s",
             "8",
             "--out",
-            out.to_str().unwrap(),
+            out_path,
             "--json",
-        ]
-        .map(str::to_owned)
+        ])
     };
-    let run = pma_exo(&args("gait_treadmill").each_ref().map(String::as_str));
+    let run = size("gait_treadmill");
     let err = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(0), "{err}");
     let v: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
@@ -575,16 +579,8 @@ fn size_checks_its_recommendation_in_closed_loop_and_sizes_again_or_says_why_not
     );
     std::fs::remove_file(&out).unwrap();
     // Without a force limit: no walking, no file.
-    let unlimited = scenario_with(
-        &dir,
-        "unlimited.toml",
-        &[("force_max_of_rating = 0.85\n", "")],
-    );
-    let run = pma_exo(
-        &args(unlimited.to_str().unwrap())
-            .each_ref()
-            .map(String::as_str),
-    );
+    let unlimited = scenario_with(&dir, "unlimited.toml", &[FORCE_LIMIT_OFF]);
+    let run = size(unlimited.to_str().unwrap());
     let err = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(1), "{err}");
     assert!(!out.exists());
@@ -735,11 +731,7 @@ fn the_shipped_force_limit_keeps_aprc_ndo_within_0_9_of_the_rating_where_it_went
         assert!(rate <= delivered_bar_s, "{scenario}: {rate} bar/s");
     }
     let dir = temp_dir("force-limit-off");
-    let unlimited = scenario_with(
-        &dir,
-        "unlimited.toml",
-        &[("force_max_of_rating = 0.85\n", "")],
-    );
+    let unlimited = scenario_with(&dir, "unlimited.toml", &[FORCE_LIMIT_OFF]);
     let v = judged(&[
         "simulate",
         unlimited.to_str().unwrap(),

@@ -79,7 +79,7 @@ impl ClosedLoop {
 
 /// The force limit a closed-loop check holds the muscles to, where the scenario sets one:
 /// the share of the rating the stated margin leaves, or the scenario's own where lower.
-pub fn force_limit_of(stated_margin: f64, loaded: &LoadedScenario) -> Option<f64> {
+fn force_limit_of(stated_margin: f64, loaded: &LoadedScenario) -> Option<f64> {
     let scenario = loaded.scenario.control.force_max_of_rating?;
     Some((1.0 - stated_margin).min(scenario))
 }
