@@ -235,7 +235,7 @@ impl Report {
         let mut md = format!(
             "# Commissioning of {} on `{}`\n\n\
              Load {} ({}). Excitation {} s (`excite.csv`{}), identification (`plant.toml`), \
-             robust tuning on {} plants within {} % (`gains.toml` if it won), verification on the rig.\n\n\
+             robust tuning on the identified plant and {} plants within {} % of it (`gains.toml` if it won), verification on the rig.\n\n\
              | run | what ran | RTE (measured position) |\n|---|---|---|\n{}{}{}\n\
              Kept: {kept}.\n\n![tracking](tracking.png)\n\n## Identification\n\n",
             self.kind,
