@@ -667,9 +667,11 @@ fn a_belt_the_reference_does_not_fit_is_refused_before_it_runs() {
 fn the_controllers_walk_both_legs_finite_and_within_their_limits() {
     // 8 s of gait_treadmill per controller, each on its gains tuned on the two legs within
     // the muscles' rating (the 60 s figures are in docs/treadmill.md).
-    // Behind the MPYE-5-1/4 valves (issue 46): every controller holds both legs up for
-    // these 8 s (no collapse), within the joints' limits and the muscles' rating; whether
-    // each tracks within the verdict's 2 deg over 60 s is docs/treadmill.md's table.
+    // Behind the MPYE-5-1/4 valves (issue 46): every controller but PSMC holds both legs
+    // up for these 8 s (no collapse), within the joints' limits and the muscles' rating;
+    // whether each tracks within the verdict's 2 deg over 60 s is docs/treadmill.md's
+    // table. PSMC loses the passive patient at 5.94 s since the valve's dead time is exact
+    // (it held on to 47.99 s when the delay acted a step short): the verdict must say so.
     for c in ["aprc-ndo", "psmc", "ndo-smc", "sta", "pid"] {
         let v = judged(&[
             "simulate",
@@ -684,6 +686,11 @@ fn the_controllers_walk_both_legs_finite_and_within_their_limits() {
         let (rms, over) = worst_rms_and_force(&v);
         let beyond = worst(&v["safety"]["joints"], "max_beyond_deg");
         eprintln!("{c}: worst RMS {rms:.2} deg, peak force / rating {over:.2}, beyond the URDF limits {beyond:.2} deg, walked {}", walked(&v));
+        if c == "psmc" {
+            assert!(!v["walking"]["collapse"].is_null(), "{c}: {}", v["walking"]);
+            assert!(!walked(&v), "{c}: {}", v["walking"]);
+            continue;
+        }
         assert!(v["walking"]["collapse"].is_null(), "{c}: {}", v["walking"]);
         assert!(beyond < 1.0, "{c}: {beyond} deg beyond a limit");
         assert!(over <= 1.0, "{c}: {over} of the rating");
@@ -1217,8 +1224,11 @@ fn a_festo_muscle_off_its_datasheet_is_simulated_and_bad_factors_are_named() {
         &[("[plant.valve]\n", &strong_tables)],
     ));
     assert!(walked(&strong), "{}", strong["walking"]);
+    // A scaling that did not reach the plant gives 1.000 to the bit; PID closes part of
+    // the 20 % (8 s: 1.15 when the valve's dead time acted a step short, 1.096 since it
+    // is exact), so more than a quarter of it is what reaching the plant means here.
     let ratio = peak_force(&strong) / peak_force(&nominal);
-    assert!(ratio > 1.1, "peak force {ratio} times the nominal's");
+    assert!(ratio > 1.05, "peak force {ratio} times the nominal's");
     for m in strong["safety"]["muscles"].as_object().unwrap().values() {
         assert_eq!(m["rated_force_n"], 1500.0, "{m}");
     }
@@ -1434,8 +1444,10 @@ fn envelope_maps_walked_refused_and_failed_cells() {
     for f in ["envelope.json", "envelope.md", "envelope.png"] {
         assert!(dir.join(f).is_file(), "{f}");
     }
-    // A 50 kg patient's feet diverge at the shipped step; at two substeps the cell runs
-    // and gets its verdict (docs/envelope.md: PID there walks or misses on rating only).
+    // A 50 kg patient's feet diverge at the shipped step; at four substeps the cell runs
+    // and gets its verdict. (At two it is on the edge: it diverged at 1.82 s, or ran and
+    // failed on the rating, as the valve's step rounded one way or the other;
+    // docs/convergence.md.)
     let light = |extra: &[&str]| -> serde_json::Value {
         let mut args = vec![
             "envelope",
@@ -1456,7 +1468,7 @@ fn envelope_maps_walked_refused_and_failed_cells() {
         serde_json::from_slice(&out.stdout).expect("JSON")
     };
     assert_eq!(light(&[])["cells"][0]["outcome"], "simulation_failed");
-    let fine = light(&["--physics-substeps", "2"]);
+    let fine = light(&["--physics-substeps", "4"]);
     let c = &fine["cells"][0];
     assert!(
         matches!(c["outcome"].as_str(), Some("walked" | "failed")),

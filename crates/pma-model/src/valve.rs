@@ -5,6 +5,9 @@ use crate::DampingMode;
 /// Shortest command period the dead-time buffer is sized for (s). Commands sent faster
 /// than this with a dead time overwrite the oldest pending command instead of allocating.
 const MIN_COMMAND_PERIOD_S: f64 = 1e-4;
+/// How close to a step's end a delayed command counts as arriving at it (s): a dead time
+/// that is a whole number of steps arrives at a step's end despite rounding.
+const DUE_TOLERANCE_S: f64 = 1e-12;
 
 /// Highest valve pressure accepted (Pa): 10 bar.
 pub const MAX_VALVE_PRESSURE_PA: f64 = 1.0e6;
@@ -224,15 +227,15 @@ impl Valve {
         let Some(flow) = self.params.flow else {
             return self.advance(h_s);
         };
-        self.clock_s += h_s;
-        self.release_due_commands();
-        let mut state = FlowState {
-            pressure_pa: self.pressure_pa,
-            opening: self.opening,
-        };
-        flow.advance(&mut state, self.target_pa, h_s, x_m, v_m_s);
-        self.opening = state.opening;
-        self.set_pressure(state.pressure_pa);
+        self.in_pieces(h_s, |valve, piece| {
+            let mut state = FlowState {
+                pressure_pa: valve.pressure_pa,
+                opening: valve.opening,
+            };
+            flow.advance(&mut state, valve.target_pa, piece, x_m, v_m_s);
+            valve.opening = state.opening;
+            valve.set_pressure(state.pressure_pa);
+        });
     }
 
     /// The spool's opening of a flow-limited valve (-1 exhaust .. 1 supply; 0 otherwise).
@@ -246,12 +249,20 @@ impl Valve {
         if self.params.flow.is_some() {
             return self.advance_at(h_s, 0.0, 0.0);
         }
-        self.clock_s += h_s;
         if self.params.is_instantaneous() {
             // `command` already set the pressure; nothing evolves in between.
+            self.clock_s += h_s;
             return;
         }
-        self.release_due_commands();
+        self.in_pieces(h_s, Self::lag_over);
+    }
+
+    /// The lag model over `h_s` toward the current target (none over `h_s = 0` but a
+    /// valve without lag or rate limit reaching it).
+    fn lag_over(&mut self, h_s: f64) {
+        if h_s <= 0.0 && self.params.time_constant_s > 0.0 {
+            return;
+        }
         let target = self.target_pa;
         let mut next = if self.params.time_constant_s > 0.0 {
             let a = self.lag_factor(h_s);
@@ -264,6 +275,43 @@ impl Valve {
             next = self.pressure_pa + (next - self.pressure_pa).clamp(-max_step, max_step);
         }
         self.set_pressure(next);
+    }
+
+    /// Advances the clock by `h_s`, `evolve` running over each piece of it between the
+    /// instants at which a delayed command arrives: a command takes effect when its dead
+    /// time is over, not at the start of the step it falls in (which shortened the dead
+    /// time by up to a step, an error that moved with the step).
+    fn in_pieces(&mut self, h_s: f64, mut evolve: impl FnMut(&mut Self, f64)) {
+        let end = self.clock_s + h_s;
+        // What is left of the step, counted down from `h_s` itself: a step no command
+        // splits evolves over exactly `h_s` (not `end - clock`, which rounds differently
+        // and would move every lagging valve's trajectory in its last bits).
+        let mut left = h_s;
+        loop {
+            self.release_due_commands();
+            let Some(due) = self.next_due_s().filter(|due| *due < end - DUE_TOLERANCE_S) else {
+                break;
+            };
+            let piece = (due - self.clock_s).clamp(0.0, left);
+            if piece > 0.0 {
+                evolve(self, piece);
+            }
+            left -= piece;
+            self.clock_s = due.max(self.clock_s);
+        }
+        if left > 0.0 {
+            evolve(self, left);
+        }
+        self.clock_s = end;
+        // A command arriving at the step's end: a valve without lag is at it already.
+        if self.release_due_commands() {
+            evolve(self, 0.0);
+        }
+    }
+
+    /// When the oldest command in transit arrives (s), if one is.
+    fn next_due_s(&self) -> Option<f64> {
+        (self.pending_len > 0).then(|| self.pending[self.pending_head].0)
     }
 
     /// `1 - exp(-h / tau)`, recomputed only when the step's length changes (the same
@@ -294,15 +342,21 @@ impl Valve {
         self.pending_len += 1;
     }
 
-    fn release_due_commands(&mut self) {
+    /// Makes every command whose dead time is over the target; whether there was one.
+    fn release_due_commands(&mut self) -> bool {
         let cap = self.pending.len();
+        let mut released = false;
         // A small tolerance so that a dead time that is a whole number of periods releases
         // the command on the period it is due, not one later through rounding.
-        while self.pending_len > 0 && self.pending[self.pending_head].0 <= self.clock_s + 1e-12 {
+        while self.pending_len > 0
+            && self.pending[self.pending_head].0 <= self.clock_s + DUE_TOLERANCE_S
+        {
             self.target_pa = self.pending[self.pending_head].1;
             self.pending_head = (self.pending_head + 1) % cap;
             self.pending_len -= 1;
+            released = true;
         }
+        released
     }
 }
 
@@ -367,6 +421,34 @@ mod tests {
         }
         v.advance(0.001);
         assert_eq!(v.pressure(), 3.0e5);
+    }
+
+    /// Regression: a delayed command took effect at the start of the step its dead time
+    /// ended in, up to a step early (a 2.9 ms tube delay acted as 2 ms at the trainer's
+    /// 1 ms step, 2.875 ms at 1/16 ms), so the loop's delay moved with the step.
+    #[test]
+    fn a_dead_time_is_not_shortened_by_a_coarse_step() {
+        let (tau, dead) = (0.010, 0.0029);
+        let p = ValveParams {
+            dead_time_s: dead,
+            ..ValveParams::ideal().with_lag(tau)
+        };
+        let exact = |t: f64| 3.0e5 * (1.0 - (-(t - dead).max(0.0) / tau).exp());
+        for steps_per_ms in [1, 4, 16] {
+            let h = 1e-3 / f64::from(steps_per_ms);
+            let mut v = Valve::new(p, 0.0).unwrap();
+            v.command(3.0e5);
+            for k in 1..=10 * steps_per_ms {
+                v.advance(h);
+                let t = f64::from(k) * h;
+                assert!(
+                    (v.pressure() - exact(t)).abs() < 1e-6,
+                    "{steps_per_ms} steps/ms, t = {t}: {} against {}",
+                    v.pressure(),
+                    exact(t)
+                );
+            }
+        }
     }
 
     #[test]

@@ -666,13 +666,13 @@ pub fn muscles_toml(muscles: &[MuscleGeometry], header: &str) -> String {
             Side::Extensor => "extensor",
         };
         out.push_str(&format!(
-            "\n[[muscles]]\nname = \"{}\"\njoint = \"{}\"\nside = \"{side}\"\nbody_link = \"{}\"\nanchor_m = [{:.3}, {:.3}, {:.3}]\npulley_radius_m = {:.3}\ncontraction_at_zero_m = {:.5}\n",
+            "\n[[muscles]]\nname = \"{}\"\njoint = \"{}\"\nside = \"{side}\"\nbody_link = \"{}\"\nanchor_m = [{:?}, {:?}, {:?}]\npulley_radius_m = {:?}\ncontraction_at_zero_m = {:?}\n",
             m.name, m.joint, m.body_link, m.anchor_m[0], m.anchor_m[1], m.anchor_m[2],
             m.pulley_radius_m, m.contraction_at_zero_m
         ));
         if let (Some(size), Some(l0)) = (m.size, m.rest_length_m) {
             let name = size.name().to_lowercase();
-            out.push_str(&format!("size = \"{name}\"\nrest_length_m = {l0:.3}\n"));
+            out.push_str(&format!("size = \"{name}\"\nrest_length_m = {l0:?}\n"));
         }
     }
     out
@@ -807,13 +807,11 @@ mod tests {
             let d = j.recommended.expect("a design");
             assert!(d.peak_force_over_rated <= 1.0 - FORCE_MARGIN_MIN, "{d:?}");
         }
-        // The file it writes parses back to the same muscles.
+        // The file it writes parses back to the same muscles, to the bit: a run of the
+        // written file is the closed-loop check's run. (Rounded to 1e-5 m, the unsupported
+        // trainer's check walked 20 s and its file collapsed at 14.40 s.)
         let text = muscles_toml(&muscles, "test");
         let back = crate::plant::parse_muscles(&text, "sized.toml").unwrap();
-        assert_eq!(back.len(), 4);
-        for (a, b) in back.iter().zip(&muscles) {
-            assert_eq!((a.size, a.side), (b.size, b.side));
-            assert!((a.contraction_at_zero_m - b.contraction_at_zero_m).abs() < 1e-5);
-        }
+        assert_eq!(back, muscles);
     }
 }

@@ -1,0 +1,205 @@
+#!/usr/bin/env python3
+"""Check, and on request rewrite, the docs' figures listed in docs/figures.toml.
+
+The same check as `cargo test --test docs_figures` (the test stays the judge), run in
+parallel on a release binary, with two regeneration aids:
+
+  --apply  replaces a stale text in its doc where exactly one place in the doc has the
+           same words with other numbers (a table row, a sentence); anything else is
+           reported for a hand edit;
+  --bless  copies a drawn image over the doc's.
+
+    cargo build --release -p pma-exo --no-default-features
+    python3 tools/figures.py --bin target/release/pma-exo            # fast figures
+    python3 tools/figures.py --bin target/release/pma-exo --slow -j 1 --filter treadmill
+"""
+import argparse
+import concurrent.futures as cf
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import tomllib
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+NUMBER = r"-?\d[\d,]*(?:\.\d+)?"
+
+
+def at(value, path):
+    for key in path.split("."):
+        value = value[int(key)] if key.isdigit() else value[key]
+    return value
+
+
+def expand(template, data):
+    def field(match):
+        expr = match.group(1)
+        if ":." in expr:
+            expr, digits = expr.split(":.")
+            factor = 1.0
+            if "*" in expr:
+                expr, f = expr.split("*")
+                factor = float(f)
+            return f"{float(at(data, expr)) * factor:.{int(digits)}f}"
+        return str(at(data, expr))
+
+    return re.sub(r"\{([^{}]+)\}", field, template)
+
+
+def table_rows(text):
+    lines = text.splitlines()
+    rows = []
+    for i, line in enumerate(lines):
+        header = i + 1 < len(lines) and lines[i + 1].startswith("|---")
+        if line.startswith("| ") and not line.startswith("|---") and not header:
+            rows.append(line)
+    return rows
+
+
+def write_inputs(manifest, work):
+    for f in manifest.get("file", []):
+        with open(os.path.join(ROOT, f["from"])) as fh:
+            text = fh.read()
+        for old, new in f.get("replace", []):
+            if old not in text:
+                sys.exit(f"{f['from']}: no `{old}` (file {f['name']})")
+            text = text.replace(old, new)
+        with open(os.path.join(work, f["name"]), "w") as fh:
+            fh.write(text)
+
+
+def run(binary, command, work, exit_code):
+    args = [a.replace("{dir}", work) for a in command]
+    out = subprocess.run([binary, *args], cwd=work, capture_output=True, text=True)
+    ok = out.returncode == exit_code if exit_code is not None else out.returncode in (0, 3)
+    if not ok:
+        return None, f"exit {out.returncode}, expected {exit_code}: {out.stderr.strip()[-400:]}"
+    lines = out.stdout.strip().splitlines()
+    try:
+        return (json.loads(lines[-1]) if lines else None), None
+    except json.JSONDecodeError:
+        return None, None
+
+
+def expected_texts(figure, data, work):
+    texts = [expand(t, data) for t in figure.get("text", [])]
+    if figure.get("rows_of"):
+        with open(figure["rows_of"].replace("{dir}", work)) as fh:
+            texts += table_rows(fh.read())
+    return texts
+
+
+def skeleton_pattern(expected):
+    """A regex matching `expected` with any number where it has one."""
+    parts = re.split(f"({NUMBER})", expected)
+    return "".join(NUMBER if i % 2 else re.escape(p) for i, p in enumerate(parts))
+
+
+def apply(doc_path, stale):
+    with open(doc_path) as fh:
+        text = fh.read()
+    left = []
+    for expected in stale:
+        matches = list(re.finditer(skeleton_pattern(expected), text))
+        # Among several places, the one sharing the most numbers with the new text
+        # (a row's label, its step), where one alone does.
+        numbers = re.findall(NUMBER, expected)
+        scores = [sum(a == b for a, b in zip(numbers, re.findall(NUMBER, m.group(0))))
+                  for m in matches]
+        best = [m for m, s in zip(matches, scores) if s == max(scores, default=0)]
+        if len(best) == 1:
+            m = best[0]
+            text = text[: m.start()] + expected + text[m.end():]
+        else:
+            left.append((expected, len(matches)))
+    tmp = doc_path + ".tmp"
+    with open(tmp, "w") as fh:
+        fh.write(text)
+    os.replace(tmp, doc_path)
+    return left
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--bin", required=True)
+    p.add_argument("--slow", action="store_true", help="the slow figures instead")
+    p.add_argument("--filter", action="append", default=[],
+                   help="only commands containing this (repeat: all must match)")
+    p.add_argument("--apply", action="store_true")
+    p.add_argument("--bless", action="store_true")
+    p.add_argument("-j", type=int, default=os.cpu_count())
+    a = p.parse_args()
+    binary = os.path.abspath(a.bin)
+    with open(os.path.join(ROOT, "docs/figures.toml"), "rb") as fh:
+        manifest = tomllib.load(fh)
+    work = tempfile.mkdtemp(prefix="pma-exo-figures-")
+    write_inputs(manifest, work)
+
+    def chosen(item):
+        line = " ".join(item["command"])
+        return item.get("slow", False) == a.slow and all(f in line for f in a.filter)
+
+    figures = [f for f in manifest["figure"] if chosen(f)]
+    images = [i for i in manifest.get("image", []) if chosen(i)]
+    stale, failed, checked = {}, [], 0
+    # A command that several figures share runs once (two `paper --out DIR` at once would
+    # refuse each other's directory).
+    runs = {}
+    for item in figures + images:
+        runs.setdefault((tuple(item["command"]), item.get("exit")), []).append(item)
+    # Commands that write a file (`--out`) first: others may read it (`size --out` writes
+    # the muscles a later `simulate` runs).
+    done = []
+    for writes in (True, False):
+        with cf.ThreadPoolExecutor(max_workers=a.j) as pool:
+            jobs = {pool.submit(run, binary, list(cmd), work, code): items
+                    for (cmd, code), items in runs.items() if ("--out" in cmd) == writes}
+            done += [(item, job.result()) for job in cf.as_completed(jobs)
+                     for item in jobs[job]]
+    for item, (data, error) in done:
+        cmd = " ".join(item["command"])
+        if error:
+            failed.append(f"FAILED pma-exo {cmd}: {error}")
+            print(failed[-1], flush=True)
+            continue
+        if "drawn" in item:
+            checked += 1
+            drawn = item["drawn"].replace("{dir}", work)
+            path = os.path.join(ROOT, item["path"])
+            with open(drawn, "rb") as fh:
+                new = fh.read()
+            same = os.path.exists(path) and open(path, "rb").read() == new
+            if a.bless and not same:
+                shutil.copyfile(drawn, path)
+                print(f"{item['path']}: redrawn", flush=True)
+            elif not same:
+                stale.setdefault(item["path"], []).append(None)
+                print(f"{item['path']}: differs from `pma-exo {cmd}`", flush=True)
+            continue
+        with open(os.path.join(ROOT, item["doc"])) as fh:
+            doc = fh.read()
+        for expected in expected_texts(item, data, work):
+            checked += 1
+            if expected not in doc:
+                stale.setdefault(item["doc"], []).append(expected)
+                print(f"{item['doc']}: should say `{expected}` (`pma-exo {cmd}`)", flush=True)
+    n_stale = sum(len(v) for v in stale.values())
+    print(f"{n_stale} of {checked} stale, {len(failed)} failed")
+    if a.apply:
+        for doc, texts in stale.items():
+            texts = [t for t in texts if t is not None]
+            if not texts:
+                continue
+            left = apply(os.path.join(ROOT, doc), texts)
+            print(f"{doc}: {len(texts) - len(left)} applied")
+            for expected, n in left:
+                print(f"  NOT APPLIED ({n} places): `{expected}`")
+    shutil.rmtree(work, ignore_errors=True)
+    return 1 if (n_stale and not a.apply) or failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
