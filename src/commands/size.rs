@@ -35,8 +35,10 @@ pub struct Args {
     /// Seconds of the closed-loop check (0: none): the recommendation run under the
     /// scenario's controller, valves and patient; where its peak force exceeds the servo
     /// figure's margin by more than a tenth of the rating, the muscles are sized again with
-    /// the margin raised by what the controller took (at most three checks).
-    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
+    /// the margin raised by what the controller took (at most three checks). 60 s, the
+    /// walking verdict's run: a marginal loop held 20 s and collapsed at 32 s
+    /// (docs/treadmill.md).
+    #[arg(long, default_value_t = pma_leg::tools::CLOSED_LOOP_DEFAULT_S, allow_negative_numbers = true)]
     closed_loop_s: f64,
     /// Write the servo-driven strides period by period (each leg's angles, servo torques,
     /// ground reaction, ankle, pelvis, slip and contact speed) to a CSV file.

@@ -213,7 +213,7 @@ pub fn pendulum<'py>(
 /// prints (without its provenance): `sizing`, `closed_loop`, `against_norms`, `treadmill`,
 /// `servo_max_error_deg`, `servo_raw_torque_range_nm`.
 #[pyfunction]
-#[pyo3(signature = (scenario = "gait_treadmill", strides = 3, max_length_m = 2.0, force_margin = 0.4, closed_loop_s = 20.0))]
+#[pyo3(signature = (scenario = "gait_treadmill", strides = 3, max_length_m = 2.0, force_margin = 0.4, closed_loop_s = pma_leg::tools::CLOSED_LOOP_DEFAULT_S))]
 pub fn size<'py>(
     py: Python<'py>,
     scenario: &str,

@@ -26,6 +26,12 @@ pub const CLOSED_LOOP_MIN_S: f64 = 4.0;
 /// Longest closed-loop check (s).
 pub const CLOSED_LOOP_MAX_S: f64 = 600.0;
 
+/// The closed-loop check's default length (s): the walking verdict's run (a treadmill
+/// scenario walks 60 s to be said to walk). A marginal loop can hold a shorter check and
+/// collapse later: the unsupported trainer's second design walked 20 s and collapsed at
+/// 32.11 s (docs/treadmill.md).
+pub const CLOSED_LOOP_DEFAULT_S: f64 = 60.0;
+
 /// One joint in the closed loop.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ClosedLoopJoint {

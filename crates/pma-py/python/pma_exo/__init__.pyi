@@ -77,7 +77,7 @@ def size(
     strides: int = 3,
     max_length_m: float = 2.0,
     force_margin: float = 0.4,
-    closed_loop_s: float = 20.0,
+    closed_loop_s: float = 60.0,
 ) -> Dict[str, Any]:
     """The Festo muscles and pulleys a scenario's gait needs (``pma-exo size --json``).
 
