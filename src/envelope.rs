@@ -380,3 +380,33 @@ pub fn lowest_support(cells: &[Cell], mode: &str, speed_m_s: f64, mass_kg: f64) 
         .last()
         .map(|c| c.support)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A run that leaves physical bounds is the simulation's failure, not the patient's: the
+    /// map keeps it apart (the 50 kg cells were, until the foot's inertia was a body's).
+    #[test]
+    fn a_diverging_run_is_the_simulations_failure_not_the_patients() {
+        let p = Point {
+            mass_kg: 50.0,
+            support: 0.5,
+            speed_m_s: 0.5,
+            mode: Mode::Position,
+        };
+        let diverged = anyhow::Error::new(pma_leg::LegError::LeftPhysics {
+            t_s: 0.016,
+            what: "the servo-driven knee: it turns at -52.8 rad/s (bound 50 rad/s)".into(),
+        });
+        let c = Cell::failed(&p, Some(0.4855), &diverged);
+        assert_eq!(c.outcome, Outcome::Unphysical);
+        assert!(
+            c.reasons[0].contains("left physical bounds"),
+            "{:?}",
+            c.reasons
+        );
+        let other = anyhow::anyhow!("the patient did not walk");
+        assert_eq!(Cell::failed(&p, None, &other).outcome, Outcome::Failed);
+    }
+}

@@ -291,15 +291,25 @@ pub const URDF_PATIENT_MASS_KG: f64 = 75.0;
 /// That patient's height (m): segment lengths and centres of mass below.
 pub const URDF_PATIENT_HEIGHT_M: f64 = 1.75;
 
+/// The axis a segment is long along, in its link's frame: its radius of gyration (Winter's,
+/// about the centre of mass in the sagittal plane) holds about the two axes across it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum LongAxis {
+    /// Down the link (thigh, shank): the moments about X and Y.
+    Z,
+    /// Fore-aft (the foot): the moments about Y and Z.
+    X,
+}
+
 /// One leg's human segments (Winter 2009, Table 4.1): link suffix, mass fraction of the
 /// body, centre of mass from the proximal joint and radius of gyration about it (fractions
-/// of the segment's length), the segment's length (fraction of the height). The foot's
-/// centre of mass is its link's own (the foot link is the foot alone), its length 0.152 H
-/// (Drillis and Contini, Winter Fig. 4.1).
-const LEG_SEGMENTS: [(&str, f64, f64, f64, f64); 3] = [
-    ("thigh", 0.100, 0.433, 0.323, 0.245),
-    ("shank", 0.0465, 0.433, 0.302, 0.246),
-    ("foot", 0.0145, f64::NAN, 0.475, 0.152),
+/// of the segment's length), the segment's length (fraction of the height), the axis it is
+/// long along. The foot's centre of mass is its link's own (the foot link is the foot
+/// alone), its length 0.152 H (Drillis and Contini, Winter Fig. 4.1).
+const LEG_SEGMENTS: [(&str, f64, f64, f64, f64, LongAxis); 3] = [
+    ("thigh", 0.100, 0.433, 0.323, 0.245, LongAxis::Z),
+    ("shank", 0.0465, 0.433, 0.302, 0.246, LongAxis::Z),
+    ("foot", 0.0145, f64::NAN, 0.475, 0.152, LongAxis::X),
 ];
 
 /// The patient's leg segments scaled to `body_mass_kg` (issue 47: a 110 kg patient's legs
@@ -307,8 +317,11 @@ const LEG_SEGMENTS: [(&str, f64, f64, f64, f64); 3] = [
 /// `fraction x (body_mass_kg - URDF_PATIENT_MASS_KG)` at the human segment's centre of
 /// mass, with its radius of gyration, combined with the link about their common centre of
 /// mass (parallel axes; a lighter patient removes mass the same way). The height stays
-/// the URDF's: segment lengths and the frame do not move. Only the flexion and roll axes'
-/// moments (`iyy`, `ixx`) change: the axial one does not act in the sagittal plane.
+/// the URDF's: segment lengths and the frame do not move. The segment's own moment changes
+/// about the two axes across it (the thigh's and shank's `ixx`, `iyy`; the foot's `iyy`,
+/// `izz`), the shift of the centre of mass (along Z) about X and Y. A link whose inertia
+/// is left no body's (a moment not positive, or one over the sum of the other two) is an
+/// error naming it: rapier integrates such a link into a divergence.
 pub(crate) fn patient_legs(
     raw: &mut urdf_rs::Robot,
     file: &str,
@@ -320,7 +333,7 @@ pub(crate) fn patient_legs(
         return Ok(());
     }
     for prefix in prefixes {
-        for (segment, fraction, com, gyration, length) in LEG_SEGMENTS {
+        for (segment, fraction, com, gyration, length, long) in LEG_SEGMENTS {
             let name = format!("{prefix}{segment}");
             let link = raw
                 .links
@@ -342,13 +355,35 @@ pub(crate) fn patient_legs(
             let c = (m1 * c1 + dm * c2) / m;
             let shift = m1 * (c1 - c).powi(2) + dm * (c2 - c).powi(2);
             let own = dm * (gyration * length_m).powi(2);
-            i.inertia.iyy += own + shift;
-            i.inertia.ixx += own + shift;
+            let t = &mut i.inertia;
+            t.ixx += shift;
+            t.iyy += shift + own;
+            match long {
+                LongAxis::Z => t.ixx += own,
+                LongAxis::X => t.izz += own,
+            }
             i.origin.xyz[2] = c;
             i.mass.value = m;
+            check_body_inertia(&name, [t.ixx, t.iyy, t.izz], body_mass_kg)
+                .map_err(|why| urdf_err(file, why))?;
         }
     }
     Ok(())
+}
+
+/// Whether a link's principal moments `[ixx, iyy, izz]` (kg m^2) are a body's: each
+/// positive and none over the sum of the other two (the triangle inequality every mass
+/// distribution obeys); the reason otherwise, naming the link and the patient.
+fn check_body_inertia(link: &str, moments: [f64; 3], body_mass_kg: f64) -> Result<(), String> {
+    let [x, y, z] = moments;
+    let body =
+        moments.iter().all(|m| m.is_finite() && *m > 0.0) && x <= y + z && y <= x + z && z <= x + y;
+    if body {
+        return Ok(());
+    }
+    Err(format!(
+        "`{link}` with a {body_mass_kg} kg patient's segment has moments of inertia {x:.4}, {y:.4}, {z:.4} kg m^2 (ixx, iyy, izz), no body's: the link's frame is too light for that patient"
+    ))
 }
 
 /// Adds the patient's trunk (and any leg the model lacks) to the pelvis link: the body
@@ -417,7 +452,7 @@ mod tests {
             assert_eq!((*m, *c), (l.inertial.mass.value, l.inertial.origin.xyz[2]));
         }
         for ((name, m0, _, i0), (_, m1, _, i1)) in base.iter().zip(&heavy) {
-            let (_, fraction, com, k, len) = LEG_SEGMENTS
+            let (_, fraction, com, k, len, _) = LEG_SEGMENTS
                 .iter()
                 .copied()
                 .find(|s| name.ends_with(s.0))
@@ -434,9 +469,57 @@ mod tests {
         let human: f64 =
             heavy.iter().map(|l| l.1).sum::<f64>() - base.iter().map(|l| l.1).sum::<f64>();
         assert!((human - 2.0 * LEG_MASS_FRACTION * 35.0).abs() < 1e-9);
-        // A patient too light for the links' frames is an error naming the link.
+        // A patient too light for the links' frames is an error naming the link (the
+        // thigh's mass goes first).
         let mut raw = parse_urdf(EMBEDDED_TRAINER_URDF, "trainer").unwrap();
         let e = patient_legs(&mut raw, "trainer", -1000.0, &["right_".into()]).unwrap_err();
         assert!(e.to_string().contains("right_thigh"), "{e}");
+    }
+
+    /// Issue 47: a 50 kg patient's simulation left physical bounds within 16 ms, put down
+    /// to the feet's contact. The foot is long fore-aft (X), and its radius of gyration was
+    /// taken off its `ixx` too: below 57 kg that moment went negative (-0.0018 kg m^2 at 50
+    /// kg) and rapier integrated the link into a divergence. Over the range a trainer
+    /// takes (15-200 kg) every link's moments are a body's, and the foot's change about Y
+    /// and Z, not about its long axis.
+    #[test]
+    fn regression_a_light_patients_foot_had_a_negative_moment_of_inertia() {
+        let base = parse_urdf(EMBEDDED_TRAINER_URDF, "trainer").unwrap();
+        let moments = |raw: &urdf_rs::Robot, name: &str| {
+            let t = &raw
+                .links
+                .iter()
+                .find(|l| l.name == name)
+                .unwrap()
+                .inertial
+                .inertia;
+            [t.ixx, t.iyy, t.izz]
+        };
+        for mass_kg in [15.0, 30.0, 50.0, 55.0, 60.0, 110.0, 200.0] {
+            let mut raw = parse_urdf(EMBEDDED_TRAINER_URDF, "trainer").unwrap();
+            patient_legs(&mut raw, "trainer", mass_kg, &["right_".into()]).unwrap();
+            for link in raw.links.iter().filter(|l| l.name.starts_with("right_")) {
+                let m = moments(&raw, &link.name);
+                assert!(
+                    check_body_inertia(&link.name, m, mass_kg).is_ok(),
+                    "{mass_kg} kg: {} {m:?}",
+                    link.name
+                );
+            }
+            let (before, after) = (moments(&base, "right_foot"), moments(&raw, "right_foot"));
+            assert_eq!(before[0], after[0], "{mass_kg} kg: the foot's long axis");
+            let own = 0.0145 * (mass_kg - URDF_PATIENT_MASS_KG) * (0.475 * 0.152 * 1.75f64).powi(2);
+            for axis in [1, 2] {
+                assert!(
+                    (after[axis] - before[axis] - own).abs() < 1e-12,
+                    "{mass_kg} kg: axis {axis}"
+                );
+            }
+        }
+        // What the check refuses: a negative moment, and one over the sum of the others.
+        assert!(check_body_inertia("l", [-0.0018, 0.0116, 0.0174], 50.0).is_err());
+        assert!(check_body_inertia("l", [0.0005, 0.0139, 0.0174], 60.0)
+            .unwrap_err()
+            .contains("`l` with a 60 kg patient's segment"));
     }
 }

@@ -13,8 +13,23 @@ use crate::sim::{build_exo, build_patients};
 /// Stiffness of the joint servos (N m/rad): 1 deg of error for 350 N m; tracking within a
 /// few tenths of a degree on the treadmill (reported as [`Demand::max_error_deg`]).
 pub const SERVO_STIFFNESS_NM_PER_RAD: f64 = 20_000.0;
-/// Damping of the joint servos (N m s/rad): about critical for the knee's inertia.
+/// Damping of the joint servos (N m s/rad) on the legs the URDF was built for (a 75 kg
+/// patient's): about critical for the knee's inertia. A lighter or heavier patient's servos
+/// damp in proportion to the leg's mass ([`servo_damping_nm_s_per_rad`]).
 pub const SERVO_DAMPING_NM_S_PER_RAD: f64 = 150.0;
+
+/// The joint servos' damping for a leg weighing `leg_kg` (frame and patient) where the
+/// URDF's patient's weighs `urdf_leg_kg` (N m s/rad): [`SERVO_DAMPING_NM_S_PER_RAD`] scaled by
+/// the ratio. The servo's damping acts explicitly over the physics step, and its bound
+/// (`c h / I < 2` for an effective inertia `I`) falls with the leg's inertia: the fixed
+/// 150 N m s/rad let a 50 kg patient's servo-driven knee run away within 41 ms (55 kg:
+/// 0.54 s; issue 47). Scaled, every patient keeps the 75 kg patient's distance to the
+/// bound and the same damping per unit of inertia.
+pub fn servo_damping_nm_s_per_rad(leg_kg: f64, urdf_leg_kg: f64) -> f64 {
+    // The ratio first: the URDF's own patient keeps 150 to the bit.
+    SERVO_DAMPING_NM_S_PER_RAD * (leg_kg / urdf_leg_kg)
+}
+
 /// The servos' torques are averaged over this window (s) before they count as the
 /// stride's demand: a muscle behind a valve cannot deliver a transient shorter than the
 /// valve's lag (tens of milliseconds), and the compliant contact's stick-slip makes
@@ -121,6 +136,7 @@ pub fn stride_demand(loaded: &LoadedScenario, strides: usize) -> Result<Demand, 
         .collect();
     let mut ground = TrainerGroundMetrics::new(&exo, start_s);
     let h = exo.substep_s();
+    let damping = leg_servo_damping(loaded, &exo);
     let mut samples = Vec::with_capacity(legs * (((end_s - start_s) / sc.period_s) as usize + 2));
     let mut max_error = [0.0f64; 2];
     for k in 0..periods {
@@ -129,7 +145,7 @@ pub fn stride_demand(loaded: &LoadedScenario, strides: usize) -> Result<Demand, 
         exo.step(|e, sub| {
             let t = t0 + sub as f64 * h;
             PerLeg::from_fn(legs, |leg| {
-                let servo = servo_torques(e, leg, &gaits[leg], t);
+                let servo = servo_torques(e, leg, &gaits[leg], t, damping);
                 let patient_nm = match patients.get_mut(leg) {
                     Some(p) => p.torques(t, e.angles(leg), e.velocities(leg)).total(),
                     None => [0.0; 2],
@@ -147,8 +163,8 @@ pub fn stride_demand(loaded: &LoadedScenario, strides: usize) -> Result<Demand, 
         for leg in 0..legs {
             let (q, qd) = (exo.angles(leg), exo.velocities(leg));
             // A diverging servo run is caught as the closed loop's is: before it turns
-            // into demands of 1e28 N m/kg (issue 47: a 55 kg patient's light foot at one
-            // physics substep).
+            // into demands of 1e28 N m/kg (issue 47: a 55 kg patient's foot, whose moment
+            // of inertia had gone negative, and the 75 kg patient's servo damping).
             let limits = exo.limits_rad(leg);
             for (j, joint) in ["hip", "knee"].iter().enumerate() {
                 if let Some(why) = crate::plant::left_physics(q[j], qd[j], limits[j]) {
@@ -378,8 +394,28 @@ pub fn against_norms(
         .collect()
 }
 
-/// Leg `leg`'s servos' torques at `t_s` (N m): stiff springs and dampers to its reference.
-fn servo_torques(exo: &Exoskeleton, leg: usize, gait: &GaitReference, t_s: f64) -> [f64; 2] {
+/// The servos' damping for `loaded`'s legs (N m s/rad): on a treadmill the patient's legs
+/// weigh what its body mass says (Winter's fractions), and the damping follows their mass.
+fn leg_servo_damping(loaded: &LoadedScenario, exo: &Exoskeleton) -> f64 {
+    let Some(treadmill) = &loaded.scenario.treadmill else {
+        return SERVO_DAMPING_NM_S_PER_RAD;
+    };
+    let i = exo.inertia();
+    let leg_kg = i.thigh.mass_kg + i.shank.mass_kg;
+    let extra_kg = crate::body::LEG_MASS_FRACTION
+        * (treadmill.body_mass_kg - crate::body::URDF_PATIENT_MASS_KG);
+    servo_damping_nm_s_per_rad(leg_kg, leg_kg - extra_kg)
+}
+
+/// Leg `leg`'s servos' torques at `t_s` (N m): stiff springs and dampers (`damping`, N m
+/// s/rad) to its reference.
+fn servo_torques(
+    exo: &Exoskeleton,
+    leg: usize,
+    gait: &GaitReference,
+    t_s: f64,
+    damping: f64,
+) -> [f64; 2] {
     let (q, qd) = (exo.angles(leg), exo.velocities(leg));
     let g = gait.sample(t_s);
     let reference = [
@@ -387,8 +423,7 @@ fn servo_torques(exo: &Exoskeleton, leg: usize, gait: &GaitReference, t_s: f64) 
         (g.knee.angle_rad, g.knee.velocity_rad_s),
     ];
     std::array::from_fn(|j| {
-        SERVO_STIFFNESS_NM_PER_RAD * (reference[j].0 - q[j])
-            + SERVO_DAMPING_NM_S_PER_RAD * (reference[j].1 - qd[j])
+        SERVO_STIFFNESS_NM_PER_RAD * (reference[j].0 - q[j]) + damping * (reference[j].1 - qd[j])
     })
 }
 
@@ -435,5 +470,33 @@ mod tests {
             assert!(relative < 0.03, "joint {j}: {relative}");
         }
         assert!(d.treadmill.is_none());
+    }
+
+    /// Issue 47: a 50 kg patient's servo-driven knee turned at 50.5 rad/s within 41 ms
+    /// (once its foot's inertia was a body's; 14 ms before), under the 75 kg patient's
+    /// servo damping acting explicitly on a lighter leg. Damped in proportion to the leg's
+    /// mass, the stride runs and tracks as the 75 kg patient's does; the URDF's patient
+    /// keeps the shipped damping exactly.
+    #[test]
+    fn regression_a_light_patients_servo_driven_knee_ran_away() {
+        let mut loaded = Scenario::load("gait_treadmill").expect("embedded");
+        let shipped = stride_demand(&loaded, 1).expect("75 kg");
+        let exo = build_exo(&loaded, Mount::default()).expect("trainer");
+        assert_eq!(leg_servo_damping(&loaded, &exo), SERVO_DAMPING_NM_S_PER_RAD);
+        if let Some(t) = loaded.scenario.treadmill.as_mut() {
+            t.body_mass_kg = 50.0;
+        }
+        let exo = build_exo(&loaded, Mount::default()).expect("trainer");
+        let damping = leg_servo_damping(&loaded, &exo);
+        assert!((100.0..120.0).contains(&damping), "{damping}");
+        let light = stride_demand(&loaded, 1).expect("50 kg: the servo-driven stride runs");
+        for j in 0..2 {
+            assert!(
+                light.max_error_deg[j] < 2.0 * shipped.max_error_deg[j].max(0.1),
+                "joint {j}: {} deg against {}",
+                light.max_error_deg[j],
+                shipped.max_error_deg[j]
+            );
+        }
     }
 }
