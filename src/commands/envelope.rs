@@ -284,7 +284,8 @@ fn table(cells: &[Cell], a: &Args, name: &str) -> String {
         });
         let _ = writeln!(
             md,
-            "| {} | {:.2} | {} | {:.2} | {:.0} | {} | {stance} | {} | {} |",
+            // The mass as entered ("80", "79.5"): a perturbed map's cells stay apart.
+            "| {} | {:.2} | {} | {:.2} | {} | {} | {stance} | {} | {} |",
             c.mode,
             c.speed_m_s,
             fig(c.belt_m_s, 4),
@@ -307,7 +308,7 @@ fn table(cells: &[Cell], a: &Args, name: &str) -> String {
                 .map(|&kg| {
                     let lowest = envelope::lowest_support(cells, &mode, v, kg);
                     let figure = lowest.map_or("none".into(), |s| format!("{:.0} %", 100.0 * s));
-                    format!("{kg:.0} kg {figure}")
+                    format!("{kg} kg {figure}")
                 })
                 .collect();
             let _ = writeln!(md, "- {mode}, {v:.2} m/s: {}", per_mass.join(", "));
@@ -431,7 +432,7 @@ fn draw_panel(
     let axis = small.pos(Pos::new(HPos::Center, VPos::Top));
     for (ix, m) in a.mass_kg.iter().enumerate() {
         let x = left + ix as i32 * cw + cw / 2;
-        area.draw_text(&format!("{m:.0} kg"), &axis, (x, h as i32 - bottom + 6))?;
+        area.draw_text(&format!("{m} kg"), &axis, (x, h as i32 - bottom + 6))?;
     }
     area.draw_text(
         "body mass",
