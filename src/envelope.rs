@@ -32,6 +32,8 @@ pub struct CellSettings {
     pub controller: Option<pma_control::ControllerKind>,
     /// Physics substeps per control period.
     pub physics_substeps: Option<u32>,
+    /// The patients' height (m; `None`: the scenario's).
+    pub height_m: Option<f64>,
 }
 
 /// How a cell ended.
@@ -95,6 +97,9 @@ impl Refusal {
 pub struct Cell {
     /// Body mass (kg).
     pub mass_kg: f64,
+    /// Height (m), where the map sets one (`--height-m`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub height_m: Option<f64>,
     /// Support (0-1).
     pub support: f64,
     /// Walking speed (m/s).
@@ -122,6 +127,7 @@ impl Cell {
     fn new(p: &Point, outcome: Outcome) -> Self {
         Self {
             mass_kg: p.mass_kg,
+            height_m: None,
             support: p.support,
             speed_m_s: p.speed_m_s,
             mode: p.mode.control_mode().to_string(),
@@ -192,8 +198,8 @@ pub fn check_base(loaded: &LoadedScenario, arg: &str) -> Result<()> {
     Ok(())
 }
 
-/// `base` set to `p`: the patient's mass, the support (a start's support raised to it),
-/// the belt scaled with the walking speed, the mode.
+/// `base` set to `p`: the patient's mass (and `settings`' height), the support (a start's
+/// support raised to it), the belt scaled with the walking speed and the legs, the mode.
 fn set_point(
     base: &LoadedScenario,
     p: &Point,
@@ -207,11 +213,18 @@ fn set_point(
     let reference_speed = sc.gait.speed_m_per_s.unwrap_or(p.speed_m_s);
     let mut belt = None;
     if let Some(t) = sc.treadmill.as_mut() {
+        // The belt the scenario gives is for its patient's legs; another height's legs
+        // walk the same angles at the same cadence as much faster as they are longer.
+        let height = |h: Option<f64>| h.unwrap_or(pma_leg::body::URDF_PATIENT_HEIGHT_M);
+        let legs = height(settings.height_m) / height(t.height_m);
+        if settings.height_m.is_some() {
+            t.height_m = settings.height_m;
+        }
         t.body_mass_kg = p.mass_kg;
         t.bws_fraction = p.support;
         t.bws_start_fraction = t.bws_start_fraction.map(|s| s.max(p.support));
         let own = t.speed_m_per_s.unwrap_or(reference_speed);
-        let scaled = own * p.speed_m_s / reference_speed;
+        let scaled = own * p.speed_m_s / reference_speed * legs;
         t.speed_m_per_s = Some(scaled);
         belt = Some(scaled);
     }
@@ -232,6 +245,20 @@ fn refusal_of(e: &pma_leg::LegError) -> Refusal {
 
 /// Runs cell `p` of `base` with `settings` for `duration_s` (stopped early by `stop`).
 pub fn run_cell(
+    base: &LoadedScenario,
+    p: &Point,
+    settings: &CellSettings,
+    duration_s: f64,
+    stop: &AtomicBool,
+) -> Cell {
+    Cell {
+        height_m: settings.height_m,
+        ..cell_outcome(base, p, settings, duration_s, stop)
+    }
+}
+
+/// [`run_cell`] before the cell records the settings it ran with.
+fn cell_outcome(
     base: &LoadedScenario,
     p: &Point,
     settings: &CellSettings,

@@ -1490,3 +1490,54 @@ fn envelope_maps_walked_refused_and_failed_cells() {
         assert_eq!(v["provenance"]["controller"], "pid");
     }
 }
+
+/// Issue 47 item 1: a patient's height. The frame's thigh and shank and the patient's
+/// segments take their lengths from it; at the scenario's cadence a 1.50 m and a 1.92 m
+/// patient (75 kg) walk 8 s on the belt scaled with their legs (0.4855 m/s x H / 1.75).
+/// A height outside the adult reference's subjects (1.47-1.92 m) is refused in one line;
+/// a belt far from the one the patient's legs fit names the scaled reference speed.
+#[test]
+fn a_short_and_a_tall_patient_walk_on_their_own_legs() {
+    let dir = temp_dir("height");
+    for h in [1.50, 1.92] {
+        let belt = format!("speed_m_per_s = {:.4}", 0.4855 * h / 1.75);
+        let path = scenario_with(
+            &dir,
+            &format!("h{h}.toml"),
+            &[
+                (
+                    "body_mass_kg = 75.0",
+                    &format!("body_mass_kg = 75.0\nheight_m = {h}"),
+                ),
+                ("speed_m_per_s = 0.4855", &belt),
+            ],
+        );
+        let v = judged(&[
+            "simulate",
+            path.to_str().unwrap(),
+            "--duration",
+            "8",
+            "--json",
+        ]);
+        assert!(walked(&v), "{h} m: {}", v["walking"]);
+    }
+    let short = scenario_with(
+        &dir,
+        "short.toml",
+        &[("body_mass_kg = 75.0", "body_mass_kg = 75.0\nheight_m = 1.2")],
+    );
+    assert_refused(&short, "treadmill.height_m");
+    let off = scenario_with(
+        &dir,
+        "off.toml",
+        &[
+            (
+                "body_mass_kg = 75.0",
+                "body_mass_kg = 75.0\nheight_m = 1.47",
+            ),
+            ("speed_m_per_s = 0.4855", "speed_m_per_s = 0.56"),
+        ],
+    );
+    assert_refused(&off, "0.419 m/s for a patient 1.47 m tall");
+    std::fs::remove_dir_all(&dir).ok();
+}

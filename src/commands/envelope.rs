@@ -46,6 +46,11 @@ pub struct Args {
     /// 100): a finer step for the patients the shipped one cannot simulate.
     #[arg(long)]
     physics_substeps: Option<u32>,
+    /// The patients' height (m, every cell; default the scenario's): the legs scale to it,
+    /// and the belt with them (a taller patient walks the reference's angles at the same
+    /// cadence faster).
+    #[arg(long)]
+    height_m: Option<f64>,
     /// Simulated seconds per cell; at least two strides.
     #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
     duration: f64,
@@ -120,6 +125,14 @@ fn check_args(a: &Args) -> Result<()> {
     if let Some(n) = a.physics_substeps {
         super::check_physics_substeps(n)?;
     }
+    if let Some(h) = a.height_m {
+        check_axis(
+            "--height-m",
+            &[h],
+            pma_leg::ground::PATIENT_HEIGHT_RANGE_M,
+            "the adult reference's subjects' heights (Fukuchi et al. 2018)",
+        )?;
+    }
     if a.modes.is_empty() {
         bail!("--modes: give at least one mode");
     }
@@ -148,6 +161,7 @@ pub fn run(a: Args) -> Result<i32> {
     let settings = envelope::CellSettings {
         controller: a.controller,
         physics_substeps: a.physics_substeps,
+        height_m: a.height_m,
     };
     // A finer step costs about as much more.
     let substeps_factor = f64::from(

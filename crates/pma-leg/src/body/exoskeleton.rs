@@ -8,9 +8,9 @@
 //! the air; [`Mount`]) or slides on a treadmill's harness ([`crate::ground`]).
 use crate::base::{LegError, PerLeg, MAX_LEGS};
 use crate::body::{
-    carried_links, foot_spheres, keep_legs, leg_inertia, leg_prefixes, parse_urdf, patient_legs,
-    patient_on_pelvis, sagittal_chain, urdf_err, visuals_of, JointRef, JointSettings, LegInertia,
-    LegJoints, VisualShape, G,
+    carried_links, foot_spheres, keep_legs, leg_inertia, leg_prefixes, parse_urdf, patient_height,
+    patient_legs, patient_on_pelvis, sagittal_chain, urdf_err, visuals_of, JointRef, JointSettings,
+    LegInertia, LegJoints, VisualShape, G,
 };
 use crate::gait::{GaitReference, StartUp};
 use crate::ground::{
@@ -133,6 +133,8 @@ impl Exoskeleton {
             ));
         }
         keep_legs(&mut raw, &mut prefixes, treadmill.legs);
+        let height_m = treadmill.height_m.unwrap_or(super::URDF_PATIENT_HEIGHT_M);
+        patient_height(&mut raw, file, height_m, &prefixes)?;
         let mut feet = Vec::with_capacity(prefixes.len());
         for p in &prefixes {
             let link = format!("{p}foot");
@@ -140,7 +142,7 @@ impl Exoskeleton {
             feet.push((link, spheres));
         }
         let chain = sagittal_chain(&raw, file, &prefixes[0], feet[0].1.clone())?;
-        patient_legs(&mut raw, file, treadmill.body_mass_kg, &prefixes)?;
+        patient_legs(&mut raw, file, treadmill.body_mass_kg, height_m, &prefixes)?;
         let carried = patient_on_pelvis(&mut raw, file, treadmill.body_mass_kg, prefixes.len())?;
         let mut exo = Self::build(&raw, file, &prefixes, period_s, substeps, Mount::default())?;
         exo.set_joint_dynamics(settings);

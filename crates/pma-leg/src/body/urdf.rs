@@ -316,8 +316,8 @@ const LEG_SEGMENTS: [(&str, f64, f64, f64, f64, LongAxis); 3] = [
 /// weighed what a 75 kg patient's do): each leg link of `prefixes` gains the difference
 /// `fraction x (body_mass_kg - URDF_PATIENT_MASS_KG)` at the human segment's centre of
 /// mass, with its radius of gyration, combined with the link about their common centre of
-/// mass (parallel axes; a lighter patient removes mass the same way). The height stays
-/// the URDF's: segment lengths and the frame do not move. The segment's own moment changes
+/// mass (parallel axes; a lighter patient removes mass the same way), the segment as long
+/// as `height_m` makes it (the frame set to that height first: [`patient_height`]). The segment's own moment changes
 /// about the two axes across it (the thigh's and shank's `ixx`, `iyy`; the foot's `iyy`,
 /// `izz`), the shift of the centre of mass (along Z) about X and Y. A link whose inertia
 /// is left no body's (a moment not positive, or one over the sum of the other two) is an
@@ -326,6 +326,7 @@ pub(crate) fn patient_legs(
     raw: &mut urdf_rs::Robot,
     file: &str,
     body_mass_kg: f64,
+    height_m: f64,
     prefixes: &[String],
 ) -> Result<(), LegError> {
     let extra = body_mass_kg - URDF_PATIENT_MASS_KG;
@@ -341,7 +342,7 @@ pub(crate) fn patient_legs(
                 .find(|l| l.name == name)
                 .ok_or_else(|| urdf_err(file, format!("no link named `{name}`")))?;
             let i = &mut link.inertial;
-            let length_m = length * URDF_PATIENT_HEIGHT_M;
+            let length_m = length * height_m;
             let dm = fraction * extra;
             let (m1, m) = (i.mass.value, i.mass.value + dm);
             if m <= 0.0 {
@@ -369,6 +370,151 @@ pub(crate) fn patient_legs(
         }
     }
     Ok(())
+}
+
+/// A link's mass (kg), centre of mass (m, link frame) and principal moments about it (kg
+/// m^2): the URDF's diagonal inertia.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Body {
+    kg: f64,
+    at: [f64; 3],
+    moments: [f64; 3],
+}
+
+impl Body {
+    fn of(link: &urdf_rs::Link) -> Self {
+        let i = &link.inertial;
+        let t = &i.inertia;
+        Self {
+            kg: i.mass.value,
+            at: i.origin.xyz.0,
+            moments: [t.ixx, t.iyy, t.izz],
+        }
+    }
+
+    fn write_to(self, link: &mut urdf_rs::Link) {
+        let i = &mut link.inertial;
+        i.mass.value = self.kg;
+        i.origin.xyz.0 = self.at;
+        let [x, y, z] = self.moments;
+        (i.inertia.ixx, i.inertia.iyy, i.inertia.izz) = (x, y, z);
+    }
+
+    /// The body stretched by `r` along the axes `axes` (an affine map of its mass
+    /// distribution, mass kept): its centre of mass moves with it, and each central second
+    /// moment `S_kk` along a stretched axis scales by `r^2` (`ixx = S_yy + S_zz`, ...).
+    fn stretched(self, r: f64, axes: [bool; 3]) -> Body {
+        let [ix, iy, iz] = self.moments;
+        let mut s = [
+            0.5 * (iy + iz - ix),
+            0.5 * (ix + iz - iy),
+            0.5 * (ix + iy - iz),
+        ];
+        let mut at = self.at;
+        for k in 0..3 {
+            if axes[k] {
+                s[k] *= r * r;
+                at[k] *= r;
+            }
+        }
+        Body {
+            kg: self.kg,
+            at,
+            moments: [s[1] + s[2], s[0] + s[2], s[0] + s[1]],
+        }
+    }
+}
+
+/// The trainer's legs for a patient `height_m` tall (issue 47: the frame adjusts its thigh
+/// and shank lengths to the patient, as a Lokomat's orthosis does): every sagittal length
+/// of each leg of `prefixes` scales by `r = height_m / URDF_PATIENT_HEIGHT_M` (Winter's
+/// segments are fractions of the height: thigh 0.245 H, shank 0.246 H, foot 0.152 H, ankle
+/// height 0.039 H):
+/// - the knee and ankle joints move down their segments, the pelvis's standing height
+///   (`pelvis_z`) with them;
+/// - the thigh and shank links stretch along their length, their mass kept (the patient's
+///   mass is [`patient_legs`]'s). Both parts stretch alike: the frame's telescoping bar,
+///   and the URDF patient's segment, whose centre of mass (0.433 L) and radius of
+///   gyration (0.302-0.323 L) are fractions of its length, which is exactly its stretch
+///   along Z by `r`;
+/// - the foot (the patient's alone) scales as a body, every moment by `r^2`; its contact
+///   spheres keep their radius, their lowest points on the scaled sole;
+/// - visuals follow.
+///
+/// The hips' spacing stays the frame's. `height_m` equal to the URDF's changes nothing.
+pub(crate) fn patient_height(
+    raw: &mut urdf_rs::Robot,
+    file: &str,
+    height_m: f64,
+    prefixes: &[String],
+) -> Result<(), LegError> {
+    let r = height_m / URDF_PATIENT_HEIGHT_M;
+    if r == 1.0 {
+        return Ok(());
+    }
+    for prefix in prefixes {
+        for joint in ["knee", "ankle"] {
+            let name = format!("{prefix}{joint}");
+            let j = raw
+                .joints
+                .iter_mut()
+                .find(|j| j.name == name)
+                .ok_or_else(|| urdf_err(file, format!("no joint named `{name}`")))?;
+            j.origin.xyz[0] *= r;
+            j.origin.xyz[2] *= r;
+        }
+        for (segment, .., long) in LEG_SEGMENTS {
+            let name = format!("{prefix}{segment}");
+            let link = raw
+                .links
+                .iter_mut()
+                .find(|l| l.name == name)
+                .ok_or_else(|| urdf_err(file, format!("no link named `{name}`")))?;
+            let axes = match long {
+                LongAxis::Z => [false, false, true],
+                LongAxis::X => [true; 3],
+            };
+            let scaled = Body::of(link).stretched(r, axes);
+            check_body_inertia(&name, scaled.moments, URDF_PATIENT_MASS_KG)
+                .map_err(|why| urdf_err(file, why))?;
+            scaled.write_to(link);
+            scale_shapes(link, r);
+        }
+    }
+    let slide = raw
+        .joints
+        .iter_mut()
+        .find(|j| j.name == "pelvis_z")
+        .ok_or_else(|| urdf_err(file, "no joint named `pelvis_z`"))?;
+    slide.origin.xyz[2] *= r;
+    Ok(())
+}
+
+/// A leg link's visuals and contact spheres for a leg `r` times as long: positions in the
+/// sagittal plane and lengths scale; a sphere keeps its radius with its lowest point where
+/// the scaled sole is.
+fn scale_shapes(link: &mut urdf_rs::Link, r: f64) {
+    for v in &mut link.visual {
+        v.origin.xyz[0] *= r;
+        v.origin.xyz[2] *= r;
+        match &mut v.geometry {
+            urdf_rs::Geometry::Cylinder { length, .. } => *length *= r,
+            urdf_rs::Geometry::Box { size } => {
+                size[0] *= r;
+                size[2] *= r;
+            }
+            _ => {}
+        }
+    }
+    for c in &mut link.collision {
+        c.origin.xyz[0] *= r;
+        if let urdf_rs::Geometry::Sphere { radius } = c.geometry {
+            let sole = c.origin.xyz[2] - radius;
+            c.origin.xyz[2] = sole * r + radius;
+        } else {
+            c.origin.xyz[2] *= r;
+        }
+    }
 }
 
 /// Whether a link's principal moments `[ixx, iyy, izz]` (kg m^2) are a body's: each
@@ -424,7 +570,14 @@ mod tests {
     fn legs_of(mass_kg: f64) -> Vec<(String, f64, f64, f64)> {
         let mut raw = parse_urdf(EMBEDDED_TRAINER_URDF, "trainer").unwrap();
         let prefixes = ["right_".to_owned(), "left_".to_owned()];
-        patient_legs(&mut raw, "trainer", mass_kg, &prefixes).unwrap();
+        patient_legs(
+            &mut raw,
+            "trainer",
+            mass_kg,
+            URDF_PATIENT_HEIGHT_M,
+            &prefixes,
+        )
+        .unwrap();
         let mut out = Vec::new();
         for p in &prefixes {
             for s in ["thigh", "shank", "foot"] {
@@ -472,7 +625,14 @@ mod tests {
         // A patient too light for the links' frames is an error naming the link (the
         // thigh's mass goes first).
         let mut raw = parse_urdf(EMBEDDED_TRAINER_URDF, "trainer").unwrap();
-        let e = patient_legs(&mut raw, "trainer", -1000.0, &["right_".into()]).unwrap_err();
+        let e = patient_legs(
+            &mut raw,
+            "trainer",
+            -1000.0,
+            URDF_PATIENT_HEIGHT_M,
+            &["right_".into()],
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("right_thigh"), "{e}");
     }
 
@@ -497,7 +657,14 @@ mod tests {
         };
         for mass_kg in [15.0, 30.0, 50.0, 55.0, 60.0, 110.0, 200.0] {
             let mut raw = parse_urdf(EMBEDDED_TRAINER_URDF, "trainer").unwrap();
-            patient_legs(&mut raw, "trainer", mass_kg, &["right_".into()]).unwrap();
+            patient_legs(
+                &mut raw,
+                "trainer",
+                mass_kg,
+                URDF_PATIENT_HEIGHT_M,
+                &["right_".into()],
+            )
+            .unwrap();
             for link in raw.links.iter().filter(|l| l.name.starts_with("right_")) {
                 let m = moments(&raw, &link.name);
                 assert!(
@@ -521,5 +688,71 @@ mod tests {
         assert!(check_body_inertia("l", [0.0005, 0.0139, 0.0174], 60.0)
             .unwrap_err()
             .contains("`l` with a 60 kg patient's segment"));
+    }
+
+    /// Issue 47: the trainer's frame and the patient's legs kept the URDF's lengths whatever
+    /// the patient's height. At 1.85 m the knee, the ankle and the standing pelvis move
+    /// down by 1.85 / 1.75; each thigh and shank keeps its mass, its centre of mass moves
+    /// with it, and its moment about its joint's flexion axis (`iyy + m c^2`) grows as a
+    /// body stretched along its length does: `S_xx + r^2 (S_zz + m c^2)`, the second
+    /// moments from the URDF's own. The foot scales as a body, its soles on the scaled
+    /// sole (0.039 H below the ankle). The URDF's height leaves everything as it is.
+    #[test]
+    fn a_taller_patients_frame_and_segments_lengthen() {
+        let prefixes = ["right_".to_owned(), "left_".to_owned()];
+        let base = parse_urdf(EMBEDDED_TRAINER_URDF, "trainer").unwrap();
+        let mut same = base.clone();
+        patient_height(&mut same, "trainer", URDF_PATIENT_HEIGHT_M, &prefixes).unwrap();
+        assert_eq!(format!("{same:?}"), format!("{base:?}"));
+        let (h, r) = (1.85, 1.85 / URDF_PATIENT_HEIGHT_M);
+        let mut tall = base.clone();
+        patient_height(&mut tall, "trainer", h, &prefixes).unwrap();
+        let joint_z = |raw: &urdf_rs::Robot, n: &str| {
+            raw.joints.iter().find(|j| j.name == n).unwrap().origin.xyz[2]
+        };
+        for j in ["right_knee", "left_ankle", "pelvis_z"] {
+            assert!(
+                (joint_z(&tall, j) - r * joint_z(&base, j)).abs() < 1e-12,
+                "{j}"
+            );
+        }
+        // Winter's thigh, 0.245 H, within the URDF's rounding (0.429 m for 0.42875).
+        assert!((-joint_z(&tall, "right_knee") / h - 0.245).abs() < 2e-4);
+        let link = |raw: &urdf_rs::Robot, n: &str| {
+            Body::of(raw.links.iter().find(|l| l.name == n).unwrap())
+        };
+        for n in ["right_thigh", "right_shank", "left_thigh", "left_shank"] {
+            let (b, t) = (link(&base, n), link(&tall, n));
+            let [ix, iy, iz] = b.moments;
+            let (sxx, szz) = (0.5 * (iy + iz - ix), 0.5 * (ix + iy - iz));
+            let c = b.at[2];
+            let expected = sxx + r * r * (szz + b.kg * c * c);
+            let got = t.moments[1] + t.kg * t.at[2] * t.at[2];
+            assert_eq!(t.kg, b.kg, "{n}");
+            assert!((t.at[2] - r * c).abs() < 1e-12, "{n}");
+            assert!(
+                (got - expected).abs() < 1e-12,
+                "{n}: {got} against {expected}"
+            );
+            assert!((t.moments[2] - iz).abs() < 1e-12, "{n}: its long axis");
+        }
+        let (b, t) = (link(&base, "right_foot"), link(&tall, "right_foot"));
+        for k in 0..3 {
+            assert!((t.moments[k] - r * r * b.moments[k]).abs() < 1e-12);
+        }
+        let foot = tall.links.iter().find(|l| l.name == "right_foot").unwrap();
+        let spheres = foot_spheres(&tall, "trainer", "right_foot").unwrap();
+        assert_eq!(spheres.len(), foot.collision.len());
+        for c in &foot.collision {
+            let urdf_rs::Geometry::Sphere { radius } = c.geometry else {
+                panic!("a foot contact is a sphere");
+            };
+            assert!((c.origin.xyz[2] - radius + 0.068 * r).abs() < 1e-12);
+        }
+        // Outside the range every link stays a body (checked as it scales).
+        for h in [1.0, 2.5] {
+            let mut raw = base.clone();
+            patient_height(&mut raw, "trainer", h, &prefixes).unwrap();
+        }
     }
 }

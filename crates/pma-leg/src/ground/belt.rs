@@ -526,6 +526,20 @@ mod tests {
         for (bad, field) in [
             (
                 TreadmillSettings {
+                    height_m: Some(1.2),
+                    ..ok
+                },
+                "treadmill.height_m",
+            ),
+            (
+                TreadmillSettings {
+                    height_m: Some(f64::NAN),
+                    ..ok
+                },
+                "treadmill.height_m",
+            ),
+            (
+                TreadmillSettings {
                     speed_m_per_s: Some(-0.5),
                     ..ok
                 },

@@ -148,6 +148,11 @@ pub struct TreadmillSettings {
     /// The patient's body mass (kg): everything above the hips (and a missing leg) rides
     /// on the pelvis.
     pub body_mass_kg: f64,
+    /// The patient's height (m; default the trainer URDF's patient, 1.75 m): the frame's
+    /// thigh and shank, the patient's segments and the feet take their lengths from it
+    /// (Winter's proportions), as a trainer's orthosis is adjusted to the patient.
+    #[serde(default)]
+    pub height_m: Option<f64>,
     /// The support at the start (0-1, at least `bws_fraction`; default: `bws_fraction`):
     /// the harness carries it until `bws_release_s[0]` and lowers it to `bws_fraction` by
     /// `bws_release_s[1]` (the gait's quintic), as a therapist lowers the unloading once
@@ -271,6 +276,12 @@ fn default_fore_aft_damping() -> f64 {
     200.0
 }
 
+/// The heights the trainer's frame adjusts to (m): those of the 42 adults whose walking is
+/// the reference (Fukuchi et al. 2018's `WBDSinfo.xlsx`, 147.0 to 192.0 cm; a copy is
+/// nikorose87/DJS-GA `Fukuchi/meta_info_Fukuchi.csv`). Its angles are theirs, and Winter's
+/// segment proportions, which scale the legs, are adults'.
+pub const PATIENT_HEIGHT_RANGE_M: (f64, f64) = (1.47, 1.92);
+
 /// Plausible patients' masses (kg): a small child to a heavy adult (gait trainers are
 /// rated up to 135-150 kg).
 pub const BODY_MASS_RANGE_KG: (f64, f64) = (15.0, 200.0);
@@ -285,6 +296,7 @@ impl TreadmillSettings {
             speed_m_per_s: None,
             bws_fraction,
             body_mass_kg,
+            height_m: None,
             bws_start_fraction: None,
             bws_release_s: [0.0, 0.0],
             bws: BwsKind::default(),
@@ -375,6 +387,15 @@ impl TreadmillSettings {
             BODY_MASS_RANGE_KG.1,
             "a patient's mass, 15 to 200 kg",
         )?;
+        if let Some(h) = self.height_m {
+            within(
+                "treadmill.height_m",
+                h,
+                PATIENT_HEIGHT_RANGE_M.0,
+                PATIENT_HEIGHT_RANGE_M.1,
+                "the adult reference's subjects' heights, 1.47 to 1.92 m (Fukuchi et al. 2018): the reference's angles are theirs",
+            )?;
+        }
         if self.bws == BwsKind::Spring {
             within(
                 "treadmill.bws_spring_n_per_m",

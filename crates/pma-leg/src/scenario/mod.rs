@@ -17,6 +17,17 @@ use pma_model::error::{non_negative, positive, within};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
+/// What a patient's height does to the belt the reference fits, for an error message.
+fn height_note(height_m: Option<f64>, scaled_m_s: f64) -> String {
+    match height_m {
+        Some(h) if h != crate::body::URDF_PATIENT_HEIGHT_M => format!(
+            ", {scaled_m_s:.3} m/s for a patient {h} m tall at the same cadence (the belt scales with the legs, height / {} m)",
+            crate::body::URDF_PATIENT_HEIGHT_M
+        ),
+        _ => String::new(),
+    }
+}
+
 /// Most physics steps a control period takes (`physics_substeps`).
 pub const PHYSICS_SUBSTEPS_MAX: u32 = 100;
 
@@ -286,14 +297,21 @@ impl Scenario {
         else {
             return Ok(());
         };
-        let recorded = crate::gait::AdultNorms::at(speed)?.speed_m_s;
+        // A leg r times the URDF patient's walks the reference's angles at the same cadence
+        // r times as fast: the belt is compared with the recorded speed so scaled.
+        let r = t
+            .height_m
+            .map_or(1.0, |h| h / crate::body::URDF_PATIENT_HEIGHT_M);
+        let recorded = crate::gait::AdultNorms::at(speed)?.speed_m_s * r;
         let off = (belt / recorded - 1.0).abs();
         pma_model::error::check(
             off <= BELT_SPEED_OFF_REFERENCE_MAX,
             "treadmill.speed_m_per_s",
             belt,
             format!(
-                "has no adult reference: the gait (gait.speed_m_per_s = {speed}) was recorded at {recorded:.3} m/s (Fukuchi et al. 2018), a belt within {:.0} % of it is {:.3} to {:.3} m/s; the data's faster conditions (0.68-1.24 m/s) are not in this repository (docs/envelope.md)",
+                "has no adult reference: the gait (gait.speed_m_per_s = {speed}) was recorded at {:.3} m/s (Fukuchi et al. 2018){}, a belt within {:.0} % of it is {:.3} to {:.3} m/s; the data's faster conditions (0.68-1.24 m/s) are not in this repository (docs/envelope.md)",
+                recorded / r,
+                height_note(t.height_m, recorded),
                 100.0 * BELT_SPEED_OFF_REFERENCE_MAX,
                 recorded * (1.0 - BELT_SPEED_OFF_REFERENCE_MAX),
                 recorded * (1.0 + BELT_SPEED_OFF_REFERENCE_MAX),

@@ -19,15 +19,17 @@ pub const SERVO_STIFFNESS_NM_PER_RAD: f64 = 20_000.0;
 pub const SERVO_DAMPING_NM_S_PER_RAD: f64 = 150.0;
 
 /// The joint servos' damping for a leg weighing `leg_kg` (frame and patient) where the
-/// URDF's patient's weighs `urdf_leg_kg` (N m s/rad): [`SERVO_DAMPING_NM_S_PER_RAD`] scaled by
-/// the ratio. The servo's damping acts explicitly over the physics step, and its bound
+/// URDF's patient's weighs `urdf_leg_kg`, `length_ratio` times as long (N m s/rad):
+/// [`SERVO_DAMPING_NM_S_PER_RAD`] scaled by the legs' inertia ratio, mass times length
+/// squared. The servo's damping acts explicitly over the physics step, and its bound
 /// (`c h / I < 2` for an effective inertia `I`) falls with the leg's inertia: the fixed
 /// 150 N m s/rad let a 50 kg patient's servo-driven knee run away within 41 ms (55 kg:
-/// 0.54 s; issue 47). Scaled, every patient keeps the 75 kg patient's distance to the
-/// bound and the same damping per unit of inertia.
-pub fn servo_damping_nm_s_per_rad(leg_kg: f64, urdf_leg_kg: f64) -> f64 {
+/// 0.54 s), and scaled by mass alone a 1.50 m patient's within 50 ms (issue 47). Scaled,
+/// every patient keeps the 75 kg, 1.75 m patient's distance to the bound and the same
+/// damping per unit of inertia.
+pub fn servo_damping_nm_s_per_rad(leg_kg: f64, urdf_leg_kg: f64, length_ratio: f64) -> f64 {
     // The ratio first: the URDF's own patient keeps 150 to the bit.
-    SERVO_DAMPING_NM_S_PER_RAD * (leg_kg / urdf_leg_kg)
+    SERVO_DAMPING_NM_S_PER_RAD * (leg_kg / urdf_leg_kg) * (length_ratio * length_ratio)
 }
 
 /// The servos' torques are averaged over this window (s) before they count as the
@@ -395,7 +397,8 @@ pub fn against_norms(
 }
 
 /// The servos' damping for `loaded`'s legs (N m s/rad): on a treadmill the patient's legs
-/// weigh what its body mass says (Winter's fractions), and the damping follows their mass.
+/// weigh what its body mass says (Winter's fractions) and are as long as its height says,
+/// and the damping follows their inertia.
 fn leg_servo_damping(loaded: &LoadedScenario, exo: &Exoskeleton) -> f64 {
     let Some(treadmill) = &loaded.scenario.treadmill else {
         return SERVO_DAMPING_NM_S_PER_RAD;
@@ -404,7 +407,10 @@ fn leg_servo_damping(loaded: &LoadedScenario, exo: &Exoskeleton) -> f64 {
     let leg_kg = i.thigh.mass_kg + i.shank.mass_kg;
     let extra_kg = crate::body::LEG_MASS_FRACTION
         * (treadmill.body_mass_kg - crate::body::URDF_PATIENT_MASS_KG);
-    servo_damping_nm_s_per_rad(leg_kg, leg_kg - extra_kg)
+    let length_ratio = treadmill
+        .height_m
+        .map_or(1.0, |h| h / crate::body::URDF_PATIENT_HEIGHT_M);
+    servo_damping_nm_s_per_rad(leg_kg, leg_kg - extra_kg, length_ratio)
 }
 
 /// Leg `leg`'s servos' torques at `t_s` (N m): stiff springs and dampers (`damping`, N m
@@ -495,6 +501,27 @@ mod tests {
                 light.max_error_deg[j] < 2.0 * shipped.max_error_deg[j].max(0.1),
                 "joint {j}: {} deg against {}",
                 light.max_error_deg[j],
+                shipped.max_error_deg[j]
+            );
+        }
+        // The shortest patient the frame takes (1.47 m): damped by mass alone, the knee ran
+        // away within 32 ms; by the leg's inertia (mass times length squared) it runs.
+        if let Some(t) = loaded.scenario.treadmill.as_mut() {
+            t.height_m = Some(1.47);
+            t.speed_m_per_s = t.speed_m_per_s.map(|v| v * 1.47 / 1.75);
+        }
+        let exo = build_exo(&loaded, Mount::default()).expect("trainer");
+        let short = leg_servo_damping(&loaded, &exo);
+        assert!(
+            (short - damping * (1.47f64 / 1.75).powi(2)).abs() < 1e-9,
+            "{short}"
+        );
+        let small = stride_demand(&loaded, 1).expect("50 kg, 1.47 m: the stride runs");
+        for j in 0..2 {
+            assert!(
+                small.max_error_deg[j] < 2.0 * shipped.max_error_deg[j].max(0.1),
+                "joint {j}: {} deg against {}",
+                small.max_error_deg[j],
                 shipped.max_error_deg[j]
             );
         }
