@@ -181,7 +181,8 @@ pub struct LegBudget<'a> {
 /// Tunes `kind`'s gains, shared by every muscle, on the scenarios together (the worst of
 /// their objectives, [`worst_objective`]); `Ok(None)` if `kind` has no search space. The
 /// scenarios must give the controller the same base settings. With a polish the search
-/// starts with a firefly at the scenario's own gains (placed in the box), keeps the best of
+/// starts with a firefly at the scenario's own gains (its APRC-NDO gains, or its gain set's
+/// for another controller; placed in the box), keeps the best of
 /// each firefly and polishes the best point: it never ends on gains worse than those it
 /// started from.
 pub fn tune(
@@ -211,9 +212,17 @@ pub fn tune(
             worst_objective(scenarios, &c, duration_s, weigh)
         })
     };
+    // The search starts from the gains the scenario runs this controller with: its own
+    // APRC-NDO gains, or its gain set's (`control.gain_set`) for the others. From the
+    // controller's defaults instead, a treadmill tuning of PID started from gains that
+    // collapse the patient (the 1000-degree penalty) and ended worse than the shipped set.
+    let own = scenarios
+        .first()
+        .and_then(|s| pma_leg::scenario::scenario_gains(s, kind).ok())
+        .unwrap_or(base);
     let start: Option<Vec<f64>> = space
         .iter()
-        .map(|spec| spec.search.unmap(base.gains().get(spec.name)?))
+        .map(|spec| spec.search.unmap(own.gains().get(spec.name)?))
         .collect();
     let start_objective = start.as_deref().map_or(FAILED_RUN, cost);
     // Without a polish, the plain search (the one the shipped in-air gains came from, so
@@ -325,5 +334,46 @@ mod tests {
             &stop,
         );
         assert_eq!(r, Err(TuneError::NoScenario));
+    }
+
+    /// Issue 46 item 6: a tuning must not end worse than the gains it could have started
+    /// from. `tune-leg gait_treadmill --controller pid --polish 200` started from PID's
+    /// defaults, which collapse the patient (objective 1000), and ended at 2.8098 where the
+    /// shipped treadmill set scores under 2. The search now starts from the gains the
+    /// scenario runs the controller with (its gain set's): its start is theirs.
+    #[test]
+    fn a_tuning_starts_from_the_scenarios_gain_set() {
+        let scenarios = [loaded("gait_treadmill")];
+        let stop = std::sync::atomic::AtomicBool::new(false);
+        let weigh = LegObjective::default();
+        let duration_s = 4.0;
+        let shipped = pma_leg::scenario::scenario_gains(&scenarios[0], ControllerKind::Pid)
+            .expect("the treadmill gain set has PID");
+        assert_ne!(shipped, ControllerKind::Pid.default_config());
+        let tuning = tune(
+            &scenarios,
+            ControllerKind::Pid,
+            &LegBudget {
+                firefly: FireflyOptions {
+                    population: 1,
+                    generations: 0,
+                    ..FireflyOptions::default()
+                },
+                polish_evaluations: 1,
+                progress: None,
+            },
+            duration_s,
+            &weigh,
+            &stop,
+        )
+        .expect("one base")
+        .expect("PID has gains to search");
+        let own = worst_objective(&scenarios, &shipped, duration_s, &weigh);
+        assert!(
+            (tuning.start_objective - own).abs() < 1e-9,
+            "{} against the gain set's {own}",
+            tuning.start_objective
+        );
+        assert!(tuning.objective <= own, "{} > {own}", tuning.objective);
     }
 }
