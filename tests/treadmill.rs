@@ -1520,6 +1520,7 @@ fn a_short_and_a_tall_patient_walk_on_their_own_legs() {
             "--json",
         ]);
         assert!(walked(&v), "{h} m: {}", v["walking"]);
+        assert_eq!(v["treadmill"]["height_m"].as_f64(), Some(h));
     }
     let short = scenario_with(
         &dir,

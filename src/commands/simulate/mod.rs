@@ -639,10 +639,11 @@ fn print_verdict(v: &pma_leg::WalkingVerdict) -> Result<()> {
 /// reaction, slip and heel strikes.
 fn print_treadmill(t: &pma_leg::TreadmillReport) -> Result<()> {
     say!(
-        "  treadmill: {} leg(s), belt {} m/s, body-weight support {:.0} % (body weight BW = {:.0} N; the system weighs {:.2} BW); the belt carries {} BW on average (a virtual other leg {} BW) against {:.3} BW expected",
+        "  treadmill: {} leg(s), belt {} m/s, body-weight support {:.0} % (a {} m patient, body weight BW = {:.0} N; the system weighs {:.2} BW); the belt carries {} BW on average (a virtual other leg {} BW) against {:.3} BW expected",
         t.legs,
         fig(t.belt_speed_m_s, 3),
         100.0 * t.bws_fraction,
+        fig(t.height_m, 2),
         t.body_weight_n,
         t.system_weight_bw,
         fig(t.mean_belt_load_bw, 3),

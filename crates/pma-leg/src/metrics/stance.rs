@@ -173,6 +173,8 @@ pub struct TreadmillReport {
     pub bws_fraction: f64,
     /// The patient's body weight (N): the unit of the GRF figures (`*_bw`).
     pub body_weight_n: f64,
+    /// The patient's height (m; the frame's legs are adjusted to it).
+    pub height_m: f64,
     /// The system's weight over the patient's (exoskeleton included).
     pub system_weight_bw: f64,
     /// Legs on the belt.
@@ -613,6 +615,7 @@ pub struct TrainerGroundMetrics {
     belt_speed_m_s: f64,
     bws_fraction: f64,
     body_weight_n: f64,
+    height_m: f64,
     system_weight_n: f64,
     legs: usize,
     time_s: f64,
@@ -650,11 +653,16 @@ impl TrainerGroundMetrics {
             }
             None => (false, 0.0, 0.0, 1.0, 1.0),
         };
+        let height_m = exo
+            .ground()
+            .and_then(|g| g.settings().height_m)
+            .unwrap_or(crate::body::URDF_PATIENT_HEIGHT_M);
         Self {
             measured_from_s,
             belt_speed_m_s: speed,
             bws_fraction: bws,
             body_weight_n: body,
+            height_m,
             system_weight_n: system,
             legs: exo.leg_count(),
             time_s: 0.0,
@@ -692,6 +700,7 @@ impl TrainerGroundMetrics {
             },
             bws_fraction: self.bws_fraction,
             body_weight_n: bw,
+            height_m: self.height_m,
             system_weight_bw: self.system_weight_n / bw,
             legs: self.legs,
             mean_belt_load_bw: per(self.belt_impulse_n_s) / bw,
