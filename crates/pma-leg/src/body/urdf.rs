@@ -86,6 +86,30 @@ fn find_joint<'a>(
         .ok_or_else(|| urdf_err(file, format!("no joint named `{name}`")))
 }
 
+fn find_link_mut<'a>(
+    robot: &'a mut urdf_rs::Robot,
+    name: &str,
+    file: &str,
+) -> Result<&'a mut urdf_rs::Link, LegError> {
+    robot
+        .links
+        .iter_mut()
+        .find(|l| l.name == name)
+        .ok_or_else(|| urdf_err(file, format!("no link named `{name}`")))
+}
+
+fn find_joint_mut<'a>(
+    robot: &'a mut urdf_rs::Robot,
+    name: &str,
+    file: &str,
+) -> Result<&'a mut urdf_rs::Joint, LegError> {
+    robot
+        .joints
+        .iter_mut()
+        .find(|j| j.name == name)
+        .ok_or_else(|| urdf_err(file, format!("no joint named `{name}`")))
+}
+
 fn link_inertia(robot: &urdf_rs::Robot, name: &str, file: &str) -> Result<LinkInertia, LegError> {
     let i = &find_link(robot, name, file)?.inertial;
     Ok(LinkInertia {
@@ -336,11 +360,7 @@ pub(crate) fn patient_legs(
     for prefix in prefixes {
         for (segment, fraction, com, gyration, length, long) in LEG_SEGMENTS {
             let name = format!("{prefix}{segment}");
-            let link = raw
-                .links
-                .iter_mut()
-                .find(|l| l.name == name)
-                .ok_or_else(|| urdf_err(file, format!("no link named `{name}`")))?;
+            let link = find_link_mut(raw, &name, file)?;
             let i = &mut link.inertial;
             let length_m = length * height_m;
             let dm = fraction * extra;
@@ -455,21 +475,13 @@ pub(crate) fn patient_height(
     for prefix in prefixes {
         for joint in ["knee", "ankle"] {
             let name = format!("{prefix}{joint}");
-            let j = raw
-                .joints
-                .iter_mut()
-                .find(|j| j.name == name)
-                .ok_or_else(|| urdf_err(file, format!("no joint named `{name}`")))?;
+            let j = find_joint_mut(raw, &name, file)?;
             j.origin.xyz[0] *= r;
             j.origin.xyz[2] *= r;
         }
         for (segment, .., long) in LEG_SEGMENTS {
             let name = format!("{prefix}{segment}");
-            let link = raw
-                .links
-                .iter_mut()
-                .find(|l| l.name == name)
-                .ok_or_else(|| urdf_err(file, format!("no link named `{name}`")))?;
+            let link = find_link_mut(raw, &name, file)?;
             let axes = match long {
                 LongAxis::Z => [false, false, true],
                 LongAxis::X => [true; 3],
@@ -481,12 +493,7 @@ pub(crate) fn patient_height(
             scale_shapes(link, r);
         }
     }
-    let slide = raw
-        .joints
-        .iter_mut()
-        .find(|j| j.name == "pelvis_z")
-        .ok_or_else(|| urdf_err(file, "no joint named `pelvis_z`"))?;
-    slide.origin.xyz[2] *= r;
+    find_joint_mut(raw, "pelvis_z", file)?.origin.xyz[2] *= r;
     Ok(())
 }
 
