@@ -439,6 +439,9 @@ fn paper_writes_results_report_and_plots() {
     }
     // Shocks, measured (docs/results.md), with margins. PSMC recovers from the release
     // without overshoot, as Kikuuwe et al. claim; PID's wound-up integral overshoots.
+    // PSMC's settling time is its tuning's draw (0.73 s on the old four-substep plant's
+    // gains, 2.26 s on the exact step's: docs/results.md, "The ranking on the converged
+    // plant"): what is asserted is that it settles within the event's 3 s window.
     let on = |c: &str, gains: &str, plant: &str, ev: &str| {
         group(
             &v,
@@ -457,7 +460,7 @@ fn paper_writes_results_report_and_plots() {
     );
     assert!(psmc["overshoot_worst_m"].as_f64().unwrap() < 1e-3, "{psmc}");
     assert!(
-        psmc["settling_worst_s"].as_f64().is_some_and(|s| s < 1.5),
+        psmc["settling_worst_s"].as_f64().is_some_and(|s| s < 3.0),
         "{psmc}"
     );
     let pid = event(

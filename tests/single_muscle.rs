@@ -179,7 +179,10 @@ fn closed_loop_converges_under_plant_step_refinement() {
     let run = |substeps: Option<u32>| {
         let mut p = plant.clone();
         match substeps {
-            Some(n) => p.substeps_per_period = n,
+            Some(n) => {
+                p.substeps_per_period = n;
+                p.exact_held_pressure_step = false;
+            }
             None => p.exact_held_pressure_step = true,
         }
         let mut xs = Vec::with_capacity(20_000);

@@ -30,11 +30,11 @@ pub struct BenchState {
 ///
 /// Integration: with the damping pole `b/m ~ 3000 1/s` at 2 kg, explicit Euler at the
 /// 1 ms control period diverges. With the exact step on (the plant file's
-/// `exact_held_pressure_step`), where the pressure is held over a period (an instantaneous
+/// `exact_held_pressure_step`, the default), where the pressure is held over a period (an instantaneous
 /// valve) and nothing else acts on the load, the muscle is a linear oscillator with
 /// constant coefficients over it, and the period is one exact step ([`held_pressure_step`];
-/// a load step inside the period takes effect at the next one). Otherwise (the default, a
-/// lagging or delayed valve, a force pulse, an obstacle, a muscle slack at either end of
+/// a load step inside the period takes effect at the next one). Otherwise (the exact step
+/// off, a lagging or delayed valve, a force pulse, an obstacle, a muscle slack at either end of
 /// the period) it is split into `substeps` steps of the trapezoidal rule, which is
 /// A-stable and second order; since the force is affine in `(x, xdot)` for a given
 /// pressure, its implicit equation is solved in closed form. Where the end-of-step force
@@ -491,6 +491,7 @@ mod tests {
             (
                 MuscleBench::at_rest(&ideal(), 0.0)
                     .unwrap()
+                    .with_exact_step(false)
                     .with_substeps(8),
                 1e-8,
             ),

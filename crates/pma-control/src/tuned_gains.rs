@@ -5,36 +5,36 @@
 use crate::{NdoSmcGains, PidGains, PsmcGains, StaGains};
 
 pub const PSMC: PsmcGains = PsmcGains {
-    kp_pa_per_m: 505618338.85082376,
-    ki_pa_per_m_s: 17498350718.0908,
-    kd_pa_s_per_m: 2077625.7090530156,
-    h_s: 0.06111720275485294,
-    force_max_pa: 448244.74660211307,
-    bias_pa: 82960.61192788072,
-    estimator_bandwidth_rad_s: 679.0019383855173,
+    kp_pa_per_m: 410145136.6055933,
+    ki_pa_per_m_s: 20926284878.37529,
+    kd_pa_s_per_m: 2818311.9227816523,
+    h_s: 0.047076135467480865,
+    force_max_pa: 187732.38837251614,
+    bias_pa: 56985.610074174234,
+    estimator_bandwidth_rad_s: 421.20052173185553,
 };
 
 pub const NDO_SMC: NdoSmcGains = NdoSmcGains {
-    c1_per_s: 1013.5476544326593,
-    c2_per_s2: 202.43747793715485,
-    k_per_s: 2.478735556217931,
-    eta_m_s2: 67.61821286289195,
-    phi_m_s: 0.02547440502880739,
-    kappa_per_s: 130.9650013168088,
-    estimator_bandwidth_rad_s: 927.9027446036076,
+    c1_per_s: 4345.289147095269,
+    c2_per_s2: 688.9135217692794,
+    k_per_s: 1.9464464164458795,
+    eta_m_s2: 36.8940674259651,
+    phi_m_s: 0.06080984892249456,
+    kappa_per_s: 165.44730392394865,
+    estimator_bandwidth_rad_s: 999.9999999999998,
 };
 
 pub const STA: StaGains = StaGains {
-    c1_per_s: 1539.7386484396695,
+    c1_per_s: 1373.2338812152311,
     k1: 100.00000000000013,
-    k2: 170.12005953607198,
+    k2: 166.8816387528614,
     estimator_bandwidth_rad_s: 999.9999999999998,
 };
 
 pub const PID: PidGains = PidGains {
-    kp_pa_per_m: 1228049836.6796277,
-    ki_pa_per_m_s: 26366270155.216225,
-    kd_pa_s_per_m: 2267.703875934215,
-    estimator_bandwidth_rad_s: 543.4150358349519,
+    kp_pa_per_m: 1081891546.6254396,
+    ki_pa_per_m_s: 24101111748.72039,
+    kd_pa_s_per_m: 190.52099358330702,
     bias_pa: 0.0,
+    estimator_bandwidth_rad_s: 898.1855265741523,
 };
