@@ -20,31 +20,37 @@ X0 = 0.015  # where the paper's sine starts, as `single` puts the load
 
 
 class Pid:
-    """models/gains/muscle/pid.toml's gains, a backward-difference velocity."""
+    """models/gains/muscle/pid.toml's gains, a backward-difference velocity, and the Rust
+    PID's conditional integration (no integrating into a saturated command)."""
 
-    kp, ki, kd, bias = 1228049836.6796277, 26366270155.216225, 2267.703875934215, 76156.58607941808
+    kp, ki, kd, bias = 1081891546.6254396, 24101111748.72039, 190.52099358330702, 0.0
 
-    def __init__(self, resting_pa, x0, period):
+    def __init__(self, resting_pa, x0, period, p_max):
         self.integral = (resting_pa - self.bias) / self.ki
-        self.previous, self.period = x0, period
+        self.previous, self.period, self.p_max = x0, period, p_max
+        self.saturated = 0
 
     def __call__(self, x_ref, v_ref, x):
         e = x_ref - x
-        self.integral += e * self.period
+        if not (self.saturated * e > 0):
+            self.integral += e * self.period
         v = (x - self.previous) / self.period
         self.previous = x
-        return self.bias + self.kp * e + self.ki * self.integral + self.kd * (v_ref - v)
+        u = self.bias + self.kp * e + self.ki * self.integral + self.kd * (v_ref - v)
+        self.saturated = 1 if u > self.p_max else (-1 if u < 0.0 else 0)
+        return min(max(u, 0.0), self.p_max)
 
 
 def python_pid_on_bench(periods):
     bench = pma_exo.Bench("ideal", position=X0)
     x = bench.reset()
-    pid, p_max, dt = Pid(bench.command, x, bench.period), bench.limits["pressure_max_pa"], bench.period
+    p_max, dt = bench.limits["pressure_max_pa"], bench.period
+    pid = Pid(bench.command, x, dt, p_max)
     start = time.perf_counter()
     for k in range(1, periods + 1):
         t = k * dt
         u = pid(X0 + 0.015 * math.sin(W * t), 0.015 * W * math.cos(W * t), x)
-        bench.write(min(max(u, 0.0), p_max))
+        bench.write(u)
         x = bench.step()
     return periods / (time.perf_counter() - start)
 

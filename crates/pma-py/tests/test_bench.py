@@ -8,33 +8,39 @@ import pma_exo
 
 
 class Pid:
-    """The gains of models/gains/muscle/pid.toml, a backward-difference velocity."""
+    """The gains of models/gains/muscle/pid.toml, a backward-difference velocity, and the
+    Rust PID's conditional integration: no integrating into a saturated command (without
+    it the load winds past the supervisor's window on the exact plant step)."""
 
-    kp, ki, kd, bias = 1228049836.6796277, 26366270155.216225, 2267.703875934215, 76156.58607941808
+    kp, ki, kd, bias = 1081891546.6254396, 24101111748.72039, 190.52099358330702, 0.0
 
-    def __init__(self, resting_pa, x0, period):
+    def __init__(self, resting_pa, x0, period, p_max):
         self.integral = (resting_pa - self.bias) / self.ki
-        self.previous, self.period = x0, period
+        self.previous, self.period, self.p_max = x0, period, p_max
+        self.saturated = 0
 
     def __call__(self, x_ref, v_ref, x):
         e = x_ref - x
-        self.integral += e * self.period
+        if not (self.saturated * e > 0):
+            self.integral += e * self.period
         v = (x - self.previous) / self.period
         self.previous = x
-        return self.bias + self.kp * e + self.ki * self.integral + self.kd * (v_ref - v)
+        u = self.bias + self.kp * e + self.ki * self.integral + self.kd * (v_ref - v)
+        self.saturated = 1 if u > self.p_max else (-1 if u < 0.0 else 0)
+        return min(max(u, 0.0), self.p_max)
 
 
 def test_a_python_pid_tracks_the_paper_sine():
     bench = pma_exo.Bench(plant="ideal")
     x = bench.reset()
-    pid = Pid(bench.command, x, bench.period)
     p_max = bench.limits["pressure_max_pa"]
+    pid = Pid(bench.command, x, bench.period, p_max)
     w = 2 * math.pi * 0.25
     errors = []
     for k in range(1, 8001):
         t = k * bench.period
         x_ref, v_ref = 0.015 - 0.015 * math.cos(w * t), 0.015 * w * math.sin(w * t)
-        bench.write(min(max(pid(x_ref, v_ref, x), 0.0), p_max))
+        bench.write(pid(x_ref, v_ref, x))
         x = bench.step()
         errors.append(abs(0.015 - 0.015 * math.cos(w * bench.time) - bench.state()["position_m"]))
     assert bench.time == pytest.approx(8.0)
