@@ -307,16 +307,30 @@ fn interruptible<T: Send>(
     what: &str,
     work: impl FnOnce(&AtomicBool) -> T + Send,
 ) -> PyResult<T> {
+    use std::sync::mpsc::{channel, RecvTimeoutError};
     let stop = AtomicBool::new(false);
+    // The worker says when it ends, so that a call returns when its work does: waiting out
+    // a whole poll instead added up to 20 ms to every call (a 20 s bench run takes 3 ms).
+    // A panicking worker drops its sender: the wait ends as well.
+    let (done, mut finished) = channel::<()>();
     std::thread::scope(|s| {
-        let worker = s.spawn(|| work(&stop));
-        while !worker.is_finished() {
+        let stop = &stop;
+        let worker = s.spawn(move || {
+            let out = work(stop);
+            let _ = done.send(());
+            out
+        });
+        loop {
             if let Err(e) = py.check_signals() {
                 stop.store(true, std::sync::atomic::Ordering::Relaxed);
                 let _ = worker.join();
                 return Err(e);
             }
-            py.detach(|| std::thread::sleep(SIGNAL_POLL));
+            let (waited, rx) = py.detach(move || (finished.recv_timeout(SIGNAL_POLL), finished));
+            finished = rx;
+            if waited != Err(RecvTimeoutError::Timeout) {
+                break;
+            }
         }
         worker
             .join()
