@@ -521,6 +521,19 @@ fn simulate_prints_the_gait_metrics_as_json() {
                 "joints.{joint}.{key} in {v}"
             );
         }
+        // 3.2 s is two strides of 1.6 s: the one whole stride after the first is the
+        // whole of what the run's RMS covers.
+        let j = &v["joints"][joint];
+        let s = &j["per_stride"];
+        assert_eq!(s["strides"], 1, "{j}");
+        let rms = j["rms_deg"].as_f64().unwrap();
+        for key in ["median_deg", "p90_deg", "max_deg"] {
+            let x = s[key].as_f64().unwrap();
+            assert!(
+                (x - rms).abs() <= 1e-9 * rms.max(1.0),
+                "{key} {x} against {rms}"
+            );
+        }
     }
     for m in ["hip_flexor", "hip_extensor", "knee_flexor", "knee_extensor"] {
         for key in ["p_min_pa", "p_max_pa", "slack_s"] {

@@ -33,8 +33,8 @@ pub use control::{
 };
 pub use metrics::{
     FootMetrics, FootReport, JointStats, LegMetrics, LegPeriod, LegRecorder, LegReport,
-    MuscleStats, OnLeg, PatientMetrics, PatientReport, SafetyReport, SpasmReport, TreadmillReport,
-    WalkingCriteria, WalkingVerdict,
+    MuscleStats, OnLeg, PatientMetrics, PatientReport, SafetyReport, SpasmReport, StrideSpread,
+    TreadmillReport, WalkingCriteria, WalkingVerdict,
 };
 pub use patient::{Patient, PatientSettings, PatientTorques, SpasmEvent};
 pub use plant::{

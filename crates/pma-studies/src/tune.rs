@@ -617,14 +617,30 @@ pub fn tune_robust(
     ))
 }
 
-/// [`tune_robust`] around the plant known best (a rig's identified one): first tuned on
-/// `center` alone from `starts`, then on `center` and `plants` from `starts` and that
-/// result. A search on the drawn plants alone can settle on a detuned set: on the
-/// `realistic` rig's identified plant, three seeds in ten ended on sets tracking at 52-54 %
-/// RTE within 12 bar/s, where the set tuned on the centre first led the robust search to
-/// 0.2-0.3 mm of mean IAE on every one of them (docs/commissioning.md). `center` is among
-/// the plants scored, so the gains kept are feasible on the plant the rig will be told.
-/// The scores returned are `center`'s first, then `plants`' in order.
+/// The shares of the variation budget the searches on the centre alone keep to in
+/// [`tune_robust_around`]. A set tuned on the identified plant to the budget's edge leaves
+/// the budget (or the rig's window) on most plants 10 % away; sets tuned within 0.8 and
+/// 0.6 of it start the robust search from other corners (docs/commissioning.md).
+pub const CENTRED_BUDGET_SHARES: [f64; 3] = [1.0, 0.8, 0.6];
+
+/// Independent searches [`tune_robust_around`] makes (optimiser seeds `seed`, `seed +
+/// 7919`, ...), keeping the best. One search of 20 fireflies x 40 generations ends in a
+/// detuned basin in about one commissioning in three to one in two on the `realistic`
+/// rig; the best of three kept tuned gains for 9 and 7 of 10 seeds on two identified
+/// plants, where one search did for 8 and 4 (docs/commissioning.md).
+pub const ROBUST_SEARCHES: usize = 3;
+
+/// [`tune_robust`] around the plant known best (a rig's identified one), as
+/// [`ROBUST_SEARCHES`] independent searches, the best kept (feasible first, then the lower
+/// aggregated IAE). Each is first tuned on `center` alone from `starts`, once within each
+/// of [`CENTRED_BUDGET_SHARES`] of the budget (once without a budget), then on `center`
+/// and `plants` from `starts` and those results. A search on the drawn plants alone can
+/// settle on a detuned set: on the `realistic` rig's identified plant, three seeds in ten
+/// ended on sets tracking at 52-54 % RTE within 12 bar/s, where the set tuned on the
+/// centre first led the robust search to 0.2-0.3 mm of mean IAE on every one of them
+/// (docs/commissioning.md). `center` is among the plants scored, so the gains kept are
+/// feasible on the plant the rig will be told. The scores returned are `center`'s first,
+/// then `plants`' in order.
 pub fn tune_robust_around(
     kind: ControllerKind,
     (center, plants): (&PlantConfig, &[PlantConfig]),
@@ -634,31 +650,70 @@ pub fn tune_robust_around(
     starts: &[ControllerConfig],
     stop: &AtomicBool,
 ) -> Option<(TuneResult, Vec<Score>)> {
-    let centred = tune_robust(
-        kind,
-        std::slice::from_ref(center),
-        aggregate,
-        opts,
-        objective,
-        starts,
-        stop,
-    )?;
-    let mut all_starts = starts.to_vec();
-    all_starts.push(centred.0.config);
-    let mut all_plants = Vec::with_capacity(plants.len() + 1);
-    all_plants.push(center.clone());
-    all_plants.extend_from_slice(plants);
-    let (mut result, scores) = tune_robust(
-        kind,
-        &all_plants,
-        aggregate,
-        opts,
-        objective,
-        &all_starts,
-        stop,
-    )?;
-    result.evaluations += centred.0.evaluations;
-    Some((result, scores))
+    // One search: on the centre alone within each share of the budget, then on every
+    // plant from those results and `starts`.
+    let search_around = |opts: &FireflyOptions| -> Option<(TuneResult, Vec<Score>)> {
+        let shares: &[f64] = match objective.max_variation_pa_per_s {
+            Some(_) => &CENTRED_BUDGET_SHARES,
+            None => &[1.0],
+        };
+        let mut all_starts = starts.to_vec();
+        let mut centred_evaluations = 0;
+        for share in shares {
+            let within_share = Objective {
+                max_variation_pa_per_s: objective.max_variation_pa_per_s.map(|v| v * share),
+                ..*objective
+            };
+            let (centred, _) = tune_robust(
+                kind,
+                std::slice::from_ref(center),
+                aggregate,
+                opts,
+                &within_share,
+                starts,
+                stop,
+            )?;
+            centred_evaluations += centred.evaluations;
+            all_starts.push(centred.config);
+        }
+        let mut all_plants = Vec::with_capacity(plants.len() + 1);
+        all_plants.push(center.clone());
+        all_plants.extend_from_slice(plants);
+        let (mut result, scores) = tune_robust(
+            kind,
+            &all_plants,
+            aggregate,
+            opts,
+            objective,
+            &all_starts,
+            stop,
+        )?;
+        result.evaluations += centred_evaluations;
+        Some((result, scores))
+    };
+    let mut best: Option<(TuneResult, Vec<Score>)> = None;
+    let mut evaluations = 0;
+    for k in 0..ROBUST_SEARCHES as u64 {
+        let one = FireflyOptions {
+            seed: opts.seed.wrapping_add(k * 7919),
+            ..*opts
+        };
+        let searched = search_around(&one)?;
+        evaluations += searched.0.evaluations;
+        let better = |b: &TuneResult| {
+            (searched.0.feasible, b.score.iae_m) > (b.feasible, searched.0.score.iae_m)
+        };
+        if best.as_ref().is_none_or(|(b, _)| better(b)) {
+            best = Some(searched);
+        }
+        if stop.load(Ordering::Relaxed) {
+            break;
+        }
+    }
+    best.map(|(mut result, scores)| {
+        result.evaluations = evaluations;
+        (result, scores)
+    })
 }
 
 /// The shipped gain sets of `kind` a tuning may start from besides its own: the bench's

@@ -540,10 +540,15 @@ fn print_summary(r: &LegReport) -> Result<()> {
         r.real_time_factor
     );
     for (name, j) in &r.joints {
+        let s = &j.per_stride;
         say!(
-            "  {name:5} tracking error after the first stride: RMS {} deg, max {} deg",
+            "  {name:5} tracking error after the first stride: RMS {} deg, max {} deg; per stride ({}): RMS median {}, 90th percentile {}, worst {} deg",
             fig(j.rms_deg, 3),
-            fig(j.max_deg, 3)
+            fig(j.max_deg, 3),
+            s.strides,
+            fig(s.median_deg, 3),
+            fig(s.p90_deg, 3),
+            fig(s.max_deg, 3)
         );
     }
     for (name, m) in &r.muscles {

@@ -57,7 +57,7 @@ impl LegReport {
                 .extend(labelled(legs, leg, safety.muscles));
         }
         let mut report = out.unwrap_or_else(|| {
-            LegMetrics::new(1.0, 1.0).report(scenario, muscle_names, duration_s, wall_s)
+            LegMetrics::new(1.0, 1.0, 0.0).report(scenario, muscle_names, duration_s, wall_s)
         });
         let n = legs.max(1) as f64;
         report.cocontraction_pa = CoContractionStats {

@@ -341,7 +341,12 @@ impl LegSim {
         let sc = &self.scenario;
         let legs = self.plant.leg_count();
         let mut metrics: Vec<OnLeg<LegMetrics>> = (0..legs)
-            .map(|leg| OnLeg::new(leg, LegMetrics::new(sc.gait.stride_period_s, sc.period_s)))
+            .map(|leg| {
+                OnLeg::new(
+                    leg,
+                    LegMetrics::new(sc.gait.stride_period_s, sc.period_s, settings.duration_s()),
+                )
+            })
             .collect();
         let mut patients: Vec<OnLeg<PatientMetrics>> = (0..legs)
             .map(|leg| {
