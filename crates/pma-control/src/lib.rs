@@ -45,7 +45,7 @@ pub use config::{build_controller, ConfigError, ControllerConfig, ControllerKind
 pub use estimator::KinematicObserver;
 pub use excitation::{Excitation, ExcitationError, ExcitationSpec};
 pub use implicit::implicit_sign_solve;
-pub use metrics::{Metrics, TrackingStats};
+pub use metrics::{nearest_rank, Metrics, TrackingStats};
 pub use ndo::DisturbanceObserver;
 pub use ndo_smc::{NdoSmc, NdoSmcGains};
 pub use nominal::{

@@ -59,9 +59,31 @@ impl Metrics {
     }
 }
 
+/// The nearest-rank `q`-quantile of `sorted` (ascending): the smallest value with at least
+/// a share `q` of them at or below it; `NaN` for no values. One definition for every
+/// percentile the project reports (a sweep's p95, a leg's per-stride p90), so that two
+/// reports of "the p90" cannot differ by their rounding of the rank.
+pub fn nearest_rank(sorted: &[f64], q: f64) -> f64 {
+    match sorted.len() {
+        0 => f64::NAN,
+        n => sorted[((q * n as f64).ceil() as usize).clamp(1, n) - 1],
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn nearest_rank_takes_the_smallest_value_covering_the_share() {
+        let v = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0];
+        assert_eq!(nearest_rank(&v, 0.9), 9.0);
+        assert_eq!(nearest_rank(&v, 0.91), 10.0);
+        assert_eq!(nearest_rank(&v, 0.5), 5.0);
+        assert_eq!(nearest_rank(&v, 0.0), 1.0);
+        assert_eq!(nearest_rank(&v, 1.0), 10.0);
+        assert!(nearest_rank(&[], 0.5).is_nan());
+    }
 
     #[test]
     fn metrics_follow_eqs_51_to_53() {

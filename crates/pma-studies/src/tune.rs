@@ -700,10 +700,10 @@ pub fn tune_robust_around(
         };
         let searched = search_around(&one)?;
         evaluations += searched.0.evaluations;
-        let better = |b: &TuneResult| {
-            (searched.0.feasible, b.score.iae_m) > (b.feasible, searched.0.score.iae_m)
-        };
-        if best.as_ref().is_none_or(|(b, _)| better(b)) {
+        if best
+            .as_ref()
+            .is_none_or(|(b, _)| search_order(&searched.0, b).is_lt())
+        {
             best = Some(searched);
         }
         if stop.load(Ordering::Relaxed) {
@@ -714,6 +714,14 @@ pub fn tune_robust_around(
         result.evaluations = evaluations;
         (result, scores)
     })
+}
+
+/// Which of two searches' results a robust tuning keeps: a feasible one before one that is
+/// not, then the lower mean IAE (`Less`: `a` is kept; a failed run's IAE is 1 m, not `NaN`).
+fn search_order(a: &TuneResult, b: &TuneResult) -> std::cmp::Ordering {
+    b.feasible
+        .cmp(&a.feasible)
+        .then(a.score.iae_m.total_cmp(&b.score.iae_m))
 }
 
 /// The shipped gain sets of `kind` a tuning may start from besides its own: the bench's
@@ -805,6 +813,22 @@ mod tests {
         );
         assert_eq!(evals, 20 * 41);
         assert!(f < 1e-3, "f = {f}, x = {x:?}");
+    }
+
+    #[test]
+    fn a_robust_tuning_keeps_a_feasible_search_before_a_more_accurate_infeasible_one() {
+        let kind = ControllerKind::Pid;
+        let result = |feasible, iae_m| TuneResult {
+            config: ControllerConfig::at(kind, &vec![0.5; kind.search_space().len()]),
+            score: Score { iae_m, ..FAILED },
+            feasible,
+            evaluations: 0,
+        };
+        let (feasible, sharper) = (result(true, 2e-3), result(false, 1e-3));
+        assert!(search_order(&feasible, &sharper).is_lt());
+        assert!(search_order(&sharper, &feasible).is_gt());
+        assert!(search_order(&result(true, 1e-3), &feasible).is_lt());
+        assert!(search_order(&feasible, &result(true, 2e-3)).is_eq());
     }
 
     /// The search started from a known point keeps it unless it finds better: here the

@@ -47,8 +47,7 @@ impl StrideSpread {
         } else {
             0.5 * (values[n / 2 - 1] + values[n / 2])
         };
-        // Nearest rank: the smallest value with at least 90 % of them at or below it.
-        let p90 = values[((0.9 * n as f64).ceil() as usize).clamp(1, n) - 1];
+        let p90 = pma_control::nearest_rank(values, 0.9);
         Self {
             strides: n,
             median_deg: median,

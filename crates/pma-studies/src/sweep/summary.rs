@@ -130,13 +130,9 @@ pub struct EventSummary {
 
 /// The `q`-quantile (nearest rank) of `values`; NaN when empty.
 pub fn quantile(values: &[f64], q: f64) -> f64 {
-    if values.is_empty() {
-        return f64::NAN;
-    }
     let mut v = values.to_vec();
     v.sort_by(f64::total_cmp);
-    let rank = ((q * v.len() as f64).ceil() as usize).clamp(1, v.len());
-    v[rank - 1]
+    pma_control::nearest_rank(&v, q)
 }
 
 fn max(values: impl Iterator<Item = f64>) -> f64 {
