@@ -30,6 +30,8 @@ pub struct Point {
 pub struct CellSettings {
     /// The controller of every muscle (position and admittance modes).
     pub controller: Option<pma_control::ControllerKind>,
+    /// The gains every cell's controller runs with (`None`: the scenario's for it).
+    pub gains: Option<pma_control::ControllerConfig>,
     /// Physics substeps per control period.
     pub physics_substeps: Option<u32>,
     /// The patients' height (m; `None`: the scenario's).
@@ -287,7 +289,7 @@ fn cell_outcome(
         }
         Err(e) => return Cell::failed(p, belt, &e),
     }
-    match walk(&loaded, settings.controller, duration_s, stop) {
+    match walk(&loaded, settings, duration_s, stop) {
         Ok(Some(cell)) => Cell {
             belt_m_s: belt,
             ..cell.at(p)
@@ -323,17 +325,20 @@ impl Ran {
     }
 }
 
-/// Runs `loaded` with `controller` (`None`: its own); `None` if stopped.
+/// Runs `loaded` with `settings`' controller and gains (`None`: its own); `None` if stopped.
 fn walk(
     loaded: &LoadedScenario,
-    controller: Option<pma_control::ControllerKind>,
+    settings: &CellSettings,
     duration_s: f64,
     stop: &AtomicBool,
 ) -> Result<Option<Ran>> {
-    let config = leg_config(controller, None, loaded)?;
+    let config = match settings.gains {
+        Some(g) => g,
+        None => leg_config(settings.controller, None, loaded)?,
+    };
     let mut sim = LegSim::with_controller(loaded, &config)?;
-    let settings = sim.settings(duration_s)?.with_stop_flag(stop);
-    let (report, fault) = sim.run_until_fault(&settings, &mut ())?;
+    let run = sim.settings(duration_s)?.with_stop_flag(stop);
+    let (report, fault) = sim.run_until_fault(&run, &mut ())?;
     if report.interrupted {
         return Ok(None);
     }

@@ -463,10 +463,13 @@ pub fn leg_config(
     loaded: &LoadedScenario,
 ) -> Result<ControllerConfig> {
     Ok(match (kind, gains) {
-        (k, Some(path)) => {
-            let k = kind_of_gains(Some(path), k.unwrap_or(ControllerKind::AprcNdo))?;
-            load_gains(k, Some(path))?
-        }
+        // A controller named beside a gain file must be the file's (load_gains refuses
+        // another); only without one does the file say which controller runs.
+        (Some(k), Some(path)) => load_gains(k, Some(path))?,
+        (None, Some(path)) => load_gains(
+            kind_of_gains(Some(path), ControllerKind::AprcNdo)?,
+            Some(path),
+        )?,
         (k, None) => {
             pma_leg::scenario::scenario_gains(loaded, k.unwrap_or(ControllerKind::AprcNdo))?
         }

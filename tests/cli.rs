@@ -1751,3 +1751,21 @@ fn compare_modes_size_and_compare_leg_stop_on_a_signal_and_leave_nothing() {
         std::fs::remove_dir_all(dir).ok();
     }
 }
+
+/// `simulate --controller sta --gains FILE` with a PID gain file ran PID without a word:
+/// the controller named on the command line gave way to the file's. Now, as for `single`,
+/// a controller beside a gain file of another is refused in one line.
+#[test]
+fn regression_simulate_ran_the_gain_files_controller_instead_of_the_one_named() {
+    assert_one_line_error(
+        &[
+            "simulate",
+            "gait_treadmill",
+            "--controller",
+            "sta",
+            "--gains",
+            "crates/pma-leg/models/gains/treadmill/pid.toml",
+        ],
+        "gain file is for `pid` but the controller requested is `sta`",
+    );
+}

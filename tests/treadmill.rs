@@ -1352,6 +1352,45 @@ fn regression_muscles_over_their_rating_on_the_servo_stride_ran() {
     }
 }
 
+/// The APRC-NDO gains tuned over the trainer's patients (issue 47 item 3).
+const PATIENTS_GAINS: &str = "crates/pma-leg/models/gains/treadmill-patients/aprc-ndo.toml";
+
+/// Issue 47 item 3: the scenario's gains, tuned on the 75 kg patient, let a 90 kg patient
+/// at 30 % support collapse within 4 s; the set tuned over the patients (docs/envelope.md,
+/// "Gains that follow the patient") walks them, within 2 deg and the muscles' rating.
+#[test]
+fn the_gains_tuned_over_the_patients_walk_a_90_kg_patient_the_shipped_ones_lose() {
+    let cell = |gains: &[&str]| -> serde_json::Value {
+        let mut args = vec![
+            "envelope",
+            "--mass-kg",
+            "90",
+            "--support",
+            "0.3",
+            "--speed",
+            "0.5",
+            "--duration",
+            "10",
+            "--json",
+        ];
+        args.extend_from_slice(gains);
+        let out = pma_exo(&args);
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+        v["cells"][0].clone()
+    };
+    let shipped = cell(&[]);
+    assert_eq!(shipped["outcome"], "failed", "{shipped}");
+    assert!(shipped["collapse_s"].as_f64().is_some(), "{shipped}");
+    let tuned = cell(&["--gains", PATIENTS_GAINS]);
+    assert_eq!(tuned["outcome"], "walked", "{tuned}");
+    let [hip, knee] = [0, 1].map(|j| tuned["stance_rms_deg"][j].as_f64().unwrap());
+    assert!(hip <= 2.0 && knee <= 2.0, "{tuned}");
+    assert!(
+        tuned["peak_force_over_rated"].as_f64().unwrap() <= 1.0,
+        "{tuned}"
+    );
+}
+
 /// Issue 47 item 5: `pma-exo envelope` maps a treadmill scenario's patients: each cell
 /// walked, refused before it ran (with why), or ran and failed (with why); its bad
 /// arguments are one-line errors naming the flag and its range.
@@ -1379,6 +1418,20 @@ fn envelope_maps_walked_refused_and_failed_cells() {
         (
             &["--out", "Cargo.toml"][..],
             "exists and is not a directory",
+        ),
+        (
+            &["--gains", PATIENTS_GAINS, "--modes", "impedance"][..],
+            "impedance mode runs no muscle controller",
+        ),
+        // A controller named beside a gain file of another used to run the file's.
+        (
+            &[
+                "--gains",
+                "crates/pma-leg/models/gains/treadmill/pid.toml",
+                "--controller",
+                "sta",
+            ][..],
+            "gain file is for `pid` but the controller requested is `sta`",
         ),
     ] {
         let mut all = vec!["envelope"];

@@ -42,6 +42,12 @@ pub struct Args {
     /// scenario's APRC-NDO); position and admittance modes only.
     #[arg(long, value_name = pma_control::ControllerKind::NAMES)]
     controller: Option<pma_control::ControllerKind>,
+    /// A gain file every cell's controller runs with instead of the scenario's (its
+    /// controller, unless --controller names it; position and admittance modes only), such
+    /// as the APRC-NDO set tuned over the patients,
+    /// `crates/pma-leg/models/gains/treadmill-patients/aprc-ndo.toml`.
+    #[arg(long)]
+    gains: Option<PathBuf>,
     /// Physics substeps per control period in every cell (default: the scenario's; 1 to
     /// 100): a finer step for the patients the shipped one cannot simulate.
     #[arg(long)]
@@ -114,13 +120,18 @@ fn check_args(a: &Args) -> Result<()> {
         if a.modes[..i].contains(m) {
             bail!("--modes: `{}` is given twice", m.control_mode());
         }
-        if let (false, Some(k)) = (m.control_mode().runs_muscle_controllers(), a.controller) {
-            bail!(
-                "--controller {}: {} mode runs no muscle controller (give --modes position or admittance)",
-                k.as_str(),
-                m.control_mode()
-            );
+        if m.control_mode().runs_muscle_controllers() {
+            continue;
         }
+        let flag = match (a.controller, &a.gains) {
+            (Some(k), _) => format!("--controller {}", k.as_str()),
+            (None, Some(g)) => format!("--gains {}", g.display()),
+            (None, None) => continue,
+        };
+        bail!(
+            "{flag}: {} mode runs no muscle controller (give --modes position or admittance)",
+            m.control_mode()
+        );
     }
     if let Some(n) = a.physics_substeps {
         super::check_physics_substeps(n)?;
@@ -158,8 +169,15 @@ pub fn run(a: Args) -> Result<i32> {
     envelope::check_base(&loaded, &a.scenario)?;
     loaded.scenario.check_run_duration(a.duration)?;
     let points = envelope::points(&a.mass_kg, &a.support, &a.speed, &a.modes);
+    // A gain file is read and checked before anything is written.
+    let gains = a
+        .gains
+        .as_deref()
+        .map(|g| pma_exo::setup::leg_config(a.controller, Some(g), &loaded))
+        .transpose()?;
     let settings = envelope::CellSettings {
-        controller: a.controller,
+        controller: gains.map(|g| g.kind()).or(a.controller),
+        gains,
         physics_substeps: a.physics_substeps,
         height_m: a.height_m,
     };
@@ -180,7 +198,7 @@ pub fn run(a: Args) -> Result<i32> {
         Some(dir) => {
             let files = out_files(dir);
             output::refuse_input_as_output(
-                &super::scenario_inputs(&a.scenario, &loaded, None),
+                &super::scenario_inputs(&a.scenario, &loaded, a.gains.as_deref()),
                 &files
                     .iter()
                     .map(|p| ("--out", p.as_path()))
@@ -217,13 +235,18 @@ pub fn run(a: Args) -> Result<i32> {
         eprintln!("interrupted: nothing written (a map with cells cut short maps nothing)");
         return Ok(output::INTERRUPTED);
     }
+    let gains_label = a
+        .gains
+        .as_deref()
+        .map_or("scenario".into(), |g| g.display().to_string());
     let provenance = crate::provenance::Provenance {
         scenario: Some(crate::provenance::named(&a.scenario, &loaded.scenario.name)),
         controller: Some(
-            a.controller
+            settings
+                .controller
                 .map_or("the scenario's, per mode".into(), |k| k.as_str().to_owned()),
         ),
-        gains: Some("scenario".into()),
+        gains: Some(gains_label.clone()),
         patient: Some("passive, the mass and support of each cell".into()),
         valve: Some(loaded.scenario.plant.valve_label()?),
         ..crate::provenance::Provenance::of_this_run()
@@ -248,8 +271,16 @@ pub fn run(a: Args) -> Result<i32> {
         crate::plot::register_font()?;
         // The setting without the command line: the same map draws the same image
         // wherever it is written.
+        let gains_said = match &a.gains {
+            Some(g) => format!(
+                "gains {}",
+                g.file_name()
+                    .map_or(gains_label, |f| f.to_string_lossy().into())
+            ),
+            None => "the scenario's gains".into(),
+        };
         let setting = format!(
-            "{} s per cell; {}; the scenario's gains",
+            "{} s per cell; {}; {gains_said}",
             a.duration,
             provenance.valve.as_deref().unwrap_or("-")
         );
