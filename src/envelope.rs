@@ -32,10 +32,21 @@ pub struct CellSettings {
     pub controller: Option<pma_control::ControllerKind>,
     /// The gains every cell's controller runs with (`None`: the scenario's for it).
     pub gains: Option<pma_control::ControllerConfig>,
+    /// `gains` only below this support (a schedule by support; `None`: at every support).
+    pub gains_below_support: Option<f64>,
     /// Physics substeps per control period.
     pub physics_substeps: Option<u32>,
     /// The patients' height (m; `None`: the scenario's).
     pub height_m: Option<f64>,
+}
+
+impl CellSettings {
+    /// The gains a cell at `support` runs with: `gains` below `gains_below_support` (at
+    /// every support without it), else `None` (the scenario's).
+    pub fn gains_at(&self, support: f64) -> Option<pma_control::ControllerConfig> {
+        self.gains
+            .filter(|_| self.gains_below_support.is_none_or(|s| support < s))
+    }
 }
 
 /// How a cell ended.
@@ -289,7 +300,13 @@ fn cell_outcome(
         }
         Err(e) => return Cell::failed(p, belt, &e),
     }
-    match walk(&loaded, settings, duration_s, stop) {
+    match walk(
+        &loaded,
+        settings.gains_at(p.support),
+        settings,
+        duration_s,
+        stop,
+    ) {
         Ok(Some(cell)) => Cell {
             belt_m_s: belt,
             ..cell.at(p)
@@ -325,14 +342,16 @@ impl Ran {
     }
 }
 
-/// Runs `loaded` with `settings`' controller and gains (`None`: its own); `None` if stopped.
+/// Runs `loaded` with `gains`, or without them `settings`' controller with the scenario's
+/// gains for it; `None` if stopped.
 fn walk(
     loaded: &LoadedScenario,
+    gains: Option<pma_control::ControllerConfig>,
     settings: &CellSettings,
     duration_s: f64,
     stop: &AtomicBool,
 ) -> Result<Option<Ran>> {
-    let config = match settings.gains {
+    let config = match gains {
         Some(g) => g,
         None => leg_config(settings.controller, None, loaded)?,
     };

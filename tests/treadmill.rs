@@ -1391,6 +1391,51 @@ fn the_gains_tuned_over_the_patients_walk_a_90_kg_patient_the_shipped_ones_lose(
     );
 }
 
+/// Issue 47 item 3, the schedule by support: with `--gains-below-support 0.5` a cell at 30 %
+/// runs exactly as with the gain file at every support, and one at 90 % exactly as with the
+/// scenario's gains; the provenance says which.
+#[test]
+fn a_schedule_by_support_runs_the_gain_file_below_it_and_the_scenarios_gains_from_it() {
+    let cells = |gains: &[&str]| -> (Vec<serde_json::Value>, serde_json::Value) {
+        let mut args = vec![
+            "envelope",
+            "--mass-kg",
+            "75",
+            "--support",
+            "0.3,0.9",
+            "--speed",
+            "0.5",
+            "--duration",
+            "4",
+            "--json",
+        ];
+        args.extend_from_slice(gains);
+        let out = pma_exo(&args);
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+        (
+            v["cells"].as_array().unwrap().clone(),
+            v["provenance"]["gains"].clone(),
+        )
+    };
+    let (scenarios, _) = cells(&[]);
+    let (file, _) = cells(&["--gains", PATIENTS_GAINS]);
+    let (scheduled, said) = cells(&["--gains", PATIENTS_GAINS, "--gains-below-support", "0.5"]);
+    let rms = |c: &serde_json::Value| c["stance_rms_deg"].clone();
+    assert_eq!(rms(&scheduled[0]), rms(&file[0]), "30 %: {}", scheduled[0]);
+    assert_eq!(
+        rms(&scheduled[1]),
+        rms(&scenarios[1]),
+        "90 %: {}",
+        scheduled[1]
+    );
+    // The two sets differ where it matters for the comparison to mean anything.
+    assert_ne!(rms(&file[0]), rms(&scenarios[0]));
+    assert!(
+        said.as_str().unwrap().contains("below 0.5 support"),
+        "{said}"
+    );
+}
+
 /// Issue 47 item 5: `pma-exo envelope` maps a treadmill scenario's patients: each cell
 /// walked, refused before it ran (with why), or ran and failed (with why); its bad
 /// arguments are one-line errors naming the flag and its range.
@@ -1422,6 +1467,10 @@ fn envelope_maps_walked_refused_and_failed_cells() {
         (
             &["--gains", PATIENTS_GAINS, "--modes", "impedance"][..],
             "impedance mode runs no muscle controller",
+        ),
+        (
+            &["--gains", PATIENTS_GAINS, "--gains-below-support", "1.5"][..],
+            "--gains-below-support 1.5 is invalid: a fraction of the body weight, 0 to 1",
         ),
         // A controller named beside a gain file of another used to run the file's.
         (

@@ -48,6 +48,11 @@ pub struct Args {
     /// `crates/pma-leg/models/gains/treadmill-patients/aprc-ndo.toml`.
     #[arg(long)]
     gains: Option<PathBuf>,
+    /// With --gains: only cells whose support is below this fraction run the file's gains,
+    /// the others the scenario's (a schedule by support: the set tuned over the patients
+    /// below 0.5, the scenario's from it; docs/envelope.md).
+    #[arg(long, requires = "gains")]
+    gains_below_support: Option<f64>,
     /// Physics substeps per control period in every cell (default: the scenario's; 1 to
     /// 100): a finer step for the patients the shipped one cannot simulate.
     #[arg(long)]
@@ -136,6 +141,14 @@ fn check_args(a: &Args) -> Result<()> {
     if let Some(n) = a.physics_substeps {
         super::check_physics_substeps(n)?;
     }
+    if let Some(s) = a.gains_below_support {
+        check_axis(
+            "--gains-below-support",
+            &[s],
+            (0.0, 1.0),
+            "a fraction of the body weight",
+        )?;
+    }
     if let Some(h) = a.height_m {
         check_axis(
             "--height-m",
@@ -178,6 +191,7 @@ pub fn run(a: Args) -> Result<i32> {
     let settings = envelope::CellSettings {
         controller: gains.map(|g| g.kind()).or(a.controller),
         gains,
+        gains_below_support: a.gains_below_support,
         physics_substeps: a.physics_substeps,
         height_m: a.height_m,
     };
@@ -235,10 +249,15 @@ pub fn run(a: Args) -> Result<i32> {
         eprintln!("interrupted: nothing written (a map with cells cut short maps nothing)");
         return Ok(output::INTERRUPTED);
     }
-    let gains_label = a
-        .gains
-        .as_deref()
-        .map_or("scenario".into(), |g| g.display().to_string());
+    let gains_label = match (&a.gains, a.gains_below_support) {
+        (None, _) => "scenario".into(),
+        (Some(g), None) => g.display().to_string(),
+        (Some(g), Some(s)) => format!(
+            "{} below {} support, the scenario's from it",
+            g.display(),
+            pma_model::error::number(s)
+        ),
+    };
     let provenance = crate::provenance::Provenance {
         scenario: Some(crate::provenance::named(&a.scenario, &loaded.scenario.name)),
         controller: Some(
@@ -271,13 +290,17 @@ pub fn run(a: Args) -> Result<i32> {
         crate::plot::register_font()?;
         // The setting without the command line: the same map draws the same image
         // wherever it is written.
-        let gains_said = match &a.gains {
-            Some(g) => format!(
-                "gains {}",
+        let gains_said = match (&a.gains, a.gains_below_support) {
+            (Some(g), below) => format!(
+                "gains {}{}",
                 g.file_name()
-                    .map_or(gains_label, |f| f.to_string_lossy().into())
+                    .map_or(gains_label.clone(), |f| f.to_string_lossy().into()),
+                below.map_or(String::new(), |s| format!(
+                    " below {} support",
+                    pma_model::error::number(s)
+                ))
             ),
-            None => "the scenario's gains".into(),
+            (None, _) => "the scenario's gains".into(),
         };
         let setting = format!(
             "{} s per cell; {}; {gains_said}",
