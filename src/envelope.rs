@@ -113,6 +113,10 @@ pub struct Cell {
     /// Height (m), where the map sets one (`--height-m`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub height_m: Option<f64>,
+    /// Whether the cell runs the map's gain file (`--gains`; false where a schedule by
+    /// support gives it the scenario's), where the map has one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gains_file: Option<bool>,
     /// Support (0-1).
     pub support: f64,
     /// Walking speed (m/s).
@@ -141,6 +145,7 @@ impl Cell {
         Self {
             mass_kg: p.mass_kg,
             height_m: None,
+            gains_file: None,
             support: p.support,
             speed_m_s: p.speed_m_s,
             mode: p.mode.control_mode().to_string(),
@@ -266,6 +271,9 @@ pub fn run_cell(
 ) -> Cell {
     Cell {
         height_m: settings.height_m,
+        gains_file: settings
+            .gains
+            .map(|_| settings.gains_at(p.support).is_some()),
         ..cell_outcome(base, p, settings, duration_s, stop)
     }
 }

@@ -1422,6 +1422,10 @@ fn a_schedule_by_support_runs_the_gain_file_below_it_and_the_scenarios_gains_fro
     let (scheduled, said) = cells(&["--gains", PATIENTS_GAINS, "--gains-below-support", "0.5"]);
     let rms = |c: &serde_json::Value| c["stance_rms_deg"].clone();
     assert_eq!(rms(&scheduled[0]), rms(&file[0]), "30 %: {}", scheduled[0]);
+    // Each cell says which set it ran.
+    assert_eq!(scheduled[0]["gains_file"], true);
+    assert_eq!(scheduled[1]["gains_file"], false);
+    assert!(scenarios[0].get("gains_file").is_none());
     assert_eq!(
         rms(&scheduled[1]),
         rms(&scenarios[1]),
