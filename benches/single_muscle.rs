@@ -80,5 +80,38 @@ fn closed_loop(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, controller_update, plant_period, closed_loop);
+/// One 1 ms period of a DMSP-20's pressure behind the MPYE-5-1/4 valve model (the two-leg
+/// trainer runs eight a period): 20 internal steps of the flow and the spool.
+fn flow_period(c: &mut Criterion) {
+    use pma_model::pneumatics::FlowState;
+    use pma_model::{Chamber, PneumaticsSettings, ValveSpec};
+    let settings = PneumaticsSettings {
+        valve: "mpye-5-1-4".into(),
+        ..PneumaticsSettings::default()
+    };
+    let spec = ValveSpec::load("mpye-5-1-4").expect("shipped valve");
+    let flow = settings.flow(&spec, Chamber::dmsp(0.02, 1.2));
+    let mut state = FlowState {
+        pressure_pa: 3e5,
+        opening: 0.0,
+    };
+    let mut k = 0u64;
+    c.bench_function("flow_period_1ms/mpye-5-1-4", |b| {
+        b.iter(|| {
+            k += 1;
+            // Alternate the set point so the spool and the flow both work.
+            let set = if k.is_multiple_of(2) { 3.0e5 } else { 3.2e5 };
+            flow.advance(&mut state, black_box(set), 1e-3, 0.05, 0.01);
+            black_box(state.pressure_pa)
+        })
+    });
+}
+
+criterion_group!(
+    benches,
+    controller_update,
+    plant_period,
+    flow_period,
+    closed_loop
+);
 criterion_main!(benches);

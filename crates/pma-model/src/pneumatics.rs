@@ -400,8 +400,18 @@ impl FlowParams {
     /// The pressure's rate (Pa/s) at `state`, the muscle at contraction `x_m` moving at
     /// `v_m_s`.
     pub fn pressure_rate(&self, state: FlowState, x_m: f64, v_m_s: f64) -> f64 {
+        self.pressure_rate_in(state, self.air_volume(x_m), v_m_s)
+    }
+
+    /// The air's volume (m3, the muscle's and the dead volume) at contraction `x_m`, and
+    /// its derivative in `x_m` (m2).
+    fn air_volume(&self, x_m: f64) -> (f64, f64) {
         let (v_muscle, dv_dx) = self.chamber.volume(x_m);
-        let volume = v_muscle + self.dead_volume_m3;
+        (v_muscle + self.dead_volume_m3, dv_dx)
+    }
+
+    /// [`FlowParams::pressure_rate`] with the air's volume and its slope given.
+    fn pressure_rate_in(&self, state: FlowState, (volume, dv_dx): (f64, f64), v_m_s: f64) -> f64 {
         let p_abs = state.pressure_pa + ATMOSPHERE_PA;
         let m_dot = self.mass_flow(state.opening, state.pressure_pa);
         self.polytropic_exponent / volume
@@ -432,10 +442,13 @@ impl FlowParams {
         let n = (h_s / step_max_s).ceil().max(1.0);
         let dt = h_s / n;
         let spool = 1.0 - (-dt / self.spool_time_constant_s).exp();
+        // The muscle's length is held over the step: its volume (a braid's cosine and
+        // tangent each) once, not at every internal step.
+        let air = self.air_volume(x_m);
         for _ in 0..n as u32 {
             let want = self.demanded_opening(set_pa, state.pressure_pa);
             state.opening += spool * (want - state.opening);
-            let rate = self.pressure_rate(*state, x_m, v_m_s);
+            let rate = self.pressure_rate_in(*state, air, v_m_s);
             state.pressure_pa =
                 (state.pressure_pa + dt * rate).clamp(-ATMOSPHERE_PA, self.supply_pa);
         }
