@@ -1355,14 +1355,26 @@ fn regression_muscles_over_their_rating_on_the_servo_stride_ran() {
 /// The APRC-NDO gains tuned over the trainer's patients (issue 47 item 3).
 const PATIENTS_GAINS: &str = "crates/pma-leg/models/gains/treadmill-patients/aprc-ndo.toml";
 
+/// `pma-exo envelope` with `args` then `extra`, its JSON (whatever the exit: a map with a
+/// cell that did not walk exits 4).
+fn envelope_json(args: &[&str], extra: &[&str]) -> serde_json::Value {
+    let all: Vec<&str> = ["envelope", "--json"]
+        .iter()
+        .chain(args)
+        .chain(extra)
+        .copied()
+        .collect();
+    let out = pma_exo(&all);
+    serde_json::from_slice(&out.stdout).expect("JSON")
+}
+
 /// Issue 47 item 3: the scenario's gains, tuned on the 75 kg patient, let a 90 kg patient
 /// at 30 % support collapse within 4 s; the set tuned over the patients (docs/envelope.md,
 /// "Gains that follow the patient") walks them, within 2 deg and the muscles' rating.
 #[test]
 fn the_gains_tuned_over_the_patients_walk_a_90_kg_patient_the_shipped_ones_lose() {
     let cell = |gains: &[&str]| -> serde_json::Value {
-        let mut args = vec![
-            "envelope",
+        let args = [
             "--mass-kg",
             "90",
             "--support",
@@ -1371,12 +1383,8 @@ fn the_gains_tuned_over_the_patients_walk_a_90_kg_patient_the_shipped_ones_lose(
             "0.5",
             "--duration",
             "10",
-            "--json",
         ];
-        args.extend_from_slice(gains);
-        let out = pma_exo(&args);
-        let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
-        v["cells"][0].clone()
+        envelope_json(&args, gains)["cells"][0].clone()
     };
     let shipped = cell(&[]);
     assert_eq!(shipped["outcome"], "failed", "{shipped}");
@@ -1397,8 +1405,7 @@ fn the_gains_tuned_over_the_patients_walk_a_90_kg_patient_the_shipped_ones_lose(
 #[test]
 fn a_schedule_by_support_runs_the_gain_file_below_it_and_the_scenarios_gains_from_it() {
     let cells = |gains: &[&str]| -> (Vec<serde_json::Value>, serde_json::Value) {
-        let mut args = vec![
-            "envelope",
+        let args = [
             "--mass-kg",
             "75",
             "--support",
@@ -1407,11 +1414,8 @@ fn a_schedule_by_support_runs_the_gain_file_below_it_and_the_scenarios_gains_fro
             "0.5",
             "--duration",
             "4",
-            "--json",
         ];
-        args.extend_from_slice(gains);
-        let out = pma_exo(&args);
-        let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+        let v = envelope_json(&args, gains);
         (
             v["cells"].as_array().unwrap().clone(),
             v["provenance"]["gains"].clone(),
@@ -1568,8 +1572,7 @@ fn envelope_maps_walked_refused_and_failed_cells() {
     // for a 75 kg leg (issue 47, docs/envelope.md). It runs at the shipped step now and at
     // four substeps, and gets its verdict.
     let light = |extra: &[&str]| -> serde_json::Value {
-        let mut args = vec![
-            "envelope",
+        let args = [
             "--mass-kg",
             "50",
             "--support",
@@ -1580,11 +1583,8 @@ fn envelope_maps_walked_refused_and_failed_cells() {
             "4",
             "--controller",
             "pid",
-            "--json",
         ];
-        args.extend_from_slice(extra);
-        let out = pma_exo(&args);
-        serde_json::from_slice(&out.stdout).expect("JSON")
+        envelope_json(&args, extra)
     };
     for extra in [&[][..], &["--physics-substeps", "4"][..]] {
         let v = light(extra);

@@ -249,14 +249,14 @@ pub fn run(a: Args) -> Result<i32> {
         eprintln!("interrupted: nothing written (a map with cells cut short maps nothing)");
         return Ok(output::INTERRUPTED);
     }
-    let gains_label = match (&a.gains, a.gains_below_support) {
-        (None, _) => "scenario".into(),
-        (Some(g), None) => g.display().to_string(),
-        (Some(g), Some(s)) => format!(
-            "{} below {} support, the scenario's from it",
-            g.display(),
-            pma_model::error::number(s)
-        ),
+    // A schedule by support, as both the provenance and the image say it.
+    let below = a.gains_below_support.map_or(String::new(), |s| {
+        format!(" below {} support", pma_model::error::number(s))
+    });
+    let gains_label = match &a.gains {
+        None => "scenario".into(),
+        Some(g) if below.is_empty() => g.display().to_string(),
+        Some(g) => format!("{}{below}, the scenario's from it", g.display()),
     };
     let provenance = crate::provenance::Provenance {
         scenario: Some(crate::provenance::named(&a.scenario, &loaded.scenario.name)),
@@ -265,7 +265,7 @@ pub fn run(a: Args) -> Result<i32> {
                 .controller
                 .map_or("the scenario's, per mode".into(), |k| k.as_str().to_owned()),
         ),
-        gains: Some(gains_label.clone()),
+        gains: Some(gains_label),
         patient: Some("passive, the mass and support of each cell".into()),
         valve: Some(loaded.scenario.plant.valve_label()?),
         ..crate::provenance::Provenance::of_this_run()
@@ -290,17 +290,13 @@ pub fn run(a: Args) -> Result<i32> {
         crate::plot::register_font()?;
         // The setting without the command line: the same map draws the same image
         // wherever it is written.
-        let gains_said = match (&a.gains, a.gains_below_support) {
-            (Some(g), below) => format!(
-                "gains {}{}",
+        let gains_said = match &a.gains {
+            Some(g) => format!(
+                "gains {}{below}",
                 g.file_name()
-                    .map_or(gains_label.clone(), |f| f.to_string_lossy().into()),
-                below.map_or(String::new(), |s| format!(
-                    " below {} support",
-                    pma_model::error::number(s)
-                ))
+                    .map_or_else(|| g.display().to_string(), |f| f.to_string_lossy().into())
             ),
-            (None, _) => "the scenario's gains".into(),
+            None => "the scenario's gains".into(),
         };
         let setting = format!(
             "{} s per cell; {}; {gains_said}",
