@@ -117,6 +117,11 @@ pub struct Cell {
     /// support gives it the scenario's), where the map has one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gains_file: Option<bool>,
+    /// Whether the cell's patient runs the scenario's `control.gains_below_support` set
+    /// (its support below the schedule's), where the cell runs the scenario's APRC-NDO gains
+    /// and the scenario has a schedule.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gains_scheduled: Option<bool>,
     /// Support (0-1).
     pub support: f64,
     /// Walking speed (m/s).
@@ -146,6 +151,7 @@ impl Cell {
             mass_kg: p.mass_kg,
             height_m: None,
             gains_file: None,
+            gains_scheduled: None,
             support: p.support,
             speed_m_s: p.speed_m_s,
             mode: p.mode.control_mode().to_string(),
@@ -274,8 +280,21 @@ pub fn run_cell(
         gains_file: settings
             .gains
             .map(|_| settings.gains_at(p.support).is_some()),
+        gains_scheduled: scheduled(base, p, settings),
         ..cell_outcome(base, p, settings, duration_s, stop)
     }
+}
+
+/// Whether cell `p` runs the scenario's `control.gains_below_support` set: `None` where the
+/// scenario has no schedule or the cell runs other gains (a file's, another controller's).
+fn scheduled(base: &LoadedScenario, p: &Point, settings: &CellSettings) -> Option<bool> {
+    use pma_control::ControllerKind as K;
+    let control = &base.scenario.control;
+    let scenario_aprc = settings.gains_at(p.support).is_none()
+        && matches!(settings.controller, None | Some(K::AprcNdo | K::Aprc))
+        && p.mode.control_mode().runs_muscle_controllers();
+    control.gains_below_support.as_ref()?;
+    scenario_aprc.then(|| control.scheduled_at(Some(p.support)).is_some())
 }
 
 /// [`run_cell`] before the cell records the settings it ran with.

@@ -20,7 +20,7 @@ pub struct Provenance {
     pub plant: Option<String>,
     /// Controller.
     pub controller: Option<String>,
-    /// Where the gains came from: a file, `paper`, `scenario`, `shipped leg gains`, ...
+    /// Where the gains came from: a file, `paper`, `scenario (APRC-NDO)`, `shipped in-air gains (...)`, ...
     pub gains: Option<String>,
     /// Patient: per joint `passive` or its parts (spasticity, spasms, effort, stiffness).
     pub patient: Option<String>,

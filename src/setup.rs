@@ -402,13 +402,29 @@ pub fn controller_label(loaded: &LoadedScenario, config: &ControllerConfig) -> S
     }
 }
 
-/// Where `leg_config`'s gains come from.
-pub fn gain_source(kind: Option<ControllerKind>, gains: Option<&Path>) -> String {
+/// Where `leg_config`'s gains come from: a gain file, the scenario's APRC-NDO gains (those
+/// its patient's support selects, `control.gains_below_support`), or its gain set's.
+pub fn gain_source(
+    kind: Option<ControllerKind>,
+    gains: Option<&Path>,
+    loaded: &LoadedScenario,
+) -> String {
+    let scenario = |what: &str| match &loaded.scenario.control.gains_below_support {
+        Some(s) if loaded.scenario.gains_scheduled() => format!(
+            "scenario ({what}, control.gains_below_support: the support is below {})",
+            pma_model::error::number(s.support_fraction)
+        ),
+        _ => format!("scenario ({what})"),
+    };
     match (kind, gains) {
-        (None, _) => "scenario (APRC-NDO)".into(),
-        (Some(_), Some(path)) => path.display().to_string(),
-        (Some(ControllerKind::Aprc), None) => "scenario (APRC-NDO's, observer off)".into(),
-        (Some(_), None) => "shipped leg gains".into(),
+        (_, Some(path)) => path.display().to_string(),
+        (None | Some(ControllerKind::AprcNdo), None) => scenario("APRC-NDO"),
+        (Some(ControllerKind::Aprc), None) => scenario("APRC-NDO's, observer off"),
+        (Some(_), None) => format!(
+            "shipped {} gains ({})",
+            loaded.scenario.control.gain_set.as_str(),
+            loaded.scenario.control.gain_set.directory()
+        ),
     }
 }
 

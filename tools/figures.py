@@ -179,6 +179,10 @@ def main():
                 stale.setdefault(item["path"], []).append(None)
                 print(f"{item['path']}: differs from `pma-exo {cmd}`", flush=True)
             continue
+        if data is None and any("{" in t for t in item.get("text", [])):
+            failed.append(f"FAILED pma-exo {cmd}: its last line of output is not JSON")
+            print(failed[-1], flush=True)
+            continue
         with open(os.path.join(ROOT, item["doc"])) as fh:
             doc = fh.read()
         for expected in expected_texts(item, data, work):

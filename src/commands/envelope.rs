@@ -253,8 +253,15 @@ pub fn run(a: Args) -> Result<i32> {
     let below = a.gains_below_support.map_or(String::new(), |s| {
         format!(" below {} support", pma_model::error::number(s))
     });
+    let scenario_gains = match &loaded.scenario.control.gains_below_support {
+        Some(s) => format!(
+            "the scenario's gains (its control.gains_below_support set below {} support)",
+            pma_model::error::number(s.support_fraction)
+        ),
+        None => "the scenario's gains".into(),
+    };
     let gains_label = match &a.gains {
-        None => "scenario".into(),
+        None => scenario_gains.clone(),
         Some(g) if below.is_empty() => g.display().to_string(),
         Some(g) => format!("{}{below}, the scenario's from it", g.display()),
     };
@@ -296,7 +303,7 @@ pub fn run(a: Args) -> Result<i32> {
                 g.file_name()
                     .map_or_else(|| g.display().to_string(), |f| f.to_string_lossy().into())
             ),
-            None => "the scenario's gains".into(),
+            None => scenario_gains,
         };
         let setting = format!(
             "{} s per cell; {}; {gains_said}",

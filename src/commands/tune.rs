@@ -292,8 +292,9 @@ pub struct LegArgs {
     #[arg(long, default_value_t = pma_studies::leg_tune::VARIATION_WEIGHT_DEG_PER_BAR_S, allow_negative_numbers = true)]
     variation_weight: f64,
     /// Runs of a local polish after the firefly search (a compass search around its best,
-    /// in parallel); with it the search also starts from the scenario's own gains (its
-    /// gain set's, `control.gain_set`, for a controller other than APRC-NDO) and never
+    /// in parallel); with it the search also starts from the scenario's own gains (those
+    /// its support selects, `control.gains_below_support`; its gain set's,
+    /// `control.gain_set`, for a controller other than APRC-NDO) and never
     /// ends worse than them. 0 (default): the plain search the shipped in-air gains
     /// came from.
     #[arg(long, default_value_t = 0)]

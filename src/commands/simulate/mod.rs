@@ -111,7 +111,7 @@ pub fn run(a: Args) -> Result<i32> {
     let provenance = Provenance {
         scenario: Some(crate::provenance::named(&a.scenario, &sc.name)),
         controller: Some(controller_label(&loaded, &config)),
-        gains: Some(gain_source(a.controller, a.gains.as_deref())),
+        gains: Some(gain_source(a.controller, a.gains.as_deref(), &loaded)),
         patient: Some(patient_name(&loaded)),
         valve: Some(sc.plant.valve_label()?),
         seeds: Seeds::of_scenario(sc),

@@ -48,6 +48,12 @@ pub struct ControlSettings {
     /// by default (the treadmill scenarios set 0.9).
     #[serde(default)]
     pub force_max_of_rating: Option<f64>,
+    /// A second APRC-NDO set for patients the harness carries less of (issue 47): where the
+    /// treadmill's `bws_fraction` is below `support_fraction`, every muscle's APRC-NDO (and
+    /// APRC) runs these gains instead of `gains` (a schedule by support; docs/envelope.md,
+    /// "Gains that follow the patient"). Needs a `[treadmill]`; none by default.
+    #[serde(default)]
+    pub gains_below_support: Option<GainsBelowSupport>,
     /// Which shipped gains the other controllers take (`--controller NAME` without
     /// `--gains`, `compare-leg`): `in-air` (default) or `treadmill`.
     #[serde(default)]
@@ -69,6 +75,123 @@ pub struct ControlSettings {
     pub compensation: crate::control::Compensation,
 }
 
+/// `control.gains_below_support`: the APRC-NDO gains a patient on less support runs.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GainsBelowSupport {
+    /// The support (share of the body weight, in [0, 1]) below which `gains` run; 0 switches
+    /// the schedule off.
+    pub support_fraction: f64,
+    /// APRC-NDO gains (fields left out keep the paper's values).
+    pub gains: AprcGains,
+}
+
+impl ControlSettings {
+    /// The APRC-NDO gains a patient on `support` (the harness's share of their weight;
+    /// `None` off a treadmill) runs with: `gains_below_support`'s below its fraction,
+    /// `gains` otherwise.
+    pub fn aprc_gains(&self, support: Option<f64>) -> AprcGains {
+        match self.scheduled_at(support) {
+            Some(s) => s.gains,
+            None => self.gains,
+        }
+    }
+
+    /// `gains_below_support` where it applies to a patient on `support`.
+    pub fn scheduled_at(&self, support: Option<f64>) -> Option<&GainsBelowSupport> {
+        let support = support?;
+        self.gains_below_support
+            .as_ref()
+            .filter(|s| support < s.support_fraction)
+    }
+}
+
 fn default_rate_max() -> f64 {
     6.0e8
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::LoadedScenario;
+
+    use pma_control::ControllerConfig;
+
+    fn trainer(name: &str) -> LoadedScenario {
+        crate::Scenario::embedded(name).expect("an embedded scenario")
+    }
+
+    #[test]
+    fn the_shipped_trainers_schedule_is_the_patients_gain_file() {
+        let file = ControllerConfig::from_toml_str(include_str!(
+            "../../models/gains/treadmill-patients/aprc-ndo.toml"
+        ))
+        .unwrap();
+        for name in [
+            "gait_treadmill",
+            "gait_treadmill_spastic",
+            "gait_treadmill_unsupported",
+        ] {
+            let s = trainer(name).scenario.control.gains_below_support.unwrap();
+            assert_eq!(ControllerConfig::AprcNdo(s.gains), file, "{name}");
+            assert_eq!(s.support_fraction, 0.5, "{name}");
+            // `--gains crates/pma-leg/models/gains/treadmill/aprc-ndo.toml` runs the
+            // scenario's own set at every support (docs/envelope.md compares the two).
+            let own = crate::control::GainSet::Treadmill
+                .gains(pma_control::ControllerKind::AprcNdo)
+                .unwrap();
+            assert_eq!(
+                ControllerConfig::AprcNdo(trainer(name).scenario.control.gains),
+                own,
+                "{name}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_patient_below_the_schedules_support_runs_its_gains_and_one_from_it_the_scenarios() {
+        let mut l = trainer("gait_treadmill");
+        let own = l.scenario.control.gains;
+        let below = l.scenario.control.gains_below_support.unwrap().gains;
+        assert_ne!(own, below);
+        for (support, expected) in [
+            (0.0, below),
+            (0.3, below),
+            (0.4999, below),
+            (0.5, own),
+            (0.9, own),
+        ] {
+            l.scenario.treadmill.as_mut().unwrap().bws_fraction = support;
+            assert_eq!(l.scenario.aprc_gains(), expected, "at {support}");
+            assert_eq!(l.scenario.gains_scheduled(), support < 0.5, "at {support}");
+            let base = crate::scenario::base_config(&l, pma_control::ControllerKind::AprcNdo);
+            assert_eq!(base, ControllerConfig::AprcNdo(expected), "at {support}");
+        }
+        // Off a treadmill no harness carries anything to schedule by.
+        assert_eq!(l.scenario.control.aprc_gains(None), own);
+        // A fraction of 0 switches the schedule off.
+        l.scenario.treadmill.as_mut().unwrap().bws_fraction = 0.0;
+        l.scenario
+            .control
+            .gains_below_support
+            .as_mut()
+            .unwrap()
+            .support_fraction = 0.0;
+        assert_eq!(l.scenario.aprc_gains(), own);
+    }
+
+    #[test]
+    fn a_schedule_off_a_treadmill_is_refused_naming_the_field() {
+        let text = format!(
+            "{}\n[control.gains_below_support]\nsupport_fraction = 0.5\n[control.gains_below_support.gains]\n",
+            include_str!("../../models/scenarios/gait_training.toml")
+        );
+        let e = crate::Scenario::from_toml_str(&text, "s.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("control.gains_below_support.support_fraction")
+                && e.contains("needs a [treadmill]"),
+            "{e}"
+        );
+    }
 }

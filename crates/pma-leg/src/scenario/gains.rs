@@ -15,9 +15,10 @@ pub fn scenario_gains(
 }
 
 /// The configuration a tuning starts from and keeps outside its search space: the
-/// scenario's APRC-NDO gains for APRC-NDO and APRC, the controller's defaults otherwise.
+/// scenario's APRC-NDO gains for APRC-NDO and APRC (those its patient's support selects,
+/// `Scenario::aprc_gains`), the controller's defaults otherwise.
 pub fn base_config(loaded: &LoadedScenario, kind: ControllerKind) -> ControllerConfig {
-    let g = loaded.scenario.control.gains;
+    let g = loaded.scenario.aprc_gains();
     match kind {
         ControllerKind::AprcNdo => ControllerConfig::AprcNdo(g),
         ControllerKind::Aprc => ControllerConfig::Aprc(g),

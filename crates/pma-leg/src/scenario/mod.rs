@@ -278,12 +278,53 @@ impl Scenario {
             crate::control::check_share(share)?;
         }
         pma_control::ControllerConfig::AprcNdo(self.control.gains).validate()?;
+        self.check_gains_below_support()?;
         self.patient.validate()?;
         if let Some(t) = &self.treadmill {
             t.validate()?;
             self.check_belt_on_reference(t)?;
         }
         Ok(())
+    }
+
+    /// `control.gains_below_support`: its support a share of the body weight on a treadmill
+    /// (off one no harness carries anything to schedule by), its gains APRC-NDO's.
+    fn check_gains_below_support(&self) -> Result<(), LegError> {
+        let Some(s) = &self.control.gains_below_support else {
+            return Ok(());
+        };
+        let name = "control.gains_below_support.support_fraction";
+        pma_model::error::check(
+            (0.0..=1.0).contains(&s.support_fraction),
+            name,
+            s.support_fraction,
+            "must be in [0, 1]: the share of the body weight below which its gains run (0: never)",
+        )?;
+        pma_model::error::check(
+            self.treadmill.is_some(),
+            name,
+            s.support_fraction,
+            "needs a [treadmill]: the schedule is by the harness's treadmill.bws_fraction",
+        )?;
+        pma_control::ControllerConfig::AprcNdo(s.gains).validate()?;
+        Ok(())
+    }
+
+    /// The walking support of the patient (the harness's share of their weight), `None`
+    /// off a treadmill.
+    pub fn support(&self) -> Option<f64> {
+        self.treadmill.as_ref().map(|t| t.bws_fraction)
+    }
+
+    /// The APRC-NDO gains every muscle runs with on this scenario: `control.gains`, or
+    /// `control.gains_below_support`'s where the patient's support is below its fraction.
+    pub fn aprc_gains(&self) -> pma_control::AprcGains {
+        self.control.aprc_gains(self.support())
+    }
+
+    /// Whether the patient's support selects `control.gains_below_support`'s gains.
+    pub fn gains_scheduled(&self) -> bool {
+        self.control.scheduled_at(self.support()).is_some()
     }
 
     /// A belt on the adults' data runs at a speed the data were recorded at: within

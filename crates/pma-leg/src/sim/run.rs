@@ -78,9 +78,9 @@ fn resting_pressures(muscles: &[MuscleActuator], p_cc: f64) -> [f64; 4] {
 
 impl LegSim {
     /// Builds the simulation of a loaded scenario with the scenario's APRC-NDO gains on
-    /// every muscle, the legs standing still at rest.
+    /// every muscle (those its patient's support selects), the legs standing still at rest.
     pub fn new(loaded: &LoadedScenario) -> Result<Self, LegError> {
-        let config = ControllerConfig::AprcNdo(loaded.scenario.control.gains);
+        let config = ControllerConfig::AprcNdo(loaded.scenario.aprc_gains());
         Self::with_controller(loaded, &config)
     }
 

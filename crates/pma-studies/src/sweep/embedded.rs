@@ -203,7 +203,7 @@ mod tests {
         }
         assert_eq!(
             gains_for(ControllerKind::AprcNdo, "scenario", d, leg).unwrap(),
-            Some(ControllerConfig::AprcNdo(loaded.scenario.control.gains))
+            Some(ControllerConfig::AprcNdo(loaded.scenario.aprc_gains()))
         );
         assert_eq!(
             gains_for(ControllerKind::Pid, "scenario", d, leg).unwrap(),
