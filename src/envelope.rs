@@ -290,11 +290,11 @@ pub fn run_cell(
 fn scheduled(base: &LoadedScenario, p: &Point, settings: &CellSettings) -> Option<bool> {
     use pma_control::ControllerKind as K;
     let control = &base.scenario.control;
-    let scenario_aprc = settings.gains_at(p.support).is_none()
+    control.gains_below_support.as_ref()?;
+    let runs_scenario_aprc = settings.gains_at(p.support).is_none()
         && matches!(settings.controller, None | Some(K::AprcNdo | K::Aprc))
         && p.mode.control_mode().runs_muscle_controllers();
-    control.gains_below_support.as_ref()?;
-    scenario_aprc.then(|| control.scheduled_at(Some(p.support)).is_some())
+    runs_scenario_aprc.then(|| control.scheduled_at(Some(p.support)).is_some())
 }
 
 /// [`run_cell`] before the cell records the settings it ran with.

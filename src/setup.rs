@@ -409,12 +409,13 @@ pub fn gain_source(
     gains: Option<&Path>,
     loaded: &LoadedScenario,
 ) -> String {
-    let scenario = |what: &str| match &loaded.scenario.control.gains_below_support {
-        Some(s) if loaded.scenario.gains_scheduled() => format!(
+    let sc = &loaded.scenario;
+    let scenario = |what: &str| match sc.control.scheduled_at(sc.support()) {
+        Some(s) => format!(
             "scenario ({what}, control.gains_below_support: the support is below {})",
             pma_model::error::number(s.support_fraction)
         ),
-        _ => format!("scenario ({what})"),
+        None => format!("scenario ({what})"),
     };
     match (kind, gains) {
         (_, Some(path)) => path.display().to_string(),

@@ -75,7 +75,9 @@ fn ideal_valve(base: &str) -> String {
             .collect();
     text.replace_range(start..end, &format!("[control.gains]\n{gains}"));
     // The schedule by support came with issue 47, after the real valves: off.
-    text.replacen("support_fraction = 0.5", "support_fraction = 0.0", 1)
+    let schedule = "support_fraction = 0.5";
+    assert!(text.contains(schedule), "{schedule} not in the scenario");
+    text.replacen(schedule, "support_fraction = 0.0", 1)
 }
 
 fn temp_dir(name: &str) -> std::path::PathBuf {

@@ -87,17 +87,8 @@ pub struct GainsBelowSupport {
 }
 
 impl ControlSettings {
-    /// The APRC-NDO gains a patient on `support` (the harness's share of their weight;
-    /// `None` off a treadmill) runs with: `gains_below_support`'s below its fraction,
-    /// `gains` otherwise.
-    pub fn aprc_gains(&self, support: Option<f64>) -> AprcGains {
-        match self.scheduled_at(support) {
-            Some(s) => s.gains,
-            None => self.gains,
-        }
-    }
-
-    /// `gains_below_support` where it applies to a patient on `support`.
+    /// `gains_below_support` where it applies to a patient on `support` (the harness's
+    /// share of their weight; `None` off a treadmill, where nothing is scheduled).
     pub fn scheduled_at(&self, support: Option<f64>) -> Option<&GainsBelowSupport> {
         let support = support?;
         self.gains_below_support
@@ -131,7 +122,8 @@ mod tests {
             "gait_treadmill_spastic",
             "gait_treadmill_unsupported",
         ] {
-            let s = trainer(name).scenario.control.gains_below_support.unwrap();
+            let control = trainer(name).scenario.control;
+            let s = control.gains_below_support.unwrap();
             assert_eq!(ControllerConfig::AprcNdo(s.gains), file, "{name}");
             assert_eq!(s.support_fraction, 0.5, "{name}");
             // `--gains crates/pma-leg/models/gains/treadmill/aprc-ndo.toml` runs the
@@ -139,11 +131,7 @@ mod tests {
             let own = crate::control::GainSet::Treadmill
                 .gains(pma_control::ControllerKind::AprcNdo)
                 .unwrap();
-            assert_eq!(
-                ControllerConfig::AprcNdo(trainer(name).scenario.control.gains),
-                own,
-                "{name}"
-            );
+            assert_eq!(ControllerConfig::AprcNdo(control.gains), own, "{name}");
         }
     }
 
@@ -162,12 +150,11 @@ mod tests {
         ] {
             l.scenario.treadmill.as_mut().unwrap().bws_fraction = support;
             assert_eq!(l.scenario.aprc_gains(), expected, "at {support}");
-            assert_eq!(l.scenario.gains_scheduled(), support < 0.5, "at {support}");
+            let scheduled = l.scenario.control.scheduled_at(l.scenario.support());
+            assert_eq!(scheduled.is_some(), support < 0.5, "at {support}");
             let base = crate::scenario::base_config(&l, pma_control::ControllerKind::AprcNdo);
             assert_eq!(base, ControllerConfig::AprcNdo(expected), "at {support}");
         }
-        // Off a treadmill no harness carries anything to schedule by.
-        assert_eq!(l.scenario.control.aprc_gains(None), own);
         // A fraction of 0 switches the schedule off.
         l.scenario.treadmill.as_mut().unwrap().bws_fraction = 0.0;
         l.scenario
@@ -177,6 +164,8 @@ mod tests {
             .unwrap()
             .support_fraction = 0.0;
         assert_eq!(l.scenario.aprc_gains(), own);
+        // Off a treadmill no harness carries anything to schedule by.
+        assert_eq!(l.scenario.control.scheduled_at(None), None);
     }
 
     #[test]

@@ -294,10 +294,11 @@ impl Scenario {
             return Ok(());
         };
         let name = "control.gains_below_support.support_fraction";
-        pma_model::error::check(
-            (0.0..=1.0).contains(&s.support_fraction),
+        within(
             name,
             s.support_fraction,
+            0.0,
+            1.0,
             "must be in [0, 1]: the share of the body weight below which its gains run (0: never)",
         )?;
         pma_model::error::check(
@@ -319,12 +320,9 @@ impl Scenario {
     /// The APRC-NDO gains every muscle runs with on this scenario: `control.gains`, or
     /// `control.gains_below_support`'s where the patient's support is below its fraction.
     pub fn aprc_gains(&self) -> pma_control::AprcGains {
-        self.control.aprc_gains(self.support())
-    }
-
-    /// Whether the patient's support selects `control.gains_below_support`'s gains.
-    pub fn gains_scheduled(&self) -> bool {
-        self.control.scheduled_at(self.support()).is_some()
+        self.control
+            .scheduled_at(self.support())
+            .map_or(self.control.gains, |s| s.gains)
     }
 
     /// A belt on the adults' data runs at a speed the data were recorded at: within
