@@ -247,7 +247,7 @@ fn bad_trainer_input_is_a_one_line_error_naming_the_field() {
         env!("CARGO_MANIFEST_DIR"),
         "/crates/pma-leg/models/exo_leg.urdf"
     );
-    let in_air_urdf = format!("physics_substeps = 1\nurdf = \"{in_air}\"");
+    let in_air_urdf = format!("physics_substeps = 2\nurdf = \"{in_air}\"");
     let cases: &[(&str, &str, &str)] = &[
         ("legs = 2", "legs = 3", "treadmill.legs"),
         ("legs = 2", "legs = 0", "treadmill.legs"),
@@ -299,7 +299,7 @@ fn bad_trainer_input_is_a_one_line_error_naming_the_field() {
             "gait.speed_m_per_s",
         ),
         (
-            "physics_substeps = 1",
+            "physics_substeps = 2",
             &in_air_urdf,
             "the URDF has 1 leg(s)",
         ),
@@ -487,8 +487,8 @@ fn size_recommends_muscles_the_two_legs_then_run_on() {
         &dir,
         "sized.toml",
         &[(
-            "physics_substeps = 1",
-            "physics_substeps = 1\nmuscle_geometry = \"m.toml\"",
+            "physics_substeps = 2",
+            "physics_substeps = 2\nmuscle_geometry = \"m.toml\"",
         )],
     );
     let run = judged(&[
@@ -1334,10 +1334,10 @@ fn regression_muscles_over_their_rating_on_the_servo_stride_ran() {
     let geometry = dir.join("knee_small.toml");
     std::fs::write(&geometry, knee_small).unwrap();
     let line = format!(
-        "physics_substeps = 1\nmuscle_geometry = \"{}\"",
+        "physics_substeps = 2\nmuscle_geometry = \"{}\"",
         geometry.display()
     );
-    let path = scenario_with(&dir, "small.toml", &[("physics_substeps = 1", &line)]);
+    let path = scenario_with(&dir, "small.toml", &[("physics_substeps = 2", &line)]);
     let out = pma_exo(&["simulate", path.to_str().unwrap(), "--duration", "4"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");

@@ -382,9 +382,20 @@ fn logged_vectors(
 fn a_treadmill_recording_shows_the_belt_the_contacts_the_grf_and_the_phases() {
     let mut samples = Vec::new();
     let mut shank = Vec::new();
+    // The right foot's vertical force at each period's last substep, the arrow's.
+    let mut last_substep_vertical_n = Vec::new();
     let (sim, _, msgs) = recorded("gait_treadmill", 3.0, |p| {
         samples.push(TrainerSample::of(p));
         let exo = p.backend.exo();
+        let ground = exo.ground().expect("a treadmill");
+        last_substep_vertical_n.push(
+            ground
+                .sphere_contacts(0)
+                .iter()
+                .flatten()
+                .map(|c| c.force_n[2])
+                .sum::<f64>(),
+        );
         let i = exo.link_names().position(|n| n == "right_shank").unwrap();
         shank.push(exo.link_pose(i).0.map(|x| x as f32));
     });
@@ -427,8 +438,10 @@ fn a_treadmill_recording_shows_the_belt_the_contacts_the_grf_and_the_phases() {
             );
         }
     }
-    let stance = &series["/right/ground/foot/stance"].1;
-    // The arrow is the force at the last substep, 1 kN to half a metre, upwards in stance.
+    // The arrow is the force at the period's last substep, 1 kN to half a metre: upwards
+    // where that substep's contacts carry the foot (the stance series is the period's
+    // mean, which differs from it at a contact's first or last period when a period takes
+    // more than one substep).
     let arrows = logged_vectors(
         &msgs,
         "/world/right_foot_on_belt/grf",
@@ -436,9 +449,21 @@ fn a_treadmill_recording_shows_the_belt_the_contacts_the_grf_and_the_phases() {
     );
     assert_eq!(arrows.len(), 3000);
     let threshold = (pma_leg::metrics::CONTACT_THRESHOLD_N * pma_viz::GRF_ARROW_M_PER_N) as f32;
-    let up = arrows.iter().filter(|(_, v)| v[0][2] > threshold).count();
+    let up: Vec<bool> = arrows.iter().map(|(_, v)| v[0][2] > threshold).collect();
+    let loaded: Vec<bool> = last_substep_vertical_n
+        .iter()
+        .map(|f| (f * pma_viz::GRF_ARROW_M_PER_N) as f32 > threshold)
+        .collect();
+    assert_eq!(up, loaded, "arrows up vs the last substep's load");
+    let stance = &series["/right/ground/foot/stance"].1;
     let in_stance = stance.iter().filter(|s| **s == 1.0).count();
-    assert_eq!(up, in_stance, "arrows up vs periods in stance");
+    // They may differ only in a period where the stance begins or ends.
+    let transitions = stance.windows(2).filter(|w| w[0] != w[1]).count();
+    let differ = up.iter().filter(|u| **u).count().abs_diff(in_stance);
+    assert!(
+        differ <= transitions,
+        "arrows up vs periods in stance: {differ} apart over {transitions} transitions"
+    );
 }
 
 /// Issue 49: docs/formats.md's Python recipe read `/joints/hip/error_deg` only and divided
