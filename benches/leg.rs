@@ -29,10 +29,11 @@ fn leg(c: &mut Criterion) {
         })
     });
     // The trainer (pelvis on its slides, feet on a 0.6 m/s belt, 30 % BWS, passive
-    // ankles) with one and two legs at the treadmill scenarios' one substep, the contacts
-    // computed every substep.
+    // ankles) with one and two legs at the treadmill scenarios' physics substeps (those of
+    // the closed loop below), the contacts computed every substep.
+    let treadmill = Scenario::load("gait_treadmill").expect("gait_treadmill");
     for legs in [1, 2] {
-        let treadmill = pma_leg::ground::TreadmillSettings {
+        let settings = pma_leg::ground::TreadmillSettings {
             legs,
             speed_m_per_s: Some(0.6),
             contralateral: Some(pma_leg::ground::Contralateral::None),
@@ -43,8 +44,8 @@ fn leg(c: &mut Criterion) {
             "exo_trainer.urdf",
             [sc.joints.hip, sc.joints.knee],
             sc.period_s,
-            1,
-            &treadmill,
+            treadmill.scenario.physics_substeps,
+            &settings,
         )
         .expect("treadmill leg");
         for leg in 0..legs {
@@ -83,7 +84,6 @@ fn leg(c: &mut Criterion) {
     });
     // The same on the treadmill (gait_treadmill: belt, harness, the other leg, the gait
     // phases' figures).
-    let treadmill = Scenario::load("gait_treadmill").expect("gait_treadmill");
     let mut sim = LegSim::new(&treadmill).expect("sim");
     group.bench_function("closed_loop_treadmill_x100", |b| {
         b.iter(|| black_box(sim.run(0.1, &mut ()).expect("run")))

@@ -17,8 +17,8 @@ one run of this script on this machine.
   slides, two legs of hip, knee and passive ankle, n = 8), standing on both feet at 30 %
   body-weight support: in MuJoCo as tools/mujoco/stance.py builds it (its four foot spheres
   on a floor, position servos on hips and knees, the orthoses as joint springs,
-  implicit-fast) at one step per period; in rapier `rapier_treadmill_bare_2_leg` (one
-  substep, pma-leg's own foot contacts) and `closed_loop_treadmill_x100` (gait_treadmill:
+  implicit-fast) at one step per period; in rapier `rapier_treadmill_bare_2_leg` (the
+  treadmill scenarios' two substeps, pma-leg's own foot contacts) and `closed_loop_treadmill_x100` (gait_treadmill:
   eight muscles and controllers, the gait's references and figures).
 
     python3 tools/mujoco/speed.py [--skip-bench]   # --skip-bench: read the last bench's JSON
@@ -139,7 +139,7 @@ def main():
     table("1 ms period of the two-leg trainer, standing", "/ MuJoCo", [
         (f"MuJoCo {mujoco.__version__}, `mj_step` x1 (implicit-fast, {nv} dof, "
          f"{ncon} contacts)", us),
-        ("rapier, bare step (1 substep, the feet's contacts)", rapier["rapier_treadmill_bare_2_leg"]),
+        ("rapier, bare step (2 substeps, the feet's contacts)", rapier["rapier_treadmill_bare_2_leg"]),
         ("rapier trainer, closed loop (8 muscles, 8 APRC-NDO, `gait_treadmill`)",
          rapier["closed_loop_treadmill_x100"]),
     ], us)
