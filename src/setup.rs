@@ -423,8 +423,8 @@ pub fn gain_source(
         (Some(ControllerKind::Aprc), None) => scenario("APRC-NDO's, observer off"),
         (Some(_), None) => format!(
             "shipped {} gains ({})",
-            loaded.scenario.control.gain_set.as_str(),
-            loaded.scenario.control.gain_set.directory()
+            sc.control.gain_set.as_str(),
+            sc.control.gain_set.directory()
         ),
     }
 }

@@ -18,8 +18,9 @@ one run of this script on this machine.
   body-weight support: in MuJoCo as tools/mujoco/stance.py builds it (its four foot spheres
   on a floor, position servos on hips and knees, the orthoses as joint springs,
   implicit-fast) at one step per period; in rapier `rapier_treadmill_bare_2_leg` (the
-  treadmill scenarios' two substeps, pma-leg's own foot contacts) and `closed_loop_treadmill_x100` (gait_treadmill:
-  eight muscles and controllers, the gait's references and figures).
+  treadmill scenarios' physics substeps, pma-leg's own foot contacts) and
+  `closed_loop_treadmill_x100` (gait_treadmill: eight muscles and controllers, the gait's
+  references and figures).
 
     python3 tools/mujoco/speed.py [--skip-bench]   # --skip-bench: read the last bench's JSON
 
@@ -33,6 +34,7 @@ import pathlib
 import statistics
 import subprocess
 import sys
+import tomllib
 import time
 import xml.etree.ElementTree as ET
 
@@ -104,6 +106,12 @@ def mujoco_trainer_us():
     return statistics.median(times), m.nv, d.ncon
 
 
+def physics_substeps(scenario):
+    """`physics_substeps` of an embedded scenario: the steps the bench's rows take."""
+    path = ROOT / "crates/pma-leg/models/scenarios" / f"{scenario}.toml"
+    return tomllib.loads(path.read_text())["physics_substeps"]
+
+
 def rapier_us(skip_bench):
     """The rapier leg's bare step and closed-loop period (us) from criterion's JSON."""
     target = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
@@ -131,7 +139,8 @@ def main():
     for substeps in (1, 2):
         us, nv = mujoco_us_per_period(substeps)
         rows.append((f"MuJoCo {mujoco.__version__}, `mj_step` x{substeps} (Euler, {nv} dof)", us))
-    rows.append(("rapier, bare step (2 substeps)", rapier["rapier_bare"]))
+    rows.append((f"rapier, bare step ({physics_substeps('gait_training')} substeps)",
+                 rapier["rapier_bare"]))
     rows.append(("rapier leg, closed loop (4 muscles, 4 APRC-NDO)", rapier["closed_loop_x100"]))
     table("1 ms period of the in-air leg", "/ MuJoCo x2", rows, rows[1][1])
     us, nv, ncon = mujoco_trainer_us()
@@ -139,7 +148,8 @@ def main():
     table("1 ms period of the two-leg trainer, standing", "/ MuJoCo", [
         (f"MuJoCo {mujoco.__version__}, `mj_step` x1 (implicit-fast, {nv} dof, "
          f"{ncon} contacts)", us),
-        ("rapier, bare step (2 substeps, the feet's contacts)", rapier["rapier_treadmill_bare_2_leg"]),
+        (f"rapier, bare step ({physics_substeps('gait_treadmill')} substeps, the feet's contacts)",
+         rapier["rapier_treadmill_bare_2_leg"]),
         ("rapier trainer, closed loop (8 muscles, 8 APRC-NDO, `gait_treadmill`)",
          rapier["closed_loop_treadmill_x100"]),
     ], us)

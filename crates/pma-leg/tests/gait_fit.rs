@@ -89,7 +89,7 @@ fn the_fit_makes_the_stance_contact_move_at_the_belts_speed() {
 }
 
 /// The bands every shipped two-leg fit meets, servo-driven as `pma-exo size` runs
-/// it: slip under 20 mm per stride, stance within 3 % of the cycle of the reference's, no
+/// it at the step the fit was made at: slip under 20 mm per stride, stance within 3 % of the cycle of the reference's, no
 /// scuff, at most 1.2 N m/kg at the hip and 1.0 at the knee, the belt within 1 N of no
 /// mean harness force (8 N per mm/s; the shipped belt has 4 decimals), and the pelvis off
 /// its stops. Returns each foot's largest loading peak over the belt's mean load.

@@ -13,7 +13,7 @@ pub use gains::*;
 use crate::base::{invalid, LegError};
 use crate::ground::TreadmillSettings;
 use crate::patient::PatientSettings;
-use pma_model::error::{non_negative, positive, within};
+use pma_model::error::{check, non_negative, positive, within};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -188,7 +188,7 @@ impl Scenario {
                 "must be 1 to 100 (PHYSICS_SUBSTEPS_MAX)",
             ));
         }
-        pma_model::error::check(
+        check(
             !(self.implicit_muscle_damping && self.treadmill.is_some()),
             "implicit_muscle_damping",
             1.0,
@@ -301,7 +301,7 @@ impl Scenario {
             1.0,
             "must be in [0, 1]: the share of the body weight below which its gains run (0: never)",
         )?;
-        pma_model::error::check(
+        check(
             self.treadmill.is_some(),
             name,
             s.support_fraction,
@@ -343,7 +343,7 @@ impl Scenario {
             .map_or(1.0, |h| h / crate::body::URDF_PATIENT_HEIGHT_M);
         let recorded = crate::gait::AdultNorms::at(speed)?.speed_m_s * r;
         let off = (belt / recorded - 1.0).abs();
-        pma_model::error::check(
+        check(
             off <= BELT_SPEED_OFF_REFERENCE_MAX,
             "treadmill.speed_m_per_s",
             belt,
