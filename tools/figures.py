@@ -5,8 +5,11 @@ The same check as `cargo test --test docs_figures` (the test stays the judge), r
 parallel on a release binary, with two regeneration aids:
 
   --apply  replaces a stale text in its doc where exactly one place in the doc has the
-           same words with other numbers (a table row, a sentence); anything else is
-           reported for a hand edit;
+           same words with other numbers (a sentence, a templated row of the same
+           labels), and a stale `rows_of` table as a whole: the doc's table whose rows
+           have the same labels in the same order (where several have, the manifest's
+           order of their figures is the doc's); anything else is reported for a hand
+           edit;
   --bless  copies a drawn image over the doc's.
 
     cargo build --release -p pma-exo --no-default-features
@@ -98,12 +101,95 @@ def skeleton_pattern(expected):
     return "".join(NUMBER if i % 2 else re.escape(p) for i, p in enumerate(parts))
 
 
+def table_row_key(row):
+    """The cells of a table row that name it rather than measure it: its width and first
+    cell (an envelope's row: its mode, speed, support and mass)."""
+    cells = [c.strip() for c in row.strip().strip("|").split("|")]
+    if cells[0] in ("position", "impedance", "admittance", "path", "transparent") and len(cells) >= 9:
+        return (len(cells), cells[0], cells[1], cells[3], cells[4])
+    return (len(cells), cells[0])
+
+
+def row_groups(text):
+    """The tables of a `rows_of` file, each as its list of rows."""
+    groups, current = [], []
+    rows = set(table_rows(text))
+    for line in text.splitlines():
+        if line in rows:
+            current.append(line)
+        elif current:
+            groups.append(current)
+            current = []
+    return groups + ([current] if current else [])
+
+
+def table_blocks(lines, labels):
+    """Where a whole table (header and separator above, nothing of its width below; in a
+    list item, indented) with these row labels, in order, starts in `lines`."""
+    n = len(labels)
+    flat = [line.lstrip() for line in lines]
+    return [j for j in range(2, len(lines) - n + 1)
+            if flat[j - 1].startswith("|---")
+            and (j + n == len(lines) or not flat[j + n].startswith("|"))
+            and all(flat[j + i].startswith("| ") and table_row_key(flat[j + i]) == labels[i]
+                    for i in range(n))]
+
+
+def shared_cells(lines, j, rows):
+    return sum(a == b for i, r in enumerate(rows)
+               for a, b in zip(lines[j + i].strip().split("|"), r.split("|")))
+
+
+def apply_tables(doc_path, tables):
+    """Replaces each stale `rows_of` table. `tables` lists (rank, count, rows): the table's
+    rank among the tables this run checked in the doc with the same labels, in manifest
+    order, and their count. Where the doc has one table with those labels it is replaced;
+    where it has `count`, the one at `rank` (the manifest lists a doc's figures in the
+    doc's order); where it has more, the one sharing the most cells with the new rows;
+    otherwise it is left for a hand edit."""
+    with open(doc_path) as fh:
+        lines = fh.read().split("\n")
+    left = []
+    for rank, count, rows in tables:
+        blocks = table_blocks(lines, [table_row_key(r) for r in rows])
+        shared = [shared_cells(lines, j, rows) for j in blocks]
+        best = [j for j, n in zip(blocks, shared) if n == max(shared, default=-1)]
+        if len(blocks) == 1 or len(blocks) == count:
+            j = blocks[0] if len(blocks) == 1 else blocks[rank]
+        elif len(best) == 1:
+            # More tables with these labels than this run checked (a history kept beside
+            # it): the one sharing the most cells with the new rows.
+            j = best[0]
+        else:
+            j = None
+        if j is not None:
+            indent = lines[j][: len(lines[j]) - len(lines[j].lstrip())]
+            lines[j:j + len(rows)] = [indent + r for r in rows]
+        else:
+            left.append((rows[0], len(blocks)))
+    tmp = doc_path + ".tmp"
+    with open(tmp, "w") as fh:
+        fh.write("\n".join(lines))
+    os.replace(tmp, doc_path)
+    return left
+
+
+def row_name(row):
+    """A templated row's labels: its first cell, and its second where that is a count or a
+    percentage (a controller and a support, a scenario and a check)."""
+    cells = [c.strip() for c in row.split("|")[1:3]]
+    return cells if re.fullmatch(r"\d+( %| \(shipped\))?", cells[-1]) else cells[:1]
+
+
 def apply(doc_path, stale):
     with open(doc_path) as fh:
         text = fh.read()
     left = []
     for expected in stale:
         matches = list(re.finditer(skeleton_pattern(expected), text))
+        if expected.startswith("| "):
+            # A row of other labels is another row, whatever its numbers.
+            matches = [m for m in matches if row_name(m.group(0)) == row_name(expected)]
         # Among several places, the one sharing the most numbers with the new text
         # (a row's label, its step), where one alone does.
         numbers = re.findall(NUMBER, expected)
@@ -144,7 +230,9 @@ def main():
 
     figures = [f for f in manifest["figure"] if chosen(f)]
     images = [i for i in manifest.get("image", []) if chosen(i)]
-    stale, failed, checked = {}, [], 0
+    stale, failed, checked, n_stale = {}, [], 0, 0
+    # Each `rows_of` figure's tables, by doc: (the figure's place in the manifest, rows).
+    tables, order = {}, {id(f): i for i, f in enumerate(figures)}
     # A command that several figures share runs once (two `paper --out DIR` at once would
     # refuse each other's directory).
     runs = {}
@@ -177,6 +265,7 @@ def main():
                 print(f"{item['path']}: redrawn", flush=True)
             elif not same:
                 stale.setdefault(item["path"], []).append(None)
+                n_stale += 1
                 print(f"{item['path']}: differs from `pma-exo {cmd}`", flush=True)
             continue
         if data is None and any("{" in t for t in item.get("text", [])):
@@ -193,14 +282,36 @@ def main():
             failed.append(f"FAILED pma-exo {cmd}: a field the text reads is absent ({e!r})")
             print(failed[-1], flush=True)
             continue
+        table = set()
+        if item.get("rows_of"):
+            with open(item["rows_of"].replace("{dir}", work)) as fh:
+                groups = row_groups(fh.read())
+            tables.setdefault(item["doc"], []).extend((order[id(item)], g) for g in groups)
+            table = {r for g in groups for r in g}
         for expected in texts:
             checked += 1
             if expected not in doc:
-                stale.setdefault(item["doc"], []).append(expected)
+                n_stale += 1
+                if expected not in table:
+                    stale.setdefault(item["doc"], []).append(expected)
                 print(f"{item['doc']}: should say `{expected}` (`pma-exo {cmd}`)", flush=True)
-    n_stale = sum(len(v) for v in stale.values())
+    doc_tables = {
+        doc: [g for _, g in sorted(groups, key=lambda t: t[0])]
+        for doc, groups in tables.items()
+    }
     print(f"{n_stale} of {checked} stale, {len(failed)} failed")
     if a.apply:
+        for doc, groups in doc_tables.items():
+            with open(os.path.join(ROOT, doc)) as fh:
+                lines = {line.strip() for line in fh.read().split("\n")}
+            labels = [tuple(table_row_key(r) for r in g) for g in groups]
+            todo = [(labels[:i].count(labels[i]), labels.count(labels[i]), g)
+                    for i, g in enumerate(groups) if any(r not in lines for r in g)]
+            if todo:
+                left = apply_tables(os.path.join(ROOT, doc), todo)
+                print(f"{doc}: {len(todo) - len(left)} tables replaced")
+                for row, n in left:
+                    print(f"  TABLE NOT REPLACED ({n} with its labels): `{row}`")
         for doc, texts in stale.items():
             texts = [t for t in texts if t is not None]
             if not texts:
