@@ -421,20 +421,17 @@ fn fit_gait_writes_the_lines_the_scenario_takes() {
         .lines()
         .find(|l| l.starts_with("speed_m_per_s"))
         .unwrap();
-    let base = std::fs::read_to_string(format!(
-        "{}/crates/pma-leg/models/scenarios/gait_treadmill.toml",
-        env!("CARGO_MANIFEST_DIR")
-    ))
-    .unwrap();
-    let start = base.find("[gait.hip_correction]").unwrap();
-    let end = start + base[start..].find("\n\n").unwrap();
-    // The shipped belt's line, asserted present: after a refit of the scenario this fails
-    // instead of leaving the belt unedited.
-    let belt = "speed_m_per_s = 0.4864";
-    assert!(base.contains(belt), "{belt} not in the scenario");
-    let edited = format!("{}{}{}", &base[..start], correction, &base[end..]).replace(belt, speed);
-    let path = dir.join("fitted.toml");
-    std::fs::write(&path, edited).unwrap();
+    let start = SCENARIO.find("[gait.hip_correction]").unwrap();
+    let end = start + SCENARIO[start..].find("\n\n").unwrap();
+    let spliced = format!("{}{}{}", &SCENARIO[..start], correction, &SCENARIO[end..]);
+    // `edited` asserts the shipped belt's line is there: after a refit of the scenario this
+    // fails instead of leaving the belt unedited.
+    let path = edited(
+        &spliced,
+        &dir,
+        "fitted.toml",
+        &[("speed_m_per_s = 0.4864", speed)],
+    );
     // A fit of a few iterations is not converged: its stride asks many times the adults'
     // moments, which `simulate` refuses unless told to run it, and whether it walks is not
     // this test's question (it ends with a verdict either way).

@@ -101,13 +101,21 @@ def skeleton_pattern(expected):
     return "".join(NUMBER if i % 2 else re.escape(p) for i, p in enumerate(parts))
 
 
-def table_row_key(row):
-    """The cells of a table row that name it rather than measure it: its width and first
-    cell (an envelope's row: its mode, speed, support and mass)."""
+def row_labels(row):
+    """The cells of a table row that name it rather than measure it: its first cell, and its
+    second where that is a count or a percentage (a controller and a support, a scenario
+    and a check); an envelope's row: its mode, speed, support and mass."""
     cells = [c.strip() for c in row.strip().strip("|").split("|")]
     if cells[0] in ("position", "impedance", "admittance", "path", "transparent") and len(cells) >= 9:
-        return (len(cells), cells[0], cells[1], cells[3], cells[4])
-    return (len(cells), cells[0])
+        return (cells[0], cells[1], cells[3], cells[4])
+    if len(cells) > 1 and re.fullmatch(r"\d+( %| \(shipped\))?", cells[1]):
+        return (cells[0], cells[1])
+    return (cells[0],)
+
+
+def table_row_key(row):
+    """A row's labels and width: what a `rows_of` table's rows are found by in a doc."""
+    return (row.strip().strip("|").count("|") + 1, *row_labels(row))
 
 
 def row_groups(text):
@@ -174,13 +182,6 @@ def apply_tables(doc_path, tables):
     return left
 
 
-def row_name(row):
-    """A templated row's labels: its first cell, and its second where that is a count or a
-    percentage (a controller and a support, a scenario and a check)."""
-    cells = [c.strip() for c in row.split("|")[1:3]]
-    return cells if re.fullmatch(r"\d+( %| \(shipped\))?", cells[-1]) else cells[:1]
-
-
 def apply(doc_path, stale):
     with open(doc_path) as fh:
         text = fh.read()
@@ -189,7 +190,7 @@ def apply(doc_path, stale):
         matches = list(re.finditer(skeleton_pattern(expected), text))
         if expected.startswith("| "):
             # A row of other labels is another row, whatever its numbers.
-            matches = [m for m in matches if row_name(m.group(0)) == row_name(expected)]
+            matches = [m for m in matches if row_labels(m.group(0)) == row_labels(expected)]
         # Among several places, the one sharing the most numbers with the new text
         # (a row's label, its step), where one alone does.
         numbers = re.findall(NUMBER, expected)
