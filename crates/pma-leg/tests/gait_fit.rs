@@ -176,8 +176,9 @@ fn without_support_the_trainer_walks_once_the_foot_lifter_clears_the_swing_toe()
     // the swing toe scuffed the belt in terminal swing (three scuffs per foot in four
     // strides; 9.9 / 5.9 N m/kg).
     let ratios = assert_the_stance_feet_move_with_the_belt("gait_treadmill_unsupported");
-    // Measured 0.986 on both feet (0.984 before the refit at two physics substeps): just under the 1.0-1.25, which this does not
-    // meet (docs/treadmill.md); pinned here so that it cannot fall unnoticed.
+    // Measured 0.986 on both feet (0.984 before the refit at two physics substeps): just
+    // under the 1.0-1.25, which this does not meet (docs/treadmill.md); pinned
+    // here so that it cannot fall unnoticed.
     for r in ratios {
         assert!((0.98..=1.25).contains(&r), "{r}");
     }
