@@ -123,7 +123,10 @@ fn bench_fingerprint(kind: ControllerKind, plant: &str) -> (u64, u64) {
 }
 
 fn leg_fingerprint(scenario: &str) -> u64 {
-    let loaded = Scenario::load(scenario).expect("scenario");
+    let mut loaded = Scenario::load(scenario).expect("scenario");
+    // The pins were made at the two physics substeps the in-air scenarios took until issue
+    // 50 moved them to eight: the step is the scenario's choice, the loop is what is pinned.
+    loaded.scenario.physics_substeps = PINNED_SUBSTEPS;
     let mut sim = LegSim::new(&loaded).expect("sim");
     let r = sim.run(4.0, &mut ()).expect("run");
     let mut f = Fnv::new();
@@ -254,7 +257,10 @@ const BENCH: [(&str, ControllerKind, u64, u64); 18] = [
     ),
 ];
 
-/// `(scenario, figures)`: 4 s of gait.
+/// The physics substeps the leg's pins were made at.
+const PINNED_SUBSTEPS: u32 = 2;
+
+/// `(scenario, figures)`: 4 s of gait at [`PINNED_SUBSTEPS`].
 const LEG: [(&str, u64); 2] = [
     ("gait_training", 0xa436ba1ad0bfb796),
     ("gait_realistic", 0xe52282494ddde9a1),

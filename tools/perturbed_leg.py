@@ -12,32 +12,37 @@ with an excursion over 0.5 deg.
 
     cargo build --release -p pma-exo --no-default-features
     python3 tools/perturbed_leg.py --bin target/release/pma-exo --substeps 1,2,8,32
+    python3 tools/perturbed_leg.py --bin BIN --scenario gait_active --mode admittance --substeps 2,8
+
+`--scenario` names a shipped in-air scenario (default `gait_training`); `--mode` and
+`--controller` are passed to `simulate`.
 """
 import argparse
 import concurrent.futures as cf
 import json
 import os
+import re
 import statistics
 import subprocess
 import sys
 import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SCENARIO = os.path.join(ROOT, "crates/pma-leg/models/scenarios/gait_training.toml")
+SCENARIOS = os.path.join(ROOT, "crates/pma-leg/models/scenarios")
 DAMPINGS = [0.495 + 0.001 * k for k in range(11)]
 
 
-def scenario_text(base, substeps, implicit, damping):
-    for old in ("physics_substeps = 2\n", "damping_nm_s_per_rad = 0.5\n"):
-        if old not in base:
-            sys.exit(f"{SCENARIO}: no `{old.strip()}` to perturb")
-    text = base.replace("physics_substeps = 2\n", f"physics_substeps = {substeps}\n"
+def scenario_text(name, base, substeps, implicit, damping):
+    shipped = re.search(r"^physics_substeps = \d+\n", base, re.M)
+    if shipped is None or "damping_nm_s_per_rad = 0.5\n" not in base:
+        sys.exit(f"{name}: no `physics_substeps` or `damping_nm_s_per_rad = 0.5` to perturb")
+    text = base.replace(shipped.group(0), f"physics_substeps = {substeps}\n"
                         + ("implicit_muscle_damping = true\n" if implicit else ""))
     return text.replace("damping_nm_s_per_rad = 0.5\n", f"damping_nm_s_per_rad = {damping:.3f}\n")
 
 
-def run(binary, path):
-    out = subprocess.run([binary, "simulate", path, "--duration", "60", "--json"],
+def run(binary, path, extra):
+    out = subprocess.run([binary, "simulate", path, "--duration", "60", "--json", *extra],
                          capture_output=True, text=True)
     if out.returncode != 0:
         sys.exit(f"pma-exo simulate {path}: exit {out.returncode}: {out.stderr.strip()}")
@@ -53,10 +58,18 @@ def main():
     p.add_argument("--bin", required=True)
     p.add_argument("--substeps", default="1,2,4,8,16,32",
                    help="comma-separated; a trailing `i` is one step with the muscles' damping implicit")
+    p.add_argument("--scenario", default="gait_training")
+    p.add_argument("--mode")
+    p.add_argument("--controller")
     p.add_argument("-j", type=int, default=os.cpu_count())
     a = p.parse_args()
-    with open(SCENARIO) as fh:
-        base = fh.read()
+    extra = [arg for flag, value in (("--mode", a.mode), ("--controller", a.controller))
+             if value for arg in (flag, value)]
+    try:
+        with open(os.path.join(SCENARIOS, a.scenario + ".toml")) as fh:
+            base = fh.read()
+    except OSError as e:
+        sys.exit(f"--scenario {a.scenario}: {e}")
     work = tempfile.mkdtemp(prefix="pma-exo-perturbed-")
     print("| physics substeps | knee RMS (deg) | knee max (deg) | knee per stride, median (deg) "
           "| 90th percentile (deg) | hip RMS (deg) | runs with a stride over 0.5 deg |")
@@ -68,10 +81,10 @@ def main():
         for k, d in enumerate(DAMPINGS):
             path = os.path.join(work, f"leg-{step}-{k}.toml")
             with open(path, "w") as fh:
-                fh.write(scenario_text(base, substeps, implicit, d))
+                fh.write(scenario_text(a.scenario, base, substeps, implicit, d))
             paths.append(path)
         with cf.ThreadPoolExecutor(max_workers=a.j) as pool:
-            rows = list(pool.map(lambda q: run(os.path.abspath(a.bin), q), paths))
+            rows = list(pool.map(lambda q: run(os.path.abspath(a.bin), q, extra), paths))
         cols = list(zip(*rows))
 
         def ms(v, digits):
