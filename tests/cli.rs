@@ -1769,3 +1769,37 @@ fn regression_simulate_ran_the_gain_files_controller_instead_of_the_one_named() 
         "gain file is for `pid` but the controller requested is `sta`",
     );
 }
+
+/// Regression: an in-air run that pulled a muscle past its rating ended with exit 0 (only
+/// the treadmill judged the rating). With the rating lowered under the leg's own peak
+/// forces the run completes, says `rating: EXCEEDED` naming the muscles, ends with one
+/// line on stderr and exits 5; at the shipped rating the same run is within it, exit 0.
+#[test]
+fn an_in_air_run_over_its_rating_is_a_verdict_and_exit_5() {
+    let dir = std::env::temp_dir().join(format!("pma-exo-rating-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let text = include_str!("../crates/pma-leg/models/scenarios/gait_training.toml");
+    assert!(text.contains("\n[plant.valve]\n"));
+    let lowered = text.replacen(
+        "\n[plant.valve]\n",
+        "\n[plant]\nmuscle_rated_force_n = 1500.0\n\n[plant.valve]\n",
+        1,
+    );
+    let path = dir.join("rated-1500.toml");
+    std::fs::write(&path, lowered).expect("write");
+    let scenario = path.to_str().expect("utf-8 path");
+    let out = pma_exo(&["simulate", scenario, "--duration", "4"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(5), "{stdout}\n{stderr}");
+    assert!(stdout.contains("rating: EXCEEDED"), "{stdout}");
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("over their rating"), "{stderr}");
+    let out = pma_exo_ok(&["simulate", "gait_training", "--duration", "4"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("rating: every muscle within its rating"),
+        "{stdout}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -47,8 +47,9 @@ def cli_run(cli, tmp_path_factory):
     def run(args):
         out = tmp_path_factory.mktemp("cli") / "run.csv"
         code, stdout, stderr = cli([*args, "--json", "--csv", str(out)])
-        # 4: a treadmill run in which the patient did not walk, judged and reported as any.
-        assert code in (0, 4), stderr
+        # 4: a treadmill run in which the patient did not walk; 5: a leg in the air that
+        # pulled a muscle past its rating; each judged and reported as any.
+        assert code in (0, 4, 5), stderr
         report = json.loads(stdout)
         report.pop("provenance")
         text = out.read_text()

@@ -427,8 +427,8 @@ fn figure_title(sc: &Scenario, config: &ControllerConfig) -> String {
     }
 }
 
-/// The exit status of a finished run: interrupted, did not walk, or 0 (each said on
-/// stderr).
+/// The exit status of a finished run: interrupted, did not walk, a muscle over its
+/// rating in the air, or 0 (each said on stderr).
 fn exit_status(report: &LegReport) -> i32 {
     if report.interrupted {
         eprintln!(
@@ -442,13 +442,37 @@ fn exit_status(report: &LegReport) -> i32 {
             eprintln!("{}", v.line());
             DID_NOT_WALK
         }
-        _ => 0,
+        // On the treadmill the rating is one of the walking criteria; in the air it is the
+        // run's own verdict.
+        Some(_) => 0,
+        None => over_rating_line(report).map_or(0, |line| {
+            eprintln!("{line}");
+            OVER_RATING
+        }),
     }
 }
 
 /// Exit status of a treadmill run that completed but in which the patient did not walk
 /// (a collapse the trainer stopped, or a criterion of `pma_leg::verdict` missed).
 pub const DID_NOT_WALK: i32 = 4;
+
+/// Exit status of an in-air run that completed with a muscle pulled past its rating (the
+/// treadmill's verdict holds the same criterion, [`DID_NOT_WALK`]).
+pub const OVER_RATING: i32 = 5;
+
+/// The one line an in-air run ends with when a muscle went over its rating (the same
+/// bound as the treadmill's walking criterion).
+fn over_rating_line(report: &LegReport) -> Option<String> {
+    let max = pma_leg::WalkingCriteria::default().force_over_rating_max;
+    let over = report.safety.over_rating(max);
+    (!over.is_empty()).then(|| {
+        format!(
+            "{} muscle(s) over their rating (peak force above {max}x the rated force): {}",
+            over.len(),
+            over.join(", ")
+        )
+    })
+}
 
 /// The adult data's vertical ground reaction at the scenario's speed, scaled by the
 /// body-weight support, for a treadmill on the adult reference (Fukuchi et al. 2018).
@@ -571,8 +595,12 @@ fn print_summary(r: &LegReport) -> Result<()> {
         print_treadmill(t)?;
     }
     print_safety(&r.safety)?;
-    if let Some(v) = &r.walking {
-        print_verdict(v)?;
+    match &r.walking {
+        Some(v) => print_verdict(v)?,
+        None => match over_rating_line(r) {
+            Some(line) => say!("  rating: EXCEEDED, {line}"),
+            None => say!("  rating: every muscle within its rating"),
+        },
     }
     Ok(())
 }

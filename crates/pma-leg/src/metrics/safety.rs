@@ -125,6 +125,19 @@ pub struct SafetyReport {
     pub muscles: BTreeMap<String, MuscleSafety>,
 }
 
+impl SafetyReport {
+    /// Each muscle whose peak force exceeded `max` times its rating, or whose ratio the run
+    /// could not give (NaN: a force nobody can vouch for is not within a rating), as
+    /// `name 1.15x`; empty when every muscle stayed within it.
+    pub fn over_rating(&self, max: f64) -> Vec<String> {
+        self.muscles
+            .iter()
+            .filter(|(_, m)| m.peak_over_rated.is_nan() || m.peak_over_rated > max)
+            .map(|(name, m)| format!("{name} {}x", crate::metrics::figure(m.peak_over_rated, 2)))
+            .collect()
+    }
+}
+
 #[derive(Debug, Clone)]
 struct SpasmAcc {
     event: SpasmEvent,

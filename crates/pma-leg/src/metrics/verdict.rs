@@ -127,15 +127,7 @@ pub fn judge(
             100.0 * criteria.belt_load_tolerance
         ));
     }
-    let over: Vec<String> = report
-        .safety
-        .muscles
-        .iter()
-        .filter(|(_, m)| {
-            m.peak_over_rated.is_nan() || m.peak_over_rated > criteria.force_over_rating_max
-        })
-        .map(|(name, m)| format!("{name} {}x", figure(m.peak_over_rated, 2)))
-        .collect();
+    let over = report.safety.over_rating(criteria.force_over_rating_max);
     if !over.is_empty() {
         reasons.push(format!(
             "{} muscle(s) over their rating: {}",
