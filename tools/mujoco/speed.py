@@ -5,11 +5,12 @@ one run of this script on this machine.
 
 - MuJoCo: the URDF through MuJoCo's compiler, a torque motor on each joint, gravity, the
   URDF's joint limits; `mj_step` in MuJoCo's own C loop (`mj_step(m, d, nstep=N)`), Euler,
-  at 1 and 2 steps per period (rapier's in-air leg takes 2 substeps); the torques a
+  at 1, 2 and the in-air scenarios' `physics_substeps` (8) steps per period, the last
+  the ratios' base (rapier's in-air rows take as many); the torques a
   smooth function held over each timed block, as the muscles' torques are held over a
   period. Median of REPEATS blocks of N periods.
 - rapier: `cargo bench --bench leg` (criterion, release) for `rapier_bare` (the same
-  leg, 2 substeps, torques set each period) and `closed_loop_x100` (rapier + 4 muscles +
+  leg, the scenario's substeps, torques set each period) and `closed_loop_x100` (rapier + 4 muscles +
   4 APRC-NDO controllers + references, 100 periods per iteration); the point estimates of
   their means from criterion's JSON.
 
@@ -136,13 +137,15 @@ def main():
     args = p.parse_args()
     rapier = rapier_us(args.skip_bench)
     rows = []
-    for substeps in (1, 2):
+    in_air = physics_substeps("gait_training")
+    steps = sorted({1, 2, in_air})
+    for substeps in steps:
         us, nv = mujoco_us_per_period(substeps)
         rows.append((f"MuJoCo {mujoco.__version__}, `mj_step` x{substeps} (Euler, {nv} dof)", us))
-    rows.append((f"rapier, bare step ({physics_substeps('gait_training')} substeps)",
-                 rapier["rapier_bare"]))
+    base = rows[steps.index(in_air)][1]
+    rows.append((f"rapier, bare step ({in_air} substeps)", rapier["rapier_bare"]))
     rows.append(("rapier leg, closed loop (4 muscles, 4 APRC-NDO)", rapier["closed_loop_x100"]))
-    table("1 ms period of the in-air leg", "/ MuJoCo x2", rows, rows[1][1])
+    table("1 ms period of the in-air leg", f"/ MuJoCo x{in_air}", rows, base)
     us, nv, ncon = mujoco_trainer_us()
     print()
     table("1 ms period of the two-leg trainer, standing", "/ MuJoCo", [
