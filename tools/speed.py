@@ -8,6 +8,7 @@ sys of the child, getrusage), and real time over each.
 With several binaries (two builds to compare) their runs alternate, so that this noisy
 machine's drift falls on all of them alike, and a table follows per binary.
 """
+import argparse
 import os
 import pathlib
 import resource
@@ -39,7 +40,13 @@ def timed(binary, args):
 def main():
     root = pathlib.Path(__file__).resolve().parents[1]
     target = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", root / "target"))
-    binaries = sys.argv[1:] or [str(target / "release/pma-exo")]
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("binaries", nargs="*", metavar="PMA_EXO_BINARY",
+                   help="builds to compare (default: $CARGO_TARGET_DIR/release/pma-exo)")
+    binaries = p.parse_args().binaries or [str(target / "release/pma-exo")]
+    missing = [b for b in binaries if not os.access(b, os.X_OK)]
+    if missing:
+        sys.exit(f"not an executable: {', '.join(missing)}")
     results = {b: {case: [] for case in CASES} for b in binaries}
     for case in CASES:
         for _ in range(RUNS):
