@@ -241,6 +241,26 @@ fn the_docs_say_what_their_slow_commands_give() {
     check(true);
 }
 
+/// docs/convergence.md "rapier's floor" prints `pma_leg::tools::step_floor`'s rows (`cargo run
+/// --release --example step_floor -- 2 0.5`): rapier's f32, not a command's JSON, so checked
+/// here rather than through the manifest.
+#[test]
+fn the_step_floor_table_is_what_rapier_gives() {
+    let doc = std::fs::read_to_string(root().join("docs/convergence.md")).expect("the doc");
+    let rows = pma_leg::tools::step_floor(2.0, 0.5, &[1, 2, 4, 8, 16, 32, 64, 128, 256, 512])
+        .expect("the swing");
+    let missing: Vec<String> = rows
+        .iter()
+        .map(|r| r.markdown_row())
+        .filter(|r| !doc.contains(r.as_str()))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "docs/convergence.md should have:\n{}",
+        missing.join("\n")
+    );
+}
+
 #[test]
 fn a_template_takes_paths_factors_and_decimals() {
     let json: serde_json::Value =

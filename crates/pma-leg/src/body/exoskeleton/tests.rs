@@ -272,27 +272,11 @@ fn rapier_fork_branch_dynamics_equal_the_full_products_on_two_legs() {
 /// --release --example step_floor`, docs/convergence.md "rapier's floor").
 #[test]
 fn rapier_leg_converges_at_first_order_to_the_lagrange_equations() {
-    const DAMPING: f64 = 0.5;
-    let (start, held) = ([0.7, 1.0], [0.5, 0.8]);
-    let body = *leg(DAMPING, 1).inertia();
-    let g = body.gravity_torques(held[0], held[1]);
-    let tau = [-g[0], -g[1]];
-    let exact = body
-        .rk4_motion((start, [0.0; 2]), 1.0, 1e-5, |_, qd| {
-            [tau[0] - DAMPING * qd[0], tau[1] - DAMPING * qd[1]]
-        })
-        .unwrap()
-        .0;
-    let error = |substeps: u32| {
-        let mut l = leg(DAMPING, substeps);
-        l.set_state(0, start, [0.0; 2]);
-        for _ in 0..1000 {
-            l.step(|_, _| PerLeg::one(tau));
-        }
-        let q = l.angles(0);
-        (q[0] - exact[0]).hypot(q[1] - exact[1])
-    };
-    let errors: Vec<f64> = [1, 2, 4, 8].into_iter().map(error).collect();
+    let rows = crate::tools::step_floor(1.0, 0.5, &[1, 2, 4, 8]).unwrap();
+    let errors: Vec<f64> = rows
+        .iter()
+        .map(|r| r.error_rad[0].hypot(r.error_rad[1]))
+        .collect();
     // After 1 s the leg is where the equations put it within 0.03 deg at one 1 ms step.
     assert!(errors[0] < 5e-4, "{errors:?}");
     for pair in errors.windows(2) {
