@@ -8,7 +8,7 @@
 //! Lagrange equations integrated by fourth-order Runge-Kutta in f64 at 1 us.
 //!
 //!     cargo run --release --example step_floor [-- SECONDS [DAMPING_NM_S_PER_RAD]]
-use pma_leg::tools::step_floor;
+use pma_leg::tools::{step_floor, STEP_FLOOR_SUBSTEPS};
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
@@ -25,7 +25,7 @@ fn table() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
     let secs: f64 = args.next().map_or(Ok(2.0), |s| s.parse())?;
     let damping: f64 = args.next().map_or(Ok(0.5), |s| s.parse())?;
-    let rows = step_floor(secs, damping, &[1, 2, 4, 8, 16, 32, 64, 128, 256, 512])?;
+    let rows = step_floor(secs, damping, &STEP_FLOOR_SUBSTEPS)?;
     println!("{secs} s, joint damping {damping} N m s/rad, against RK4 in f64 at 1 us");
     println!(
         "| physics substeps | step (us) | hip error (rad) | knee error (rad) | energy error (J) |"

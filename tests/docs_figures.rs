@@ -247,7 +247,7 @@ fn the_docs_say_what_their_slow_commands_give() {
 #[test]
 fn the_step_floor_table_is_what_rapier_gives() {
     let doc = std::fs::read_to_string(root().join("docs/convergence.md")).expect("the doc");
-    let rows = pma_leg::tools::step_floor(2.0, 0.5, &[1, 2, 4, 8, 16, 32, 64, 128, 256, 512])
+    let rows = pma_leg::tools::step_floor(2.0, 0.5, &pma_leg::tools::STEP_FLOOR_SUBSTEPS)
         .expect("the swing");
     let missing: Vec<String> = rows
         .iter()

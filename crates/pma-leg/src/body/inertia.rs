@@ -170,15 +170,7 @@ impl LegInertia {
     pub fn forward_dynamics(&self, q: [f64; 2], qd: [f64; 2], tau: [f64; 2]) -> Option<[f64; 2]> {
         let m = self.mass_matrix(q);
         let bias = self.inverse_dynamics(q, qd, [0.0; 2]);
-        let rhs = [tau[0] - bias[0], tau[1] - bias[1]];
-        let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
-        if det.abs() <= f64::EPSILON * (m[0][0] * m[1][1]).abs() || !det.is_finite() {
-            return None;
-        }
-        Some([
-            (m[1][1] * rhs[0] - m[0][1] * rhs[1]) / det,
-            (m[0][0] * rhs[1] - m[1][0] * rhs[0]) / det,
-        ])
+        crate::base::solve_2x2(m, [tau[0] - bias[0], tau[1] - bias[1]])
     }
 
     /// The rigid leg's angles and rates after `secs` from `(q, qd)`, joint torques
@@ -198,17 +190,16 @@ impl LegInertia {
         let (mut q, mut v) = (q, qd);
         let steps = (secs / h_s).round() as usize;
         for _ in 0..steps {
-            let h = h_s;
             let (k1q, k1v) = (v, f(q, v)?);
-            let k2q = add(v, k1v, h / 2.0);
-            let k2v = f(add(q, k1q, h / 2.0), k2q)?;
-            let k3q = add(v, k2v, h / 2.0);
-            let k3v = f(add(q, k2q, h / 2.0), k3q)?;
-            let k4q = add(v, k3v, h);
-            let k4v = f(add(q, k3q, h), k4q)?;
+            let k2q = add(v, k1v, h_s / 2.0);
+            let k2v = f(add(q, k1q, h_s / 2.0), k2q)?;
+            let k3q = add(v, k2v, h_s / 2.0);
+            let k3v = f(add(q, k2q, h_s / 2.0), k3q)?;
+            let k4q = add(v, k3v, h_s);
+            let k4v = f(add(q, k3q, h_s), k4q)?;
             for i in 0..2 {
-                q[i] += h / 6.0 * (k1q[i] + 2.0 * k2q[i] + 2.0 * k3q[i] + k4q[i]);
-                v[i] += h / 6.0 * (k1v[i] + 2.0 * k2v[i] + 2.0 * k3v[i] + k4v[i]);
+                q[i] += h_s / 6.0 * (k1q[i] + 2.0 * k2q[i] + 2.0 * k3q[i] + k4q[i]);
+                v[i] += h_s / 6.0 * (k1v[i] + 2.0 * k2v[i] + 2.0 * k3v[i] + k4v[i]);
             }
         }
         Some((q, v))

@@ -151,14 +151,7 @@ impl MusclePair {
                 ]
             };
             let (c0, c1) = (d(0), d(1));
-            let det = c0[0] * c1[1] - c1[0] * c0[1];
-            if !det.is_finite() || det.abs() < 1e-30 {
-                return None;
-            }
-            let step = [
-                (r[0] * c1[1] - c1[0] * r[1]) / det,
-                (c0[0] * r[1] - r[0] * c0[1]) / det,
-            ];
+            let step = crate::base::solve_2x2([[c0[0], c1[0]], [c0[1], c1[1]]], r)?;
             p = [p[0] - step[0], p[1] - step[1]];
             if step[0].abs() + step[1].abs() < 1e-3 {
                 break;

@@ -175,11 +175,7 @@ fn implicit_rates(
     let rhs: [f64; 2] = std::array::from_fn(|i| {
         mass[i][0] * qd[0] + mass[i][1] * qd[1] + h * (tau0[i] + tau_other[i] - bias[i])
     });
-    let det = a[0][0] * a[1][1] - a[0][1] * a[1][0];
-    Some([
-        (rhs[0] * a[1][1] - a[0][1] * rhs[1]) / det,
-        (a[0][0] * rhs[1] - a[1][0] * rhs[0]) / det,
-    ])
+    crate::base::solve_2x2(a, rhs)
 }
 
 /// Nearest a joint may come to its limit (rad) with the muscles' damping still implicit:

@@ -11,6 +11,8 @@ const START_RAD: [f64; 2] = [0.7, 1.0];
 const PERIOD_S: f64 = 1e-3;
 /// The reference's Runge-Kutta step (s): 2 us lands within 1e-13 rad of it over 2 s.
 const REFERENCE_STEP_S: f64 = 1e-6;
+/// The substeps docs/convergence.md's table runs: from one step a period to past the floor.
+pub const STEP_FLOOR_SUBSTEPS: [u32; 10] = [1, 2, 4, 8, 16, 32, 64, 128, 256, 512];
 
 /// One physics step's error against the exact motion.
 #[derive(Debug, Clone, Copy, PartialEq)]
