@@ -114,6 +114,17 @@ impl RigidBodySet {
         core::mem::take(&mut self.modified_bodies)
     }
 
+    /// pma-exo fork: gives back the list `take_modified` took, emptied, where nothing was
+    /// listed since, so the next step's first `get_mut` does not allocate a new one. The
+    /// list is empty either way: only its capacity is kept.
+    pub(crate) fn give_back_modified(&mut self, mut emptied: ModifiedRigidBodies) {
+        if self.modified_bodies.is_empty() && self.modified_bodies.capacity() < emptied.capacity()
+        {
+            emptied.clear();
+            self.modified_bodies = emptied;
+        }
+    }
+
     /// Returns how many rigid bodies are currently in this collection.
     pub fn len(&self) -> usize {
         self.bodies.len()

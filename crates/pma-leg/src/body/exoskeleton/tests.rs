@@ -239,9 +239,7 @@ fn rapier_fork_branch_dynamics_equal_the_full_products_on_two_legs() {
             }
         }
     }
-    let lu = mb.inv_augmented_mass();
-    let mut fork = lu.l() * lu.u();
-    lu.p().inv_permute_rows(&mut fork);
+    let fork = mb.inv_augmented_mass().reconstruct();
     let scale = full.iter().flatten().fold(0.0f64, |a, &b| a.max(b.abs()));
     let mut worst_mass = 0.0f64;
     for r in 0..n {

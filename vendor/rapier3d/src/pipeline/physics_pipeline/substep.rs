@@ -464,6 +464,8 @@ impl PhysicsPipeline {
         self.counters.stages.user_changes.resume();
         self.clear_modified_colliders(colliders, &mut modified_colliders);
         self.clear_modified_bodies(bodies, &mut modified_bodies);
+        // pma-exo fork: the emptied list's capacity is reused (no allocation per step).
+        bodies.give_back_modified(modified_bodies);
         removed_colliders.clear();
         self.counters.stages.user_changes.pause();
 

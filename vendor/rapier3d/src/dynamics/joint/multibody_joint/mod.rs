@@ -18,6 +18,11 @@ pub use self::unit_multibody_joint::{
 
 #[cfg(feature = "alloc")]
 mod multibody;
+// pma-exo fork: the multibody's LU, reused across steps.
+#[cfg(feature = "alloc")]
+mod multibody_lu;
+#[cfg(feature = "alloc")]
+pub use self::multibody_lu::MultibodyLu;
 mod multibody_joint_handle;
 #[cfg(feature = "alloc")]
 mod multibody_joint_set;

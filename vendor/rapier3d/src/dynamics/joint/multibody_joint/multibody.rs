@@ -11,11 +11,12 @@ use crate::math::{
     SimdAngVector, Vector,
 };
 use crate::prelude::MultibodyJoint;
+use super::MultibodyLu;
 #[cfg(feature = "dim3")]
 use crate::utils::mat_to_na;
 use crate::utils::{AngularInertiaOps, CrossProduct, CrossProductMatrix, IndexMut2, vect_to_na};
 use na::{
-    self, DMatrix, DVectorView, DVectorViewMut, Dyn, LU, OMatrix, SMatrix, SVector, StorageMut,
+    self, DMatrix, DVectorView, DVectorViewMut, Dyn, OMatrix, SMatrix, SVector, StorageMut,
 };
 
 #[cfg(doc)]
@@ -175,13 +176,13 @@ pub struct Multibody {
     //       move dofs from/to a format that matches the augmented mass.
     // TODO: use sparse matrices?
     augmented_mass: DMatrix<Real>,
-    inv_augmented_mass: LU<Real, Dyn, Dyn>,
+    inv_augmented_mass: MultibodyLu, // pma-exo fork: reused, was `LU<Real, Dyn, Dyn>`
     // The indexing sequence for moving all kinematics degrees of
     // freedoms to the end of the generalized coordinates vector.
     augmented_mass_indices: IndexSequence,
 
     acc_augmented_mass: DMatrix<Real>,
-    acc_inv_augmented_mass: LU<Real, Dyn, Dyn>,
+    acc_inv_augmented_mass: MultibodyLu, // pma-exo fork: as above
 
     ndofs: usize,
     pub(crate) root_is_dynamic: bool,
@@ -196,6 +197,8 @@ pub struct Multibody {
      * Workspaces.
      */
     workspace: MultibodyWorkspace,
+    /// pma-exo fork: the energy guard's vectors, kept across steps (no allocation per step).
+    energy_guard: EnergyGuardBuffers,
     coriolis_v: Vec<OMatrix<Real, Dim, Dyn>>,
     coriolis_w: Vec<OMatrix<Real, AngDim, Dyn>>,
     i_coriolis_dt: Jacobian<Real>,
@@ -228,13 +231,14 @@ impl Multibody {
             accelerations: DVector::zeros(0),
             body_jacobians: Vec::new(),
             augmented_mass: DMatrix::zeros(0, 0),
-            inv_augmented_mass: LU::new(DMatrix::zeros(0, 0)),
+            inv_augmented_mass: MultibodyLu::default(),
             acc_augmented_mass: DMatrix::zeros(0, 0),
-            acc_inv_augmented_mass: LU::new(DMatrix::zeros(0, 0)),
+            acc_inv_augmented_mass: MultibodyLu::default(),
             augmented_mass_indices: IndexSequence::new(),
             ndofs: 0,
             solver_id: 0,
             workspace: MultibodyWorkspace::new(),
+            energy_guard: EnergyGuardBuffers::default(),
             coriolis_v: Vec::new(),
             coriolis_w: Vec::new(),
             i_coriolis_dt: Jacobian::zeros(0),
@@ -436,7 +440,7 @@ impl Multibody {
     }
 
     /// The inverse augmented mass matrix of this multibody.
-    pub fn inv_augmented_mass(&self) -> &LU<Real, Dyn, Dyn> {
+    pub fn inv_augmented_mass(&self) -> &MultibodyLu {
         &self.inv_augmented_mass
     }
 
@@ -612,11 +616,18 @@ impl Multibody {
         let check_implicit_coriolis_divergence = dt * self.velocities.amax() >= 1.0e-3;
         // Generalized forces that derive from positions or external inputs
         // (gravity, user forces, spring position terms).
-        let mut pos_forces = DVector::zeros(if check_implicit_coriolis_divergence {
-            self.ndofs
-        } else {
-            0
-        });
+        // pma-exo fork: the guard's vectors are reused, taken out of `self` while in use; they
+        // hold what upstream allocated here each step (the same values).
+        let mut guard = core::mem::take(&mut self.energy_guard);
+        guard.size(
+            self.ndofs,
+            self.augmented_mass_indices.dim_after_removal(self.ndofs),
+        );
+        let pos_forces = &mut guard.pos_forces;
+        if check_implicit_coriolis_divergence {
+            // Unread otherwise (upstream made it empty then).
+            set_zeros(pos_forces, self.ndofs);
+        }
 
         // Listed by the forward kinematics (with the body Jacobians); again only if links changed.
         if self.branch_ranges.len() != self.links.len() {
@@ -689,7 +700,7 @@ impl Multibody {
             if check_implicit_coriolis_divergence {
                 let applied_forces = Force::new(rb.forces.force, rb.forces.torque);
                 branch_gemv_tr(
-                    &mut pos_forces,
+                    pos_forces,
                     &self.body_jacobians[i],
                     applied_forces.as_vector(),
                     branch,
@@ -725,11 +736,9 @@ impl Multibody {
 
         // Snapshot the full generalized forces: the energy guard may need them
         // for a re-solve with the plain mass matrix.
-        let gen_forces = if check_implicit_coriolis_divergence {
-            self.accelerations.clone()
-        } else {
-            DVector::zeros(0)
-        };
+        if check_implicit_coriolis_divergence {
+            set_copy(&mut guard.gen_forces, &self.accelerations);
+        }
 
         self.augmented_mass_indices
             .with_rearranged_rows_mut(&mut self.accelerations, |accs| {
@@ -737,8 +746,9 @@ impl Multibody {
             });
 
         if check_implicit_coriolis_divergence {
-            self.free_velocity_energy_guard(dt, &gen_forces, &pos_forces);
+            self.free_velocity_energy_guard(dt, &mut guard);
         }
+        self.energy_guard = guard;
     }
 
     // If the semi-implicit coriolis solve introduces more energy than the external
@@ -750,7 +760,7 @@ impl Multibody {
     // (indicating undesired/unrealistic energy injection), we fall back to re-solving
     // the forces effect but using only the mass matrix without the implicit coriolis
     // terms.
-    fn free_velocity_energy_guard(&mut self, dt: Real, gen_forces: &DVector, pos_forces: &DVector) {
+    fn free_velocity_energy_guard(&mut self, dt: Real, buf: &mut EnergyGuardBuffers) {
         let eff_dim = self.augmented_mass_indices.dim_after_removal(self.ndofs);
         if eff_dim == 0 {
             return;
@@ -758,36 +768,24 @@ impl Multibody {
 
         // Move all quantities to the kinematic-reduced ordering of the
         // factorized matrices (no-op when there is no kinematic dof).
-        let mut v = self.velocities.clone();
-        let mut f = gen_forces.clone();
-        let mut f_pos = pos_forces.clone();
-        self.augmented_mass_indices.rearrange_rows(&mut v, true);
-        self.augmented_mass_indices.rearrange_rows(&mut f, true);
-        self.augmented_mass_indices.rearrange_rows(&mut f_pos, true);
+        // pma-exo fork: into the reused buffers, where upstream cloned.
+        set_copy(&mut buf.v, &self.velocities);
+        set_copy(&mut buf.f, &buf.gen_forces);
+        set_copy(&mut buf.f_pos, &buf.pos_forces);
+        self.augmented_mass_indices.rearrange_rows(&mut buf.v, true);
+        self.augmented_mass_indices.rearrange_rows(&mut buf.f, true);
+        self.augmented_mass_indices
+            .rearrange_rows(&mut buf.f_pos, true);
 
-        let m = self.augmented_mass.view((0, 0), (eff_dim, eff_dim));
-        let v = v.rows(0, eff_dim);
-        let f = f.rows(0, eff_dim);
-        let f_pos = f_pos.rows(0, eff_dim);
-
-        let energy_delta_minus_work = |accelerations: &DVector| -> Option<Real> {
-            let mut a = accelerations.clone();
-            self.augmented_mass_indices.rearrange_rows(&mut a, true);
-            let a = a.rows(0, eff_dim).into_owned();
-            if !a.iter().all(|x| x.is_finite()) {
-                return None;
-            }
-            let m_a = m * &a;
-            let energy_delta = dt * v.dot(&m_a) + 0.5 * dt * dt * a.dot(&m_a);
-            let work = dt * v.dot(&f) + 0.5 * dt * dt * a.dot(&f_pos);
-            // Margin: a small fraction of the current kinetic energy to absorb
-            // discretization error on healthy steps.
-            let kinetic_energy = 0.5 * v.dot(&(m * v));
-            let energy_margin = 1.0e-2 * kinetic_energy + 1.0e-8;
-            Some(energy_delta - work - energy_margin)
-        };
-
-        match energy_delta_minus_work(&self.accelerations) {
+        let excess = energy_delta_minus_work(
+            &self.augmented_mass_indices,
+            self.augmented_mass.view((0, 0), (eff_dim, eff_dim)),
+            &self.accelerations,
+            dt,
+            buf,
+        );
+        let gen_forces = &buf.gen_forces;
+        match excess {
             Some(excess) if excess <= 0.0 => (), // Implicit update didn’t introduce too much extra energy.
             _ => {
                 // The implicit solve injected energy (or produced non-finite
@@ -1230,16 +1228,15 @@ impl Multibody {
         self.augmented_mass_indices
             .rearrange_rows(&mut self.augmented_mass, true);
 
-        // TODO: avoid allocation inside LU at each timestep.
-        self.acc_inv_augmented_mass = LU::new(
+        // pma-exo fork: factored into storage kept across steps (upstream's "TODO: avoid
+        // allocation inside LU at each timestep"), the same operations as `LU::new`.
+        self.acc_inv_augmented_mass.factor(
             self.acc_augmented_mass
-                .view((0, 0), (effective_dim, effective_dim))
-                .into_owned(),
+                .view((0, 0), (effective_dim, effective_dim)),
         );
-        self.inv_augmented_mass = LU::new(
+        self.inv_augmented_mass.factor(
             self.augmented_mass
-                .view((0, 0), (effective_dim, effective_dim))
-                .into_owned(),
+                .view((0, 0), (effective_dim, effective_dim)),
         );
     }
 
@@ -2210,4 +2207,114 @@ mod test {
             DVector::from(vec![0.0, 10.0, 0.0, 0.0, 0.0, 50.0, 60.0, 0.0, 80.0, 0.0])
         );
     }
+}
+
+/// pma-exo fork: the vectors `update_acceleration`'s energy guard allocated every step, kept.
+#[cfg_attr(feature = "serde-serialize", derive(Serialize, Deserialize))]
+#[derive(Clone, Debug)]
+struct EnergyGuardBuffers {
+    pos_forces: DVector,
+    gen_forces: DVector,
+    v: DVector,
+    f: DVector,
+    f_pos: DVector,
+    a_full: DVector,
+    a: DVector,
+    m_a: DVector,
+    m_v: DVector,
+}
+
+impl Default for EnergyGuardBuffers {
+    fn default() -> Self {
+        Self {
+            pos_forces: DVector::zeros(0),
+            gen_forces: DVector::zeros(0),
+            v: DVector::zeros(0),
+            f: DVector::zeros(0),
+            f_pos: DVector::zeros(0),
+            a_full: DVector::zeros(0),
+            a: DVector::zeros(0),
+            m_a: DVector::zeros(0),
+            m_v: DVector::zeros(0),
+        }
+    }
+}
+
+impl EnergyGuardBuffers {
+    /// Sizes each buffer for `ndofs` generalized coordinates, `eff_dim` of them factored,
+    /// where it is not sized so: the guard's first use, which may come at any step, then
+    /// allocates nothing either. Every buffer is written before it is read.
+    fn size(&mut self, ndofs: usize, eff_dim: usize) {
+        for v in [
+            &mut self.pos_forces,
+            &mut self.gen_forces,
+            &mut self.v,
+            &mut self.f,
+            &mut self.f_pos,
+            &mut self.a_full,
+        ] {
+            if v.len() != ndofs {
+                *v = DVector::zeros(ndofs);
+            }
+        }
+        for v in [&mut self.a, &mut self.m_a, &mut self.m_v] {
+            if v.len() != eff_dim {
+                *v = DVector::zeros(eff_dim);
+            }
+        }
+    }
+}
+
+/// pma-exo fork: `*v = DVector::zeros(len)`, reusing `v`'s storage where it has that length.
+fn set_zeros(v: &mut DVector, len: usize) {
+    if v.len() == len {
+        v.fill(0.0);
+    } else {
+        *v = DVector::zeros(len);
+    }
+}
+
+/// pma-exo fork: `*v = src.clone()`, reusing `v`'s storage where it has that length.
+fn set_copy<S: na::Storage<Real, Dyn>>(v: &mut DVector, src: &na::Vector<Real, Dyn, S>) {
+    if v.len() == src.len() {
+        v.copy_from(src);
+    } else {
+        *v = src.clone_owned();
+    }
+}
+
+/// The energy guard's test (upstream's closure of `free_velocity_energy_guard`, its
+/// temporaries in `buf`): the kinetic energy the accelerations add over the step less the
+/// forces' work and a margin, or `None` where an acceleration is not finite. `buf.v`, `buf.f`
+/// and `buf.f_pos` are in the factorised ordering.
+fn energy_delta_minus_work(
+    indices: &IndexSequence,
+    m: na::DMatrixView<'_, Real>,
+    accelerations: &DVector,
+    dt: Real,
+    buf: &mut EnergyGuardBuffers,
+) -> Option<Real> {
+    let eff_dim = m.nrows();
+    set_copy(&mut buf.a_full, accelerations);
+    indices.rearrange_rows(&mut buf.a_full, true);
+    set_copy(&mut buf.a, &buf.a_full.rows(0, eff_dim));
+    let a = &buf.a;
+    if !a.iter().all(|x| x.is_finite()) {
+        return None;
+    }
+    let v = buf.v.rows(0, eff_dim);
+    let f = buf.f.rows(0, eff_dim);
+    let f_pos = buf.f_pos.rows(0, eff_dim);
+    set_zeros(&mut buf.m_a, eff_dim);
+    m.mul_to(a, &mut buf.m_a);
+    let m_a = &buf.m_a;
+    let energy_delta = dt * v.dot(m_a) + 0.5 * dt * dt * a.dot(m_a);
+    let work = dt * v.dot(&f) + 0.5 * dt * dt * a.dot(&f_pos);
+    // Margin: a small fraction of the current kinetic energy to absorb
+    // discretization error on healthy steps.
+    set_zeros(&mut buf.m_v, eff_dim);
+    m.mul_to(&v, &mut buf.m_v);
+    let kinetic_energy = 0.5 * v.dot(&buf.m_v);
+    let energy_margin = 1.0e-2 * kinetic_energy + 1.0e-8;
+    Some(energy_delta - work - energy_margin)
 }

@@ -98,8 +98,12 @@ impl VelocitySolver {
             }
         }
 
-        self.generic_solver_vels_increment = DVector::zeros(multibody_solver_id as usize);
-        self.generic_solver_vels = DVector::zeros(multibody_solver_id as usize);
+        // pma-exo fork: zeroed in place where the length is unchanged (no allocation per step).
+        zero_resized(
+            &mut self.generic_solver_vels_increment,
+            multibody_solver_id as usize,
+        );
+        zero_resized(&mut self.generic_solver_vels, multibody_solver_id as usize);
 
         for link in &self.multibody_roots {
             let multibody = multibodies
@@ -153,5 +157,15 @@ impl VelocitySolver {
                 solver_vels_incr.axpy(params.dt, &multibody.accelerations, 0.0);
             }
         }
+    }
+}
+
+/// pma-exo fork: `*v = DVector::zeros(len)`, without a new allocation where `v` has that
+/// length already.
+fn zero_resized(v: &mut DVector, len: usize) {
+    if v.len() == len {
+        v.fill(0.0);
+    } else {
+        *v = DVector::zeros(len);
     }
 }

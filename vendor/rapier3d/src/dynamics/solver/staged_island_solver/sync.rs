@@ -63,6 +63,21 @@ impl StageSync {
         }
     }
 
+    /// pma-exo fork: `*self = StageSync::new(num_workers)` without a new allocation where the
+    /// number of workers is unchanged: the same state, the cursors' storage reused.
+    pub(super) fn reset(&mut self, num_workers: usize) {
+        if self.cursors.len() != num_workers {
+            *self = Self::new(num_workers);
+            return;
+        }
+        self.published = AtomicUsize::new(0);
+        self.advance_ticket = AtomicUsize::new(0);
+        self.completed = AtomicUsize::new(0);
+        for cursor in &mut self.cursors {
+            *cursor = PaddedCursor(AtomicCursor::new(0));
+        }
+    }
+
     /// Records `count` executed units of `stage` (total `stage_work`, identical across workers).
     /// The completion crossing the total advances the stage right here, so [`Self::sync`] waiters
     /// only *read* `published` — no RMWs while spinning. Sound unconditionally: an incomplete
