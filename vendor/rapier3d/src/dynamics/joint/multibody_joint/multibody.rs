@@ -626,7 +626,7 @@ impl Multibody {
         let pos_forces = &mut guard.pos_forces;
         if check_implicit_coriolis_divergence {
             // Unread otherwise (upstream made it empty then).
-            set_zeros(pos_forces, self.ndofs);
+            pos_forces.fill(0.0);
         }
 
         // Listed by the forward kinematics (with the body Jacobians); again only if links changed.
@@ -737,7 +737,7 @@ impl Multibody {
         // Snapshot the full generalized forces: the energy guard may need them
         // for a re-solve with the plain mass matrix.
         if check_implicit_coriolis_divergence {
-            set_copy(&mut guard.gen_forces, &self.accelerations);
+            guard.gen_forces.copy_from(&self.accelerations);
         }
 
         self.augmented_mass_indices
@@ -769,9 +769,9 @@ impl Multibody {
         // Move all quantities to the kinematic-reduced ordering of the
         // factorized matrices (no-op when there is no kinematic dof).
         // pma-exo fork: into the reused buffers, where upstream cloned.
-        set_copy(&mut buf.v, &self.velocities);
-        set_copy(&mut buf.f, &buf.gen_forces);
-        set_copy(&mut buf.f_pos, &buf.pos_forces);
+        buf.v.copy_from(&self.velocities);
+        buf.f.copy_from(&buf.gen_forces);
+        buf.f_pos.copy_from(&buf.pos_forces);
         self.augmented_mass_indices.rearrange_rows(&mut buf.v, true);
         self.augmented_mass_indices.rearrange_rows(&mut buf.f, true);
         self.augmented_mass_indices
@@ -2243,7 +2243,8 @@ impl Default for EnergyGuardBuffers {
 impl EnergyGuardBuffers {
     /// Sizes each buffer for `ndofs` generalized coordinates, `eff_dim` of them factored,
     /// where it is not sized so: the guard's first use, which may come at any step, then
-    /// allocates nothing either. Every buffer is written before it is read.
+    /// allocates nothing either, and writes every buffer in place (`copy_from`, `fill`,
+    /// `mul_to`) before it reads it.
     fn size(&mut self, ndofs: usize, eff_dim: usize) {
         for v in [
             &mut self.pos_forces,
@@ -2265,24 +2266,6 @@ impl EnergyGuardBuffers {
     }
 }
 
-/// pma-exo fork: `*v = DVector::zeros(len)`, reusing `v`'s storage where it has that length.
-fn set_zeros(v: &mut DVector, len: usize) {
-    if v.len() == len {
-        v.fill(0.0);
-    } else {
-        *v = DVector::zeros(len);
-    }
-}
-
-/// pma-exo fork: `*v = src.clone()`, reusing `v`'s storage where it has that length.
-fn set_copy<S: na::Storage<Real, Dyn>>(v: &mut DVector, src: &na::Vector<Real, Dyn, S>) {
-    if v.len() == src.len() {
-        v.copy_from(src);
-    } else {
-        *v = src.clone_owned();
-    }
-}
-
 /// The energy guard's test (upstream's closure of `free_velocity_energy_guard`, its
 /// temporaries in `buf`): the kinetic energy the accelerations add over the step less the
 /// forces' work and a margin, or `None` where an acceleration is not finite. `buf.v`, `buf.f`
@@ -2295,9 +2278,9 @@ fn energy_delta_minus_work(
     buf: &mut EnergyGuardBuffers,
 ) -> Option<Real> {
     let eff_dim = m.nrows();
-    set_copy(&mut buf.a_full, accelerations);
+    buf.a_full.copy_from(accelerations);
     indices.rearrange_rows(&mut buf.a_full, true);
-    set_copy(&mut buf.a, &buf.a_full.rows(0, eff_dim));
+    buf.a.copy_from(&buf.a_full.rows(0, eff_dim));
     let a = &buf.a;
     if !a.iter().all(|x| x.is_finite()) {
         return None;
@@ -2305,14 +2288,12 @@ fn energy_delta_minus_work(
     let v = buf.v.rows(0, eff_dim);
     let f = buf.f.rows(0, eff_dim);
     let f_pos = buf.f_pos.rows(0, eff_dim);
-    set_zeros(&mut buf.m_a, eff_dim);
     m.mul_to(a, &mut buf.m_a);
     let m_a = &buf.m_a;
     let energy_delta = dt * v.dot(m_a) + 0.5 * dt * dt * a.dot(m_a);
     let work = dt * v.dot(&f) + 0.5 * dt * dt * a.dot(&f_pos);
     // Margin: a small fraction of the current kinetic energy to absorb
     // discretization error on healthy steps.
-    set_zeros(&mut buf.m_v, eff_dim);
     m.mul_to(&v, &mut buf.m_v);
     let kinetic_energy = 0.5 * v.dot(&buf.m_v);
     let energy_margin = 1.0e-2 * kinetic_energy + 1.0e-8;
