@@ -280,8 +280,12 @@ fn bench_runs_are_bit_identical_to_the_commit_before_the_shared_loop() {
 
 #[test]
 fn leg_runs_are_bit_identical_to_their_pins() {
+    let mut wrong = Vec::new();
     for (scenario, pin) in LEG {
         let got = leg_fingerprint(scenario);
-        assert_eq!(got, pin, "{scenario}: {got:#018x}");
+        if got != pin {
+            wrong.push(format!("{scenario}: {got:#018x}"));
+        }
     }
+    assert!(wrong.is_empty(), "changed: {wrong:?}");
 }

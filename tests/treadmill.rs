@@ -1507,7 +1507,7 @@ fn envelope_maps_walked_refused_and_failed_cells() {
         (&["--threads", "0"][..], "--threads must be at least 1"),
         (
             &["--physics-substeps", "0"][..],
-            "--physics-substeps 0 is invalid: 1 to 100",
+            "--physics-substeps 0 is invalid: 1 to 256",
         ),
         (
             &["--controller", "pid", "--modes", "impedance"][..],

@@ -303,7 +303,7 @@ pub struct LegArgs {
     /// tenth free).
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     max_rating: f64,
-    /// Physics substeps per control period (comma-separated, each 1 to 100): every
+    /// Physics substeps per control period (comma-separated, each 1 to 256): every
     /// scenario runs at each, and the objective is the worst, so that the gains found
     /// hold at a finer step too (a loop tuned at one step can rely on its integrator's
     /// damping). Default: each scenario's own.
