@@ -2211,7 +2211,7 @@ mod test {
 
 /// pma-exo fork: the vectors `update_acceleration`'s energy guard allocated every step, kept.
 #[cfg_attr(feature = "serde-serialize", derive(Serialize, Deserialize))]
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)] // empty vectors: `DVector::default()` is `DVector::zeros(0)`
 struct EnergyGuardBuffers {
     pos_forces: DVector,
     gen_forces: DVector,
@@ -2222,22 +2222,6 @@ struct EnergyGuardBuffers {
     a: DVector,
     m_a: DVector,
     m_v: DVector,
-}
-
-impl Default for EnergyGuardBuffers {
-    fn default() -> Self {
-        Self {
-            pos_forces: DVector::zeros(0),
-            gen_forces: DVector::zeros(0),
-            v: DVector::zeros(0),
-            f: DVector::zeros(0),
-            f_pos: DVector::zeros(0),
-            a_full: DVector::zeros(0),
-            a: DVector::zeros(0),
-            m_a: DVector::zeros(0),
-            m_v: DVector::zeros(0),
-        }
-    }
 }
 
 impl EnergyGuardBuffers {
