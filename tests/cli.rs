@@ -1012,6 +1012,24 @@ fn regression_11_help_warnings_and_file_names() {
     assert_eq!(err.matches("gain file").count(), 1, "{err}");
 }
 
+/// `envelope --help` said `--physics-substeps` took 1 to 100 after the bound rose to 256
+/// (stop 71): every command's help that names the option's range names the bound itself.
+#[test]
+fn regression_12_every_physics_substeps_help_names_its_bound() {
+    let bound = format!("1 to {}", pma_leg::scenario::PHYSICS_SUBSTEPS_MAX);
+    for command in ["envelope", "tune-leg"] {
+        let help = String::from_utf8_lossy(&pma_exo(&[command, "--help"]).stdout).to_string();
+        let start = help.find("--physics-substeps").expect("the option");
+        let entry = &help[start
+            ..start
+                + help[start..]
+                    .find("\n      -")
+                    .unwrap_or(help.len() - start)];
+        let entry = entry.split_whitespace().collect::<Vec<_>>().join(" ");
+        assert!(entry.contains(&bound), "{command}: {entry}");
+    }
+}
+
 /// `gait_training` with `extra` appended, in a temporary file.
 fn scenario_with(name: &str, extra: &str) -> std::path::PathBuf {
     let path = temp(name).join("scenario.toml");

@@ -54,7 +54,7 @@ pub struct Args {
     #[arg(long, requires = "gains")]
     gains_below_support: Option<f64>,
     /// Physics substeps per control period in every cell (default: the scenario's; 1 to
-    /// 100): a finer step for the patients the shipped one cannot simulate.
+    /// 256): a finer step for the patients the shipped one cannot simulate.
     #[arg(long)]
     physics_substeps: Option<u32>,
     /// The patients' height (m, every cell; default the scenario's): the legs scale to it,
