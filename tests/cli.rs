@@ -1019,12 +1019,10 @@ fn regression_12_every_physics_substeps_help_names_its_bound() {
     let bound = format!("1 to {}", pma_leg::scenario::PHYSICS_SUBSTEPS_MAX);
     for command in ["envelope", "tune-leg"] {
         let help = String::from_utf8_lossy(&pma_exo(&[command, "--help"]).stdout).to_string();
-        let start = help.find("--physics-substeps").expect("the option");
-        let entry = &help[start
-            ..start
-                + help[start..]
-                    .find("\n      -")
-                    .unwrap_or(help.len() - start)];
+        let entry = help
+            .split("\n      -")
+            .find(|e| e.starts_with("-physics-substeps"))
+            .expect("the option");
         let entry = entry.split_whitespace().collect::<Vec<_>>().join(" ");
         assert!(entry.contains(&bound), "{command}: {entry}");
     }

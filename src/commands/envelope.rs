@@ -53,9 +53,12 @@ pub struct Args {
     /// below 0.5, the scenario's from it; docs/envelope.md).
     #[arg(long, requires = "gains")]
     gains_below_support: Option<f64>,
-    /// Physics substeps per control period in every cell (default: the scenario's; 1 to
-    /// 256): a finer step for the patients the shipped one cannot simulate.
-    #[arg(long)]
+    // The bound comes from the constant that checks it, so the help cannot fall behind.
+    #[arg(long, help = format!(
+        "Physics substeps per control period in every cell (default: the scenario's; {}): \
+         a finer step for the patients the shipped one cannot simulate",
+        super::physics_substeps_range()
+    ))]
     physics_substeps: Option<u32>,
     /// The patients' height (m, every cell; default the scenario's): the legs scale to it,
     /// and the belt with them (a taller patient walks the reference's angles at the same

@@ -264,11 +264,18 @@ impl<B: pma_loop::Backend, O> pma_loop::Recorder<B, O> for Progress {
 /// `--physics-substeps N` within what a scenario accepts (1 to
 /// [`pma_leg::scenario::PHYSICS_SUBSTEPS_MAX`]), checked before anything runs.
 pub fn check_physics_substeps(n: u32) -> Result<()> {
-    let max = pma_leg::scenario::PHYSICS_SUBSTEPS_MAX;
-    if !(1..=max).contains(&n) {
-        anyhow::bail!("--physics-substeps {n} is invalid: 1 to {max}");
+    if !(1..=pma_leg::scenario::PHYSICS_SUBSTEPS_MAX).contains(&n) {
+        anyhow::bail!(
+            "--physics-substeps {n} is invalid: {}",
+            physics_substeps_range()
+        );
     }
     Ok(())
+}
+
+/// The values `--physics-substeps` takes, in the words its help and its error use.
+pub fn physics_substeps_range() -> String {
+    format!("1 to {}", pma_leg::scenario::PHYSICS_SUBSTEPS_MAX)
 }
 
 /// What `--check-step` concludes, in the summary's words.

@@ -303,11 +303,14 @@ pub struct LegArgs {
     /// tenth free).
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     max_rating: f64,
-    /// Physics substeps per control period (comma-separated, each 1 to 256): every
-    /// scenario runs at each, and the objective is the worst, so that the gains found
-    /// hold at a finer step too (a loop tuned at one step can rely on its integrator's
-    /// damping). Default: each scenario's own.
-    #[arg(long, value_delimiter = ',')]
+    // The bound comes from the constant that checks it, so the help cannot fall behind.
+    #[arg(long, value_delimiter = ',', help = format!(
+        "Physics substeps per control period (comma-separated, each {}): every scenario \
+         runs at each, and the objective is the worst, so that the gains found hold at a \
+         finer step too (a loop tuned at one step can rely on its integrator's damping). \
+         Default: each scenario's own",
+        super::physics_substeps_range()
+    ))]
     physics_substeps: Vec<u32>,
     /// On a treadmill, a run that does not walk by its verdict (strides, stance RMS within
     /// 2 deg, the belt's load) scores 50 deg more: walking becomes a constraint the
