@@ -215,6 +215,8 @@ def main():
     p.add_argument("--slow", action="store_true", help="the slow figures instead")
     p.add_argument("--filter", action="append", default=[],
                    help="only commands containing this (repeat: all must match)")
+    p.add_argument("--doc", action="append", default=[],
+                   help="only the figures of this doc, e.g. docs/patient.md (repeat: any)")
     p.add_argument("--apply", action="store_true")
     p.add_argument("--bless", action="store_true")
     p.add_argument("-j", type=int, default=os.cpu_count())
@@ -227,7 +229,8 @@ def main():
 
     def chosen(item):
         line = " ".join(item["command"])
-        return item.get("slow", False) == a.slow and all(f in line for f in a.filter)
+        return (item.get("slow", False) == a.slow and all(f in line for f in a.filter)
+                and (not a.doc or item.get("doc") in a.doc))
 
     figures = [f for f in manifest["figure"] if chosen(f)]
     images = [i for i in manifest.get("image", []) if chosen(i)]
