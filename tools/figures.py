@@ -251,11 +251,21 @@ def main():
                     for (cmd, code), items in runs.items() if ("--out" in cmd) == writes}
             done += [(item, job.result()) for job in cf.as_completed(jobs)
                      for item in jobs[job]]
+    # The tables of `rows_of` figures that failed: each keeps its rank among its doc's tables
+    # with the same labels, and is never replaced (a failed figure's table counted out of
+    # the ranks shifted a stale table onto its neighbour's place, stop 73).
+    kept = set()
     for item, (data, error) in done:
         cmd = " ".join(item["command"])
         if error:
             failed.append(f"FAILED pma-exo {cmd}: {error}")
             print(failed[-1], flush=True)
+            rows_of = item.get("rows_of", "").replace("{dir}", work)
+            if rows_of and os.path.exists(rows_of):
+                with open(rows_of) as fh:
+                    groups = row_groups(fh.read())
+                tables.setdefault(item["doc"], []).extend((order[id(item)], g) for g in groups)
+                kept.update(id(g) for g in groups)
             continue
         if "drawn" in item:
             checked += 1
@@ -310,7 +320,8 @@ def main():
                 lines = {line.strip() for line in fh.read().split("\n")}
             labels = [tuple(table_row_key(r) for r in g) for g in groups]
             todo = [(labels[:i].count(labels[i]), labels.count(labels[i]), g)
-                    for i, g in enumerate(groups) if any(r not in lines for r in g)]
+                    for i, g in enumerate(groups)
+                    if id(g) not in kept and any(r not in lines for r in g)]
             if todo:
                 left = apply_tables(os.path.join(ROOT, doc), todo)
                 print(f"{doc}: {len(todo) - len(left)} tables replaced")
