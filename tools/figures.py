@@ -255,17 +255,21 @@ def main():
     # with the same labels, and is never replaced (a failed figure's table counted out of
     # the ranks shifted a stale table onto its neighbour's place, stop 73).
     kept = set()
+
+    def add_tables(item):
+        """Reads a `rows_of` figure's tables into its doc's ranks; returns them."""
+        with open(item["rows_of"].replace("{dir}", work)) as fh:
+            groups = row_groups(fh.read())
+        tables.setdefault(item["doc"], []).extend((order[id(item)], g) for g in groups)
+        return groups
+
     for item, (data, error) in done:
         cmd = " ".join(item["command"])
         if error:
             failed.append(f"FAILED pma-exo {cmd}: {error}")
             print(failed[-1], flush=True)
-            rows_of = item.get("rows_of", "").replace("{dir}", work)
-            if rows_of and os.path.exists(rows_of):
-                with open(rows_of) as fh:
-                    groups = row_groups(fh.read())
-                tables.setdefault(item["doc"], []).extend((order[id(item)], g) for g in groups)
-                kept.update(id(g) for g in groups)
+            if os.path.exists(item.get("rows_of", "").replace("{dir}", work)):
+                kept.update(id(g) for g in add_tables(item))
             continue
         if "drawn" in item:
             checked += 1
@@ -298,10 +302,7 @@ def main():
             continue
         table = set()
         if item.get("rows_of"):
-            with open(item["rows_of"].replace("{dir}", work)) as fh:
-                groups = row_groups(fh.read())
-            tables.setdefault(item["doc"], []).extend((order[id(item)], g) for g in groups)
-            table = {r for g in groups for r in g}
+            table = {r for g in add_tables(item) for r in g}
         for expected in texts:
             checked += 1
             if expected not in doc:
