@@ -477,7 +477,7 @@ mod tests {
             t_s: 0.016,
             what: "the servo-driven knee: it turns at -52.8 rad/s (bound 50 rad/s)".into(),
         });
-        let c = Cell::failed(&p, Some(0.4864), &diverged);
+        let c = Cell::failed(&p, Some(0.4874), &diverged);
         assert_eq!(c.outcome, Outcome::Unphysical);
         assert!(
             c.reasons[0].contains("left physical bounds"),

@@ -209,10 +209,10 @@ fn seeds_report_each_figure_over_the_sensor_noise() {
 fn simulate_check_step_reruns_at_half_the_physics_step() {
     let out = pma_exo_ok(&["simulate", "--duration", "8", "--check-step", "--json"]);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
-    assert_eq!(v["step"]["physics_substeps"], 8, "{}", v["step"]);
+    assert_eq!(v["step"]["physics_substeps"], 64, "{}", v["step"]);
     assert_eq!(v["step"]["implicit_muscle_damping"], false);
     let c = &v["check_step"];
-    assert_eq!(c["physics_substeps"], 16, "{c}");
+    assert_eq!(c["physics_substeps"], 128, "{c}");
     let mut within = true;
     for joint in ["hip", "knee"] {
         let j = &c["joints"][joint];
@@ -232,7 +232,7 @@ fn simulate_check_step_reruns_at_half_the_physics_step() {
     let dir = temp("check-step-leg");
     let file = dir.join("fine.toml");
     let text = include_str!("../crates/pma-leg/models/scenarios/gait_training.toml").replacen(
-        "physics_substeps = 8",
+        "physics_substeps = 64",
         "physics_substeps = 200",
         1,
     );

@@ -179,13 +179,34 @@ fn run(command: &[String], dir: &Path, exit: Option<i32>) -> serde_json::Value {
     serde_json::from_str(line).unwrap_or(serde_json::Value::Null)
 }
 
+/// Runs every figure's command, on as many threads as the machine has cores (the commands
+/// are single-threaded and write only under their own names in `dir`, as
+/// `tools/figures.py -j N` runs them), and returns their JSON in the figures' order.
+fn run_all(figures: &[&Figure], dir: &Path) -> Vec<serde_json::Value> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results = std::sync::Mutex::new(vec![serde_json::Value::Null; figures.len()]);
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    std::thread::scope(|scope| {
+        for _ in 0..threads.min(figures.len()) {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(f) = figures.get(i) else { break };
+                let json = run(&f.command, dir, f.exit);
+                results.lock().expect("a runner panicked")[i] = json;
+            });
+        }
+    });
+    results.into_inner().expect("a runner panicked")
+}
+
 fn check(slow: bool) {
     let m = manifest();
     let dir = work_dir(&m, if slow { "slow" } else { "fast" });
     let mut stale = Vec::new();
     let mut checked = 0;
-    for f in m.figure.iter().filter(|f| f.slow == slow) {
-        let json = run(&f.command, &dir, f.exit);
+    let figures: Vec<&Figure> = m.figure.iter().filter(|f| f.slow == slow).collect();
+    let jsons = run_all(&figures, &dir);
+    for (f, json) in figures.iter().zip(jsons) {
         let doc = std::fs::read_to_string(root().join(&f.doc)).expect("doc");
         let mut expected: Vec<String> = f.text.iter().map(|t| expand(t, &json)).collect();
         if let Some(path) = &f.rows_of {
@@ -242,7 +263,7 @@ fn the_docs_say_what_their_slow_commands_give() {
 }
 
 /// docs/convergence.md "rapier's floor" prints `pma_leg::tools::step_floor`'s rows (`cargo run
-/// --release --example step_floor -- 2 0.5`): rapier's f32, not a command's JSON, so checked
+/// --release --example step_floor -- 2 0.5`): rapier in f64, not a command's JSON, so checked
 /// here rather than through the manifest.
 #[test]
 fn the_step_floor_table_is_what_rapier_gives() {

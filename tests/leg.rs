@@ -4,6 +4,9 @@ use pma_leg::body::EMBEDDED_URDF;
 use pma_leg::{LegOutput, LegReport, LegSim, PerLeg, Scenario, Side, SupervisedLeg, TrainerSample};
 use pma_loop::{FnRecorder, Period};
 
+mod common;
+use common::LONG_RUN_SUBSTEPS;
+
 fn run(name: &str, duration_s: f64) -> LegReport {
     let loaded = Scenario::load(name).expect("scenario");
     let mut sim = LegSim::new(&loaded).expect("sim");
@@ -33,9 +36,15 @@ fn gait_realistic_tracks_within_three_degrees_rms() {
     }
 }
 
-#[test]
-fn ten_minutes_of_gait_keep_pressures_in_range_and_cocontraction_bounded() {
-    let r = run("gait_training", 600.0);
+/// Ten minutes of `gait_training` at `substeps` physics steps a period (`None`: its own):
+/// pressures within the supply, the co-contraction the controller adapts within 20 % of
+/// where it started, both joints within a degree RMS.
+fn ten_minutes_of_gait(substeps: Option<u32>) {
+    let loaded = common::scenario_at("gait_training", substeps);
+    let r = LegSim::new(&loaded)
+        .expect("sim")
+        .run(600.0, &mut ())
+        .expect("run");
     assert!(r.finite);
     for (name, m) in &r.muscles {
         assert!(m.p_min_pa >= 0.0 && m.p_max_pa <= 6.0e5, "{name}: {m:?}");
@@ -49,6 +58,18 @@ fn ten_minutes_of_gait_keep_pressures_in_range_and_cocontraction_bounded() {
     for j in r.joints.values() {
         assert!(j.rms_deg < 1.0, "{j:?}");
     }
+}
+
+#[test]
+fn ten_minutes_of_gait_keep_pressures_in_range_and_cocontraction_bounded() {
+    ten_minutes_of_gait(Some(LONG_RUN_SUBSTEPS));
+}
+
+/// The test above at the shipped step (`LONG_RUN_SUBSTEPS` says why not in every run).
+#[test]
+#[ignore = "about 4 min: the shipped 64 substeps; cargo test --test leg -- --ignored"]
+fn ten_minutes_of_gait_at_the_shipped_step() {
+    ten_minutes_of_gait(None);
 }
 
 /// The loaded default scenario with its URDF's joint limits opened: rapier's limit

@@ -10,6 +10,9 @@ use pma_leg::{LegOutput, LegReport, LegSim, Patient, PerLeg, Scenario, Supervise
 use pma_loop::{FnRecorder, LoopSettings, Period};
 use pma_studies::pendulum::{self, PendulumSetup};
 
+mod common;
+use common::LONG_RUN_SUBSTEPS;
+
 const CONTROLLERS: [ControllerKind; 5] = [
     ControllerKind::AprcNdo,
     ControllerKind::Psmc,
@@ -18,15 +21,17 @@ const CONTROLLERS: [ControllerKind; 5] = [
     ControllerKind::Pid,
 ];
 
-/// A run of `kind` on `scenario`, with the largest |torque| of `part` of the patient at
-/// hip and knee over the run (N m).
+/// A run of `kind` on `scenario` at `substeps` physics steps a period (`None`: the
+/// scenario's own), with the largest |torque| of `part` of the patient at hip and knee over
+/// the run (N m).
 fn run(
     scenario: &str,
     kind: ControllerKind,
     duration_s: f64,
-    part: fn(&PatientTorques) -> [f64; 2],
+    substeps: Option<u32>,
+    part: PatientPart,
 ) -> (LegReport, [f64; 2]) {
-    let loaded = Scenario::load(scenario).expect("scenario");
+    let loaded = common::scenario_at(scenario, substeps);
     let config = pma_leg::control::leg_gains(kind).expect("gains");
     let mut sim = LegSim::with_controller(&loaded, &config).expect("sim");
     let mut peak = [0.0f64; 2];
@@ -40,13 +45,13 @@ fn run(
     (report, peak)
 }
 
-/// Every controller on `scenario` for 60 s; `part` is what the scenario's patient does,
-/// which must act at both joints.
-fn every_controller_for_60_s(scenario: &str, part: fn(&PatientTorques) -> [f64; 2]) {
+/// Every controller on `scenario` for 60 s at `substeps` (`None`: the scenario's own);
+/// `part` is what the scenario's patient does, which must act at both joints.
+fn every_controller_for_60_s(scenario: &str, substeps: Option<u32>, part: PatientPart) {
     for kind in CONTROLLERS {
-        let (r, peak) = run(scenario, kind, 60.0, part);
+        let (r, peak) = run(scenario, kind, 60.0, substeps, part);
         eprintln!(
-            "{scenario} {kind}: hip RMS {:.3} deg, knee RMS {:.3} deg, patient knee RMS {:.2} N m, {} spasms",
+            "{scenario} {kind} ({substeps:?} substeps): hip RMS {:.3} deg, knee RMS {:.3} deg, patient knee RMS {:.2} N m, {} spasms",
             r.joints["hip"].rms_deg,
             r.joints["knee"].rms_deg,
             r.patient.joints["knee"].torque_rms_nm,
@@ -73,19 +78,39 @@ fn every_controller_for_60_s(scenario: &str, part: fn(&PatientTorques) -> [f64; 
     }
 }
 
+/// What a scenario's patient does, at hip and knee (N m).
+type PatientPart = fn(&PatientTorques) -> [f64; 2];
+
+/// The patients' scenarios and what each one's patient does.
+const PATIENTS: [(&str, PatientPart); 3] = [
+    ("gait_spastic", |t| t.reflex_nm),
+    ("gait_spasms", |t| t.spasm_nm),
+    ("gait_resistive", |t| t.effort_nm),
+];
+
 #[test]
 fn every_controller_runs_gait_spastic_for_60_s() {
-    every_controller_for_60_s("gait_spastic", |t| t.reflex_nm);
+    every_controller_for_60_s(PATIENTS[0].0, Some(LONG_RUN_SUBSTEPS), PATIENTS[0].1);
 }
 
 #[test]
 fn every_controller_runs_gait_spasms_for_60_s() {
-    every_controller_for_60_s("gait_spasms", |t| t.spasm_nm);
+    every_controller_for_60_s(PATIENTS[1].0, Some(LONG_RUN_SUBSTEPS), PATIENTS[1].1);
 }
 
 #[test]
 fn every_controller_runs_gait_resistive_for_60_s() {
-    every_controller_for_60_s("gait_resistive", |t| t.effort_nm);
+    every_controller_for_60_s(PATIENTS[2].0, Some(LONG_RUN_SUBSTEPS), PATIENTS[2].1);
+}
+
+/// The three tests above at the scenarios' shipped step (`LONG_RUN_SUBSTEPS` says why not
+/// in every run).
+#[test]
+#[ignore = "about 10 min: the shipped 64 substeps; cargo test --test patient -- --ignored"]
+fn every_controller_runs_the_patients_for_60_s_at_the_shipped_step() {
+    for (scenario, part) in PATIENTS {
+        every_controller_for_60_s(scenario, None, part);
+    }
 }
 
 fn knee_reflex(preset: SpasticityPreset) -> PatientSettings {
@@ -165,7 +190,8 @@ fn the_reflex_acts_only_above_its_threshold_grows_with_speed_and_honours_its_del
 }
 
 fn spasm_times(kind: ControllerKind, seed: u64) -> Vec<(String, f64, f64, f64)> {
-    let mut loaded = Scenario::load("gait_spasms").unwrap();
+    // When a spasm comes is the patient's, not the step's: the cheap step of long runs.
+    let mut loaded = common::scenario_at("gait_spasms", Some(LONG_RUN_SUBSTEPS));
     if let Some(s) = &mut loaded.scenario.patient.knee.spasms {
         s.seed = seed;
     }

@@ -262,14 +262,14 @@ fn bad_trainer_input_is_a_one_line_error_naming_the_field() {
             "treadmill.body_mass_kg",
         ),
         (
-            "speed_m_per_s = 0.4864",
+            "speed_m_per_s = 0.4874",
             "speed_m_per_s = 12.0",
             "treadmill.speed_m_per_s",
         ),
         // Issue 47: a belt with no adult reference (recorded at 0.499 m/s only) ran and
         // the patient collapsed, exit 0.
         (
-            "speed_m_per_s = 0.4864",
+            "speed_m_per_s = 0.4874",
             "speed_m_per_s = 0.7",
             "treadmill.speed_m_per_s = 0.7 is invalid: has no adult reference",
         ),
@@ -317,12 +317,12 @@ fn bad_trainer_input_is_a_one_line_error_naming_the_field() {
         // An in-step start needs whole strides to start in double support.
         ("ramp_s = 1.7535\n", "ramp_s = 1.0\n", "gait.ramp_s"),
         (
-            "cos_deg = [0.99506,",
+            "cos_deg = [0.99668,",
             "cos_deg = [11.0,",
             "gait.hip_correction",
         ),
         (
-            "cos_deg = [0.99506,",
+            "cos_deg = [0.99668,",
             "cos_deg = [nan,",
             "gait.hip_correction",
         ),
@@ -430,7 +430,7 @@ fn fit_gait_writes_the_lines_the_scenario_takes() {
         &spliced,
         &dir,
         "fitted.toml",
-        &[("speed_m_per_s = 0.4864", speed)],
+        &[("speed_m_per_s = 0.4874", speed)],
     );
     // A fit of a few iterations is not converged: its stride asks many times the adults'
     // moments, which `simulate` refuses unless told to run it, and whether it walks is not
@@ -636,7 +636,7 @@ fn a_belt_the_reference_does_not_fit_is_refused_before_it_runs() {
     let fast = scenario_with(
         &dir,
         "fast.toml",
-        &[("speed_m_per_s = 0.4864", "speed_m_per_s = 0.55")],
+        &[("speed_m_per_s = 0.4874", "speed_m_per_s = 0.55")],
     );
     let csv = dir.join("run.csv");
     let out = pma_exo(&[
@@ -1193,7 +1193,7 @@ fn a_collapse_is_stopped_while_it_happens_and_said_in_one_line() {
 #[test]
 fn a_fixed_length_list_of_another_length_is_refused() {
     let dir = temp_dir("lengths");
-    let cos = "cos_deg = [0.99506, 0.19490, -0.79553, -0.08405, -0.18560, -0.13000, -0.07841]";
+    let cos = "cos_deg = [0.99668, 0.20523, -0.79735, -0.07524, -0.19105, -0.12347, -0.07382]";
     let cases: &[(&str, &str, &str)] = &[
         (
             "body_mass_kg = 75.0",
@@ -1407,12 +1407,18 @@ const OWN_GAINS: &str = "crates/pma-leg/models/gains/treadmill/aprc-ndo.toml";
 /// at 30 % support collapse within 4 s; the shipped schedule gives them the set tuned over
 /// the patients (docs/envelope.md, "Gains that follow the patient"), which walks them
 /// within 2 deg and the muscles' rating, exactly as the gain file does.
+///
+/// One patient's 10 s run is not the claim: in f64 the own set's 90.0 kg run fails by the
+/// knee (2.003 deg) without collapsing, and over eleven patients of 89.5-90.5 kg it walks
+/// two, collapses under seven, the schedule walking all eleven (docs/convergence.md, "The
+/// switch carried on"). The test runs the three nearest, 89.9, 90 and 90.1 kg: the schedule
+/// walks each, the own set none, and most of them collapse under it.
 #[test]
 fn the_schedule_walks_a_90_kg_patient_the_scenarios_own_set_loses() {
-    let cell = |gains: &[&str]| -> serde_json::Value {
+    let cells = |masses: &str, gains: &[&str]| -> Vec<serde_json::Value> {
         let args = [
             "--mass-kg",
-            "90",
+            masses,
             "--support",
             "0.3",
             "--speed",
@@ -1420,22 +1426,36 @@ fn the_schedule_walks_a_90_kg_patient_the_scenarios_own_set_loses() {
             "--duration",
             "10",
         ];
-        envelope_json(&args, gains)["cells"][0].clone()
+        envelope_json(&args, gains)["cells"]
+            .as_array()
+            .expect("cells")
+            .clone()
     };
-    let own = cell(&["--gains", OWN_GAINS]);
-    assert_eq!(own["outcome"], "failed", "{own}");
-    assert!(own["collapse_s"].as_f64().is_some(), "{own}");
-    let shipped = cell(&[]);
-    assert_eq!(shipped["outcome"], "walked", "{shipped}");
-    assert_eq!(shipped["gains_scheduled"], true, "{shipped}");
-    let [hip, knee] = [0, 1].map(|j| shipped["stance_rms_deg"][j].as_f64().unwrap());
-    assert!(hip <= 2.0 && knee <= 2.0, "{shipped}");
-    assert!(
-        shipped["peak_force_over_rated"].as_f64().unwrap() <= 1.0,
-        "{shipped}"
+    let masses = "89.9,90,90.1";
+    let own = cells(masses, &["--gains", OWN_GAINS]);
+    assert_eq!(own.len(), 3);
+    assert!(own.iter().all(|c| c["outcome"] == "failed"), "{own:?}");
+    let collapses = own.iter().filter(|c| c["collapse_s"].is_f64()).count();
+    assert!(collapses >= 2, "{own:?}");
+    let shipped = cells(masses, &[]);
+    assert_eq!(shipped.len(), 3);
+    for c in &shipped {
+        assert_eq!(c["outcome"], "walked", "{c}");
+        assert_eq!(c["gains_scheduled"], true, "{c}");
+        let [hip, knee] = [0, 1].map(|j| c["stance_rms_deg"][j].as_f64().unwrap());
+        assert!(hip <= 2.0 && knee <= 2.0, "{c}");
+        assert!(c["peak_force_over_rated"].as_f64().unwrap() <= 1.0, "{c}");
+    }
+    let at_90 = shipped
+        .iter()
+        .find(|c| c["mass_kg"] == 90.0)
+        .expect("the 90 kg cell");
+    let file = cells("90", &["--gains", PATIENTS_GAINS]);
+    assert_eq!(
+        file[0]["stance_rms_deg"], at_90["stance_rms_deg"],
+        "{}",
+        file[0]
     );
-    let file = cell(&["--gains", PATIENTS_GAINS]);
-    assert_eq!(file["stance_rms_deg"], shipped["stance_rms_deg"], "{file}");
 }
 
 /// Issue 47 item 3, a schedule by support on the command line: with `--gains FILE
@@ -1644,14 +1664,14 @@ fn envelope_maps_walked_refused_and_failed_cells() {
 
 /// Issue 47 item 1: a patient's height. The frame's thigh and shank and the patient's
 /// segments take their lengths from it; at the scenario's cadence a 1.50 m and a 1.92 m
-/// patient (75 kg) walk 8 s on the belt scaled with their legs (0.4864 m/s x H / 1.75).
+/// patient (75 kg) walk 8 s on the belt scaled with their legs (0.4874 m/s x H / 1.75).
 /// A height outside the adult reference's subjects (1.47-1.92 m) is refused in one line;
 /// a belt far from the one the patient's legs fit names the scaled reference speed.
 #[test]
 fn a_short_and_a_tall_patient_walk_on_their_own_legs() {
     let dir = temp_dir("height");
     for h in [1.50, 1.92] {
-        let belt = format!("speed_m_per_s = {:.4}", 0.4864 * h / 1.75);
+        let belt = format!("speed_m_per_s = {:.4}", 0.4874 * h / 1.75);
         let path = scenario_with(
             &dir,
             &format!("h{h}.toml"),
@@ -1660,7 +1680,7 @@ fn a_short_and_a_tall_patient_walk_on_their_own_legs() {
                     "body_mass_kg = 75.0",
                     &format!("body_mass_kg = 75.0\nheight_m = {h}"),
                 ),
-                ("speed_m_per_s = 0.4864", &belt),
+                ("speed_m_per_s = 0.4874", &belt),
             ],
         );
         let v = judged(&[
@@ -1687,7 +1707,7 @@ fn a_short_and_a_tall_patient_walk_on_their_own_legs() {
                 "body_mass_kg = 75.0",
                 "body_mass_kg = 75.0\nheight_m = 1.47",
             ),
-            ("speed_m_per_s = 0.4864", "speed_m_per_s = 0.56"),
+            ("speed_m_per_s = 0.4874", "speed_m_per_s = 0.56"),
         ],
     );
     assert_refused(&off, "0.419 m/s for a patient 1.47 m tall");

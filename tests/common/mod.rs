@@ -41,6 +41,28 @@ fn with_physics_substeps(scenario: &str, n: u32) -> String {
     scenario.replacen(line, &format!("physics_substeps = {n}"), 1)
 }
 
+/// The physics substeps of the tests whose long in-air runs (a minute and more) check
+/// bounds, bookkeeping and verdicts, not a tracking figure: eight, the in-air default
+/// before rapier went to f64 (docs/convergence.md, "The in-air default: 64 substeps in
+/// double precision"). At the shipped 64 a run takes eight times the physics steps (60 s of
+/// `gait_training`: 15.4 s against 2.0 s, release build): `patient` and `leg` took 630 s and
+/// 273 s with them at 64, 184 s and 75 s at eight (each with other jobs on both cores).
+/// Each such test has a twin at the shipped step, `#[ignore]`d: `cargo test --test patient
+/// --test leg -- --ignored`.
+#[allow(dead_code)] // Not every test file that shares this module runs long.
+pub const LONG_RUN_SUBSTEPS: u32 = 8;
+
+/// The embedded or file scenario `name`, at `substeps` physics steps a period (`None`: its
+/// own).
+#[allow(dead_code)] // Not every test file that shares this module loads a leg.
+pub fn scenario_at(name: &str, substeps: Option<u32>) -> pma_leg::LoadedScenario {
+    let mut loaded = pma_leg::Scenario::load(name).expect("scenario");
+    if let Some(n) = substeps {
+        loaded.scenario.physics_substeps = n;
+    }
+    loaded
+}
+
 /// Runs `pma-exo args`, sends it SIGINT `after` its start and returns what it printed and
 /// how it ended (a stage taking seconds is then under way).
 #[cfg(unix)]

@@ -168,7 +168,7 @@ impl Exoskeleton {
             .sum();
         let pelvis_at = exo.world.bodies.get(pelvis).map_or([0.0; 3], |rb| {
             let t = rb.translation();
-            [f64::from(t.x), f64::from(t.y), f64::from(t.z)]
+            [t.x, t.y, t.z]
         });
         let slide = raw
             .joints
@@ -412,15 +412,13 @@ impl Exoskeleton {
             .get(j.handle)
             .and_then(|(mb, id)| mb.link(id))
             .and_then(|l| l.joint().data.limits(JointAxis::AngX).copied())
-            .map_or([f64::NEG_INFINITY, f64::INFINITY], |l| {
-                [f64::from(l.min), f64::from(l.max)]
-            })
+            .map_or([f64::NEG_INFINITY, f64::INFINITY], |l| [l.min, l.max])
     }
 
     fn set_limits(&mut self, leg: usize, k: usize, [lo, hi]: [f64; 2]) {
         let j = self.legs[leg].joints[k];
         self.with_joint(j, |j| {
-            j.data.set_limits(JointAxis::AngX, [lo as Real, hi as Real]);
+            j.data.set_limits(JointAxis::AngX, [lo, hi]);
         });
         self.legs[leg].limits_rad[k] = [lo, hi];
     }
@@ -432,7 +430,7 @@ impl Exoskeleton {
             return;
         };
         self.with_joint(a, |j| {
-            j.data.set_limits(JointAxis::AngX, [lo as Real, hi as Real]);
+            j.data.set_limits(JointAxis::AngX, [lo, hi]);
         });
         if let Some((mb, _)) = self.world.multibody_joints.get_mut(a.handle) {
             mb.damping_mut()[a.dof] = 0.0;
@@ -473,8 +471,8 @@ impl Exoskeleton {
         for leg in &self.legs {
             for (j, s) in leg.joints.iter().zip(settings) {
                 if let Some((mb, _)) = self.world.multibody_joints.get_mut(j.handle) {
-                    mb.damping_mut()[j.dof] = s.damping_nm_s_per_rad as Real;
-                    mb.frictions_mut()[j.dof] = s.friction_nm as Real;
+                    mb.damping_mut()[j.dof] = s.damping_nm_s_per_rad;
+                    mb.frictions_mut()[j.dof] = s.friction_nm;
                 }
             }
         }
@@ -489,7 +487,7 @@ impl Exoskeleton {
         self.world
             .multibody_joints
             .get(j.handle)
-            .and_then(|(mb, id)| mb.link(id).map(|l| f64::from(l.joint().coords()[3])))
+            .and_then(|(mb, id)| mb.link(id).map(|l| l.joint().coords()[3]))
             .unwrap_or(f64::NAN)
     }
 
@@ -497,7 +495,7 @@ impl Exoskeleton {
         self.world
             .multibody_joints
             .get(j.handle)
-            .map(|(mb, _)| f64::from(mb.generalized_velocity()[j.dof]))
+            .map(|(mb, _)| mb.generalized_velocity()[j.dof])
             .unwrap_or(f64::NAN)
     }
 
@@ -535,8 +533,8 @@ impl Exoskeleton {
         let dofs = self.legs[leg].joints.map(|j| j.dof);
         self.edit_multibody(|mb, disp| {
             for k in 0..2 {
-                disp[dofs[k]] = (angles[k] - current[k]) as Real;
-                mb.generalized_velocity_mut()[dofs[k]] = velocities[k] as Real;
+                disp[dofs[k]] = angles[k] - current[k];
+                mb.generalized_velocity_mut()[dofs[k]] = velocities[k];
             }
         });
     }
@@ -558,7 +556,7 @@ impl Exoskeleton {
             let to = start.ankle.angle_rad.clamp(lo, hi);
             let from = self.coordinate(a);
             self.edit_multibody(|mb, disp| {
-                disp[a.dof] = (to - from) as Real;
+                disp[a.dof] = to - from;
                 mb.generalized_velocity_mut()[a.dof] = 0.0;
             });
         }
@@ -587,7 +585,7 @@ impl Exoskeleton {
         else {
             return;
         };
-        let t = axis * torque_nm as Real;
+        let t = axis * torque_nm;
         if let Some(rb) = self.world.bodies.get_mut(j.child) {
             rb.add_torque(t, true);
         }
@@ -619,7 +617,7 @@ impl Exoskeleton {
             }
             self.apply_orthoses();
             if let Some(ground) = &mut self.ground {
-                let h = f64::from(self.world.integration_parameters.dt);
+                let h = self.world.integration_parameters.dt;
                 ground.apply(&mut self.world.bodies, h);
             }
             self.world.step();
@@ -670,7 +668,7 @@ impl Exoskeleton {
         };
         self.edit_multibody(|mb, disp| {
             if let Some(dof) = mb.link(link).map(|l| l.assembly_id()) {
-                disp[dof] = dz_m as Real;
+                disp[dof] = dz_m;
             }
         });
     }
@@ -680,14 +678,14 @@ impl Exoskeleton {
         let g = self.ground.as_ref()?;
         let rb = self.world.bodies.get(g.pelvis())?;
         let t = rb.translation();
-        Some([f64::from(t.x), f64::from(t.z)])
+        Some([t.x, t.z])
     }
 
     /// Velocity of the pelvis frame `[fore-aft, up]` (m/s), on a treadmill.
     pub fn pelvis_velocity_m_s(&self) -> Option<[f64; 2]> {
         let g = self.ground.as_ref()?;
         let v = self.world.bodies.get(g.pelvis())?.linvel();
-        Some([f64::from(v.x), f64::from(v.z)])
+        Some([v.x, v.z])
     }
 
     /// Height of the pelvis frame above the belt (m), on a treadmill.
@@ -702,7 +700,7 @@ impl Exoskeleton {
 
     /// Length of one physics substep (s).
     pub fn substep_s(&self) -> f64 {
-        f64::from(self.world.integration_parameters.dt)
+        self.world.integration_parameters.dt
     }
 
     /// Mechanical energy of the (first) leg on a fixed pelvis (J) at its current state,
@@ -737,15 +735,7 @@ impl Exoskeleton {
             Some(rb) => {
                 let p = rb.position();
                 let (t, r) = (p.translation, p.rotation);
-                (
-                    [f64::from(t.x), f64::from(t.y), f64::from(t.z)],
-                    [
-                        f64::from(r.x),
-                        f64::from(r.y),
-                        f64::from(r.z),
-                        f64::from(r.w),
-                    ],
-                )
+                ([t.x, t.y, t.z], [r.x, r.y, r.z, r.w])
             }
             None => ([f64::NAN; 3], [0.0, 0.0, 0.0, 1.0]),
         }
@@ -754,12 +744,10 @@ impl Exoskeleton {
     /// A point given in link `name`'s frame, in world coordinates (m).
     pub fn point_in_world(&self, name: &str, local: [f64; 3]) -> Option<[f64; 3]> {
         let rb = self.world.bodies.get(self.body(name)?)?;
-        let p = rb.position().transform_point(Vector::new(
-            local[0] as Real,
-            local[1] as Real,
-            local[2] as Real,
-        ));
-        Some([f64::from(p.x), f64::from(p.y), f64::from(p.z)])
+        let p = rb
+            .position()
+            .transform_point(Vector::new(local[0], local[1], local[2]));
+        Some([p.x, p.y, p.z])
     }
 
     /// World pose of every link: name, translation (m) and rotation quaternion `[x, y, z, w]`.
@@ -781,7 +769,7 @@ fn loader_options(mount: Mount) -> UrdfLoaderOptions {
         // hip lies on the pelvis frame's Y axis), flexion-wise for a positive angle.
         shift: Pose::from_rotation(Rotation::from_axis_angle(
             -Vector::Y,
-            mount.pelvis_pitch_rad as Real,
+            mount.pelvis_pitch_rad,
         )),
         make_roots_fixed: true,
         // Nothing touches the leg through rapier (the feet's contacts are computed
@@ -799,10 +787,10 @@ fn loader_options(mount: Mount) -> UrdfLoaderOptions {
 /// solver iteration a substep.
 fn physics_world(period_s: f64, substeps: u32) -> PhysicsWorld {
     let mut world = PhysicsWorld {
-        gravity: Vector::new(0.0, 0.0, -G as Real),
+        gravity: Vector::new(0.0, 0.0, -G),
         ..Default::default()
     };
-    world.integration_parameters.dt = (period_s / f64::from(substeps)) as Real;
+    world.integration_parameters.dt = period_s / f64::from(substeps);
     // rapier's default of 4 solver iterations substeps internally and recomputes the
     // multibody dynamics each time; the leg's only constraints are its joint limits,
     // so one iteration per (explicit) substep is enough and 4x cheaper.

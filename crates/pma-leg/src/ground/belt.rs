@@ -24,7 +24,7 @@ use crate::ground::{
     sphere_contact, BwsKind, ContactParams, FootReaction, FootSphere, GroundReaction, OtherLeg,
     SagittalChain, SphereContact, TreadmillSettings, SELF_PACED_FILTER_S, START_HOLD_N_PER_M,
 };
-use rapier3d::prelude::{Real, RigidBodyHandle, RigidBodySet, Vector};
+use rapier3d::prelude::{RigidBodyHandle, RigidBodySet, Vector};
 
 /// One foot as the treadmill sees it: its rigid body, its link and its spheres.
 #[derive(Debug, Clone)]
@@ -109,7 +109,7 @@ impl FootState {
         for (k, s) in foot.spheres.iter().enumerate() {
             self.current[k] = None;
             let c = pose.transform_point(vector(s.center_m));
-            let contact_point = c - Vector::new(0.0, 0.0, s.radius_m as Real);
+            let contact_point = c - Vector::new(0.0, 0.0, s.radius_m);
             let v = rb.velocity_at_point(contact_point);
             let Some(contact) = sphere_contact(
                 params,
@@ -129,7 +129,7 @@ impl FootState {
             self.deepest_m = self.deepest_m.max(contact.depth_m);
             if f[2] > 0.0 {
                 self.fastest_slip_m_s = self.fastest_slip_m_s.max(contact.slip_m_s);
-                self.weighted_slip[0] += (f64::from(v.x) + belt_m_s) * f[2];
+                self.weighted_slip[0] += (v.x + belt_m_s) * f[2];
                 self.weighted_slip[1] += f[2];
             }
             self.contacts += 1;
@@ -358,7 +358,7 @@ impl Ground {
     pub(crate) fn apply(&mut self, bodies: &mut RigidBodySet, h_s: f64) {
         self.substeps += 1;
         if let Some(rb) = bodies.get_mut(self.setup.pelvis) {
-            let z = f64::from(rb.translation().z);
+            let z = rb.translation().z;
             let up = self.support_force_n(z);
             let other = match &mut self.other {
                 Some(o) => o.force(
@@ -366,7 +366,7 @@ impl Ground {
                     self.clock_s,
                     h_s,
                     z,
-                    f64::from(rb.linvel().z),
+                    rb.linvel().z,
                 ),
                 None => 0.0,
             };
@@ -381,18 +381,18 @@ impl Ground {
                             t.pelvis_fore_aft_damping_n_s_per_m,
                         )
                     };
-                    -k * (f64::from(rb.translation().x) - x0) - c * f64::from(rb.linvel().x)
+                    -k * (rb.translation().x - x0) - c * rb.linvel().x
                 }
                 None => 0.0,
             };
             if let (true, Some(x0)) = (self.self_paced_now(), self.setup.fore_aft_at_m) {
-                let offset = f64::from(rb.translation().x) - x0;
+                let offset = rb.translation().x - x0;
                 self.pelvis_offset_m += (offset - self.pelvis_offset_m) * h_s / SELF_PACED_FILTER_S;
             }
             self.sum[0] += other;
             self.sum[1] += up;
             self.sum[2] += held;
-            rb.add_force(Vector::new(held as Real, 0.0, (up + other) as Real), true);
+            rb.add_force(Vector::new(held, 0.0, up + other), true);
         }
         let belt = self.belt_speed_now_m_s();
         self.sum[3] += belt;
@@ -434,7 +434,7 @@ impl Ground {
 }
 
 fn vector(v: [f64; 3]) -> Vector {
-    Vector::new(v[0] as Real, v[1] as Real, v[2] as Real)
+    Vector::new(v[0], v[1], v[2])
 }
 
 #[cfg(test)]

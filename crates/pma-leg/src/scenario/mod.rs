@@ -28,9 +28,8 @@ fn height_note(height_m: Option<f64>, scaled_m_s: f64) -> String {
     }
 }
 
-/// Most physics steps a control period takes (`physics_substeps`): enough to check a step of
-/// 64 at a quarter of itself, where rapier in double precision converges the in-air leg
-/// (docs/convergence.md, "A trial of the switch").
+/// Most physics steps a control period takes (`physics_substeps`): four times the in-air
+/// scenarios' 64, so that their step can be checked at a quarter of itself (docs/convergence.md).
 pub const PHYSICS_SUBSTEPS_MAX: u32 = 256;
 
 /// Largest relative difference between a belt's speed and the speed its adult reference

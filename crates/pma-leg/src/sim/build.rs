@@ -262,8 +262,7 @@ pub(crate) fn baseline_traces(
     calm.scenario.patient.hip.spasms = None;
     calm.scenario.patient.knee.spasms = None;
     let mut sim = LegSim::mounted(&calm, config, *mount)?;
-    let plain = LoopSettings::new(settings.duration_s())?;
-    let periods = plain.periods(sim.scenario.period_s)?;
+    let periods = settings.periods(sim.scenario.period_s)?;
     let mut traces: Vec<OnLeg<crate::metrics::BaselineTrace>> = (0..sim.leg_count())
         .map(|leg| {
             OnLeg::new(
@@ -272,8 +271,9 @@ pub(crate) fn baseline_traces(
             )
         })
         .collect();
-    // A baseline the supervisor stops still covers its periods up to the fault.
-    let _ = sim.run_until_fault(&plain, &mut traces)?;
+    // A baseline the supervisor stops still covers its periods up to the fault. The run's
+    // own settings, stop flag included: the operator's stop ends the baseline too.
+    let _ = sim.run_until_fault(settings, &mut traces)?;
     Ok(traces.into_iter().map(|t| t.inner.0).collect())
 }
 

@@ -477,3 +477,30 @@ fn ending(
     };
     Ok(ended)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::AtomicBool;
+
+    /// Regression: a spasm scenario's baseline (the same run without its spasms, run first)
+    /// was given loop settings without the operator's stop flag, so a SIGINT or SIGTERM
+    /// waited for a whole baseline run: 12-15 s of a 60 s `simulate gait_spasms` at the
+    /// in-air 64 substeps, about 46 s of `compare-modes`.
+    #[test]
+    fn regression_a_spasm_scenarios_baseline_stops_on_the_operator_stop() {
+        let loaded = Scenario::load("gait_spasms").expect("scenario");
+        let sim = LegSim::new(&loaded).expect("sim");
+        let origin = sim.origin.as_deref().expect("a sim built from a scenario");
+        let stop = AtomicBool::new(true);
+        let settings = LoopSettings::new(1.6)
+            .expect("settings")
+            .with_stop_flag(&stop);
+        let traces = baseline_traces(origin, &settings).expect("baseline");
+        assert!(
+            traces.iter().all(|t| t.len() <= 1),
+            "the baseline ran on after the stop: {:?} periods",
+            traces.iter().map(Vec::len).collect::<Vec<_>>()
+        );
+    }
+}

@@ -194,15 +194,11 @@ fn rapier_fork_branch_dynamics_equal_the_full_products_on_two_legs() {
     let (mb, _) = e.world.multibody_joints.get_mut(handle).unwrap();
     let n = mb.ndofs();
     assert_eq!(n, 8, "pelvis x and z, two hips, knees and ankles");
-    let qd: Vec<f64> = mb
-        .generalized_velocity()
-        .iter()
-        .map(|&v| f64::from(v))
-        .collect();
+    let qd: Vec<f64> = mb.generalized_velocity().iter().copied().collect();
     let (mut worst_velocity, mut fastest) = (0.0f64, 0.0f64);
     for (i, jac) in jacobians.iter().enumerate() {
         for r in 0..3 {
-            let jv: f64 = (0..n).map(|c| f64::from(jac[(r, c)]) * qd[c]).sum();
+            let jv: f64 = (0..n).map(|c| jac[(r, c)] * qd[c]).sum();
             let moved = (after[i][r] - before[i][r]) / 1e-3;
             worst_velocity = worst_velocity.max((jv - moved).abs());
             fastest = fastest.max(moved.abs());
@@ -224,16 +220,16 @@ fn rapier_fork_branch_dynamics_equal_the_full_products_on_two_legs() {
         ];
         let mut spatial = [[0.0f64; 6]; 6];
         for (k, mass) in [m.x, m.y, m.z].into_iter().enumerate() {
-            spatial[k][k] = f64::from(mass);
+            spatial[k][k] = mass;
             for l in 0..3 {
-                spatial[3 + k][3 + l] = f64::from(i3[k][l]);
+                spatial[3 + k][3 + l] = i3[k][l];
             }
         }
         for (r, row) in full.iter_mut().enumerate() {
             for (c, entry) in row.iter_mut().enumerate() {
                 for a in 0..6 {
                     for b in 0..6 {
-                        *entry += f64::from(jac[(a, r)]) * spatial[a][b] * f64::from(jac[(b, c)]);
+                        *entry += jac[(a, r)] * spatial[a][b] * jac[(b, c)];
                     }
                 }
             }
@@ -244,12 +240,12 @@ fn rapier_fork_branch_dynamics_equal_the_full_products_on_two_legs() {
     let mut worst_mass = 0.0f64;
     for r in 0..n {
         for c in 0..n {
-            worst_mass = worst_mass.max((f64::from(fork[(r, c)]) - full[r][c]).abs() / scale);
+            worst_mass = worst_mass.max((fork[(r, c)] - full[r][c]).abs() / scale);
         }
     }
     // The hips' cross term: no link moves with both legs.
     let hips = e.legs.iter().map(|l| l.joints[0].dof).collect::<Vec<_>>();
-    let cross = f64::from(fork[(hips[0], hips[1])]).abs() / scale;
+    let cross = fork[(hips[0], hips[1])].abs() / scale;
     println!(
         "J qdot vs the links' finite-difference velocity: {worst_velocity:.2e} m/s (fastest {fastest:.2} m/s); mass matrix vs full sum: {worst_mass:.2e} of its largest entry ({scale:.1} kg); hips' cross term {cross:.1e}"
     );
