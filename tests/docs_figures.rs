@@ -183,20 +183,11 @@ fn run(command: &[String], dir: &Path, exit: Option<i32>) -> serde_json::Value {
 /// are single-threaded and write only under their own names in `dir`, as
 /// `tools/figures.py -j N` runs them), and returns their JSON in the figures' order.
 fn run_all(figures: &[&Figure], dir: &Path) -> Vec<serde_json::Value> {
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let results = std::sync::Mutex::new(vec![serde_json::Value::Null; figures.len()]);
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    std::thread::scope(|scope| {
-        for _ in 0..threads.min(figures.len()) {
-            scope.spawn(|| loop {
-                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                let Some(f) = figures.get(i) else { break };
-                let json = run(&f.command, dir, f.exit);
-                results.lock().expect("a runner panicked")[i] = json;
-            });
-        }
-    });
-    results.into_inner().expect("a runner panicked")
+    use rayon::prelude::*;
+    figures
+        .par_iter()
+        .map(|f| run(&f.command, dir, f.exit))
+        .collect()
 }
 
 fn check(slow: bool) {
