@@ -12,6 +12,15 @@ import pytest
 REPO = pathlib.Path(__file__).resolve().parents[3]
 
 
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers",
+        "figures: compares the bindings' numbers with the CLI's; the numbers are the Rust "
+        "core's, the same on every Python, so CI's second interpreter (3.9, the abi3 "
+        "wheel's oldest) skips them with -m 'not figures'",
+    )
+
+
 def _cli_path():
     """The pma-exo binary: $PMA_EXO_CLI, else the release build of the repository."""
     given = os.environ.get("PMA_EXO_CLI")

@@ -8,6 +8,8 @@ import pytest
 
 import pma_exo
 
+pytestmark = pytest.mark.figures
+
 TOLERANCE = 1e-12
 # Wall-clock figures differ between any two runs.
 WALL_CLOCK = {"real_time_factor"}

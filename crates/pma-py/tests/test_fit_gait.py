@@ -8,6 +8,7 @@ import pma_exo
 from test_cli_figures import assert_same_report
 
 
+@pytest.mark.figures
 def test_fit_gait_gives_the_cli_figures(cli):
     code, stdout, stderr = cli(["fit-gait", "gait_treadmill", "--iterations", "2", "--strides", "1", "--json"])
     assert code == 0, stderr

@@ -17,6 +17,7 @@ def excite_log(cli, tmp_path_factory):
     return log
 
 
+@pytest.mark.figures
 def test_identify_gives_the_cli_figures(cli, excite_log, tmp_path):
     code, stdout, stderr = cli(
         [

@@ -34,6 +34,7 @@ def cli_records(cli, sweep_file, out, shard):
     return sorted((json.loads(l) for l in lines), key=lambda r: r["run"])
 
 
+@pytest.mark.figures
 @pytest.mark.parametrize("shard", ["1/1", "2/3"])
 def test_sweep_gives_the_cli_records(cli, sweep_file, tmp_path, shard):
     theirs = cli_records(cli, sweep_file, tmp_path / "out", shard)
