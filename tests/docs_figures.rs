@@ -153,6 +153,70 @@ fn table_rows(text: &str) -> Vec<&str> {
         .collect()
 }
 
+/// The tables of `text`, each as its data rows (runs of consecutive `table_rows`).
+fn table_groups(text: &str) -> Vec<Vec<String>> {
+    let rows: std::collections::HashSet<&str> = table_rows(text).into_iter().collect();
+    let mut groups: Vec<Vec<String>> = Vec::new();
+    let mut current = Vec::new();
+    for line in text.lines() {
+        if rows.contains(line) {
+            current.push(line.to_owned());
+        } else if !current.is_empty() {
+            groups.push(std::mem::take(&mut current));
+        }
+    }
+    groups.extend((!current.is_empty()).then_some(current));
+    groups
+}
+
+/// Where in `lines` (indentation aside: a table in a list item) `rows` stand together, in
+/// order: the line of the first, for each place.
+fn table_starts(lines: &[&str], rows: &[String]) -> Vec<usize> {
+    (0..=lines.len().saturating_sub(rows.len()))
+        .filter(|&j| {
+            rows.iter()
+                .enumerate()
+                .all(|(i, r)| lines[j + i].trim_start() == r)
+        })
+        .collect()
+}
+
+/// A `rows_of` table whose rows are all in `doc` must stand there together as one table,
+/// and a doc's tables in the manifest's order: `tools/figures.py --apply` replaces a stale
+/// table by its rank among the doc's tables with the same labels, so a row found elsewhere
+/// (another table's row with the same label) or a table out of order is where an apply
+/// writes one table's numbers into another (three times up to stop 74).
+fn misplaced_tables(doc: &str, text: &str, tables: &[(&Figure, Vec<String>)]) -> Vec<String> {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out = Vec::new();
+    let mut after = None;
+    for (f, rows) in tables {
+        if !rows.iter().all(|r| text.contains(r.as_str())) {
+            continue; // stale rows, reported one by one
+        }
+        let command = f.command.join(" ");
+        let starts = table_starts(&lines, rows);
+        if starts.is_empty() {
+            out.push(format!(
+                "{doc}: the rows of one table of `pma-exo {command}` are in the doc but not \
+                 together (a row in another table?), first `{}`",
+                rows[0]
+            ));
+            continue;
+        }
+        match starts.iter().find(|&&j| after.is_none_or(|a| j > a)) {
+            Some(&j) => after = Some(j),
+            None => out.push(format!(
+                "{doc}: the table of `pma-exo {command}` starting `{}` stands before the table \
+                 the manifest lists ahead of it (docs/figures.toml lists a doc's figures in its \
+                 order)",
+                rows[0]
+            )),
+        }
+    }
+    out
+}
+
 fn run(command: &[String], dir: &Path, exit: Option<i32>) -> serde_json::Value {
     let args: Vec<String> = command
         .iter()
@@ -197,6 +261,9 @@ fn check(slow: bool) {
     let mut checked = 0;
     let figures: Vec<&Figure> = m.figure.iter().filter(|f| f.slow == slow).collect();
     let jsons = run_all(&figures, &dir);
+    // Each doc's `rows_of` tables, in the manifest's order, for `misplaced_tables`.
+    let mut placed: std::collections::BTreeMap<&str, Vec<(&Figure, Vec<String>)>> =
+        Default::default();
     for (f, json) in figures.iter().zip(jsons) {
         let doc = std::fs::read_to_string(root().join(&f.doc)).expect("doc");
         let mut expected: Vec<String> = f.text.iter().map(|t| expand(t, &json)).collect();
@@ -204,6 +271,8 @@ fn check(slow: bool) {
             let path = path.replace("{dir}", &dir.display().to_string());
             let text = std::fs::read_to_string(&path).expect("the command's markdown");
             expected.extend(table_rows(&text).into_iter().map(str::to_owned));
+            let tables = placed.entry(f.doc.as_str()).or_default();
+            tables.extend(table_groups(&text).into_iter().map(|rows| (*f, rows)));
         }
         for expected in expected {
             checked += 1;
@@ -215,6 +284,10 @@ fn check(slow: bool) {
                 ));
             }
         }
+    }
+    for (doc, tables) in &placed {
+        let text = std::fs::read_to_string(root().join(doc)).expect("doc");
+        stale.extend(misplaced_tables(doc, &text, tables));
     }
     let write = std::env::var_os("PMA_BLESS").is_some();
     for image in m.image.iter().filter(|i| i.slow == slow) {
@@ -270,6 +343,40 @@ fn the_step_floor_table_is_what_rapier_gives() {
         missing.is_empty(),
         "docs/convergence.md should have:\n{}",
         missing.join("\n")
+    );
+}
+
+/// Regression (stop 74): cooperative.md's compare-modes table held another table's row with
+/// the same label, which the row-by-row check passed.
+#[test]
+fn a_table_row_found_in_another_table_is_misplaced() {
+    let figure: Figure = toml::from_str(
+        r#"doc = "d.md"
+command = ["compare-modes"]
+rows_of = "x.md""#,
+    )
+    .expect("figure");
+    let made = "| a | b |\n|---|---|\n| x | 1 |\n| y | 2 |\n";
+    let tables: Vec<(&Figure, Vec<String>)> = table_groups(made)
+        .into_iter()
+        .map(|rows| (&figure, rows))
+        .collect();
+    let together = "| a | b |\n|---|---|\n| x | 1 |\n| y | 2 |\n";
+    assert!(misplaced_tables("d.md", together, &tables).is_empty());
+    let indented = "- item\n\n  | a | b |\n  |---|---|\n  | x | 1 |\n  | y | 2 |\n";
+    assert!(misplaced_tables("d.md", indented, &tables).is_empty());
+    let apart = "| a | b |\n|---|---|\n| x | 1 |\n| y | 3 |\n\n| a | b |\n|---|---|\n| y | 2 |\n";
+    assert_eq!(misplaced_tables("d.md", apart, &tables).len(), 1);
+    // Two tables of one figure: their order in the doc is the command's.
+    let two = "| x | 1 |\n\n| y | 2 |\n";
+    let tables: Vec<(&Figure, Vec<String>)> = table_groups(two)
+        .into_iter()
+        .map(|rows| (&figure, rows))
+        .collect();
+    assert!(misplaced_tables("d.md", two, &tables).is_empty());
+    assert_eq!(
+        misplaced_tables("d.md", "| y | 2 |\n\n| x | 1 |\n", &tables).len(),
+        1
     );
 }
 
