@@ -270,9 +270,10 @@ fn check(slow: bool) {
         if let Some(path) = &f.rows_of {
             let path = path.replace("{dir}", &dir.display().to_string());
             let text = std::fs::read_to_string(&path).expect("the command's markdown");
-            expected.extend(table_rows(&text).into_iter().map(str::to_owned));
+            let groups = table_groups(&text);
+            expected.extend(groups.iter().flatten().cloned());
             let tables = placed.entry(f.doc.as_str()).or_default();
-            tables.extend(table_groups(&text).into_iter().map(|rows| (*f, rows)));
+            tables.extend(groups.into_iter().map(|rows| (*f, rows)));
         }
         for expected in expected {
             checked += 1;
@@ -356,28 +357,23 @@ command = ["compare-modes"]
 rows_of = "x.md""#,
     )
     .expect("figure");
+    let tables = |text| -> Vec<(&Figure, Vec<String>)> {
+        table_groups(text)
+            .into_iter()
+            .map(|rows| (&figure, rows))
+            .collect()
+    };
     let made = "| a | b |\n|---|---|\n| x | 1 |\n| y | 2 |\n";
-    let tables: Vec<(&Figure, Vec<String>)> = table_groups(made)
-        .into_iter()
-        .map(|rows| (&figure, rows))
-        .collect();
-    let together = "| a | b |\n|---|---|\n| x | 1 |\n| y | 2 |\n";
-    assert!(misplaced_tables("d.md", together, &tables).is_empty());
+    assert!(misplaced_tables("d.md", made, &tables(made)).is_empty());
     let indented = "- item\n\n  | a | b |\n  |---|---|\n  | x | 1 |\n  | y | 2 |\n";
-    assert!(misplaced_tables("d.md", indented, &tables).is_empty());
+    assert!(misplaced_tables("d.md", indented, &tables(made)).is_empty());
     let apart = "| a | b |\n|---|---|\n| x | 1 |\n| y | 3 |\n\n| a | b |\n|---|---|\n| y | 2 |\n";
-    assert_eq!(misplaced_tables("d.md", apart, &tables).len(), 1);
+    assert_eq!(misplaced_tables("d.md", apart, &tables(made)).len(), 1);
     // Two tables of one figure: their order in the doc is the command's.
     let two = "| x | 1 |\n\n| y | 2 |\n";
-    let tables: Vec<(&Figure, Vec<String>)> = table_groups(two)
-        .into_iter()
-        .map(|rows| (&figure, rows))
-        .collect();
-    assert!(misplaced_tables("d.md", two, &tables).is_empty());
-    assert_eq!(
-        misplaced_tables("d.md", "| y | 2 |\n\n| x | 1 |\n", &tables).len(),
-        1
-    );
+    assert!(misplaced_tables("d.md", two, &tables(two)).is_empty());
+    let swapped = "| y | 2 |\n\n| x | 1 |\n";
+    assert_eq!(misplaced_tables("d.md", swapped, &tables(two)).len(), 1);
 }
 
 #[test]
