@@ -243,15 +243,30 @@ fn run(command: &[String], dir: &Path, exit: Option<i32>) -> serde_json::Value {
     serde_json::from_str(line).unwrap_or(serde_json::Value::Null)
 }
 
-/// Runs every figure's command, on as many threads as the machine has cores (the commands
-/// are single-threaded and write only under their own names in `dir`, as
-/// `tools/figures.py -j N` runs them), and returns their JSON in the figures' order.
-fn run_all(figures: &[&Figure], dir: &Path) -> Vec<serde_json::Value> {
+/// A command with the exit status it must end with.
+type Job<'a> = (&'a [String], Option<i32>);
+
+/// Runs each distinct command once (an image's also gives a figure; two runs of one
+/// command at a time would write the same files), on as many threads as the machine has
+/// cores (the commands are single-threaded and write only under their own names in `dir`,
+/// as `tools/figures.py -j N` runs them), and returns the JSON of each of `jobs` in order.
+fn run_all(jobs: &[Job], dir: &Path) -> Vec<serde_json::Value> {
     use rayon::prelude::*;
-    figures
+    let mut distinct: Vec<Job> = Vec::new();
+    let slots: Vec<usize> = jobs
+        .iter()
+        .map(|job| {
+            distinct.iter().position(|d| d == job).unwrap_or_else(|| {
+                distinct.push(*job);
+                distinct.len() - 1
+            })
+        })
+        .collect();
+    let jsons: Vec<serde_json::Value> = distinct
         .par_iter()
-        .map(|f| run(&f.command, dir, f.exit))
-        .collect()
+        .map(|(command, exit)| run(command, dir, *exit))
+        .collect();
+    slots.into_iter().map(|i| jsons[i].clone()).collect()
 }
 
 fn check(slow: bool) {
@@ -260,7 +275,16 @@ fn check(slow: bool) {
     let mut stale = Vec::new();
     let mut checked = 0;
     let figures: Vec<&Figure> = m.figure.iter().filter(|f| f.slow == slow).collect();
-    let jsons = run_all(&figures, &dir);
+    let images: Vec<&Image> = m.image.iter().filter(|i| i.slow == slow).collect();
+    // The images' commands run with the figures', all in parallel: drawn last, one at a
+    // time, they kept a core idle.
+    let jobs: Vec<Job> = figures
+        .iter()
+        .map(|f| (f.command.as_slice(), f.exit))
+        .chain(images.iter().map(|i| (i.command.as_slice(), i.exit)))
+        .collect();
+    let mut jsons = run_all(&jobs, &dir);
+    jsons.truncate(figures.len());
     // Each doc's `rows_of` tables, in the manifest's order, for `misplaced_tables`.
     let mut placed: std::collections::BTreeMap<&str, Vec<(&Figure, Vec<String>)>> =
         Default::default();
@@ -291,8 +315,7 @@ fn check(slow: bool) {
         stale.extend(misplaced_tables(doc, &text, tables));
     }
     let write = std::env::var_os("PMA_BLESS").is_some();
-    for image in m.image.iter().filter(|i| i.slow == slow) {
-        run(&image.command, &dir, image.exit);
+    for image in images {
         let drawn = image.drawn.replace("{dir}", &dir.display().to_string());
         let new = std::fs::read(&drawn).expect("the drawn image");
         let path = root().join(&image.path);
