@@ -246,10 +246,11 @@ fn run(command: &[String], dir: &Path, exit: Option<i32>) -> serde_json::Value {
 /// A command with the exit status it must end with.
 type Job<'a> = (&'a [String], Option<i32>);
 
-/// Runs each distinct command once (an image's also gives a figure; two runs of one
-/// command at a time would write the same files), on as many threads as the machine has
-/// cores (the commands are single-threaded and write only under their own names in `dir`,
-/// as `tools/figures.py -j N` runs them), and returns the JSON of each of `jobs` in order.
+/// Runs each distinct command once (docs/img's table2.png and fig9.png come from one
+/// `paper` run; two runs of it at a time would write the same files), on as many threads
+/// as the machine has cores (the commands are single-threaded and write only under their
+/// own names in `dir`, as `tools/figures.py -j N` runs them), and returns the JSON of each
+/// of `jobs` in order.
 fn run_all(jobs: &[Job], dir: &Path) -> Vec<serde_json::Value> {
     use rayon::prelude::*;
     let mut distinct: Vec<Job> = Vec::new();
