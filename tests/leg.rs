@@ -545,8 +545,8 @@ fn implicit_muscle_damping_on_the_treadmill_is_refused_naming_the_field() {
         .find(|(name, _)| *name == "gait_treadmill")
         .expect("gait_treadmill");
     let text = text.replace(
-        "physics_substeps = 2",
-        "physics_substeps = 2\nimplicit_muscle_damping = true",
+        "physics_substeps = 4",
+        "physics_substeps = 4\nimplicit_muscle_damping = true",
     );
     let e = Scenario::from_toml_str(&text, "t.toml")
         .unwrap_err()

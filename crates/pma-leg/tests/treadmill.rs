@@ -415,7 +415,7 @@ fn a_self_paced_belt_keeps_the_free_pelvis_off_its_stop() {
         t.pelvis_fore_aft_n_per_m = free.pelvis_fore_aft_n_per_m;
         t.pelvis_fore_aft_damping_n_s_per_m = free.pelvis_fore_aft_damping_n_s_per_m;
         t.pelvis_held_until_s = loaded.scenario.gait.stride_period_s;
-        // The belt 2.1 % faster than the shipped 0.4874 m/s (the fit of the release
+        // The belt 2.1 % faster than the shipped 0.4873 m/s (the fit of the release
         // before last asked 0.4976): a belt at constant speed never matches exactly.
         t.speed_m_per_s = Some(0.4976);
         t.self_paced_gain_per_s = gain;
