@@ -847,25 +847,19 @@ fn without_support_aprc_ndo_pid_psmc_and_sta_walk_from_an_in_step_start() {
     // NDO-SMC, tuned again on the corrected valve, walked them at two physics substeps; at
     // the four shipped since stop 77 of issue 50 its knee reads 2.05 deg over these 8 s and
     // over 60 s it collapses at 53.79 s (docs/treadmill.md): judged, not pinned either way.
-    let v = judged(&[
-        "simulate",
-        "gait_treadmill_unsupported",
-        "--controller",
-        "ndo-smc",
-        "--duration",
-        "8",
-        "--json",
-    ]);
-    assert!(v["finite"].as_bool().unwrap(), "ndo-smc");
-    let v = judged(&[
-        "simulate",
-        "gait_treadmill_unsupported",
-        "--controller",
-        "aprc-ndo",
-        "--duration",
-        "8",
-        "--json",
-    ]);
+    let eight_s = |c: &str| {
+        judged(&[
+            "simulate",
+            "gait_treadmill_unsupported",
+            "--controller",
+            c,
+            "--duration",
+            "8",
+            "--json",
+        ])
+    };
+    assert!(eight_s("ndo-smc")["finite"].as_bool().unwrap(), "ndo-smc");
+    let v = eight_s("aprc-ndo");
     assert!(walked(&v), "aprc-ndo: {}", v["walking"]);
     for gains in [
         &["--controller", "aprc-ndo", "--gains", OWN_GAINS][..],
