@@ -288,39 +288,63 @@ impl Default for PneumaticsSettings {
     }
 }
 
-/// A braided muscle's air space: its rest length, inner diameter and braid angle.
+/// A braided muscle's air space: its rest length, inner diameter and braid angle, and
+/// the braid's geometry they give.
+///
+/// The geometry is worked out once, when the chamber is made: the volume is read at
+/// every physics substep of every muscle, and its cosine and tangent of the braid angle
+/// were a tenth of the valves' cost (issue 50). The fields are private so that the
+/// geometry cannot fall out of step with them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Chamber {
-    /// Nominal (rest) length (m).
-    pub rest_length_m: f64,
-    /// Inner diameter at rest (m): 10 / 20 / 40 mm for DMSP-10 / 20 / 40.
-    pub diameter_m: f64,
-    /// Braid angle at rest (rad).
-    pub braid_angle_rad: f64,
+    rest_length_m: f64,
+    diameter_m: f64,
+    braid_angle_rad: f64,
+    /// The braid's thread length `b` (m).
+    thread_m: f64,
+    /// `1 / (4 pi N^2)` of the braid's `N` turns.
+    volume_factor: f64,
 }
 
 impl Chamber {
     /// A DMSP of inner diameter `diameter_m` and nominal length `rest_length_m`.
     pub fn dmsp(diameter_m: f64, rest_length_m: f64) -> Self {
+        Self::braided(rest_length_m, diameter_m, DMSP_BRAID_ANGLE_RAD)
+    }
+
+    /// A braided muscle of rest length `rest_length_m`, inner diameter at rest
+    /// `diameter_m` and braid angle at rest `braid_angle_rad`.
+    pub fn braided(rest_length_m: f64, diameter_m: f64, braid_angle_rad: f64) -> Self {
+        // The braid's thread length `b` and turns `N` (Chou & Hannaford).
+        let thread_m = rest_length_m / braid_angle_rad.cos();
+        let turns = rest_length_m * braid_angle_rad.tan() / (std::f64::consts::PI * diameter_m);
         Self {
             rest_length_m,
             diameter_m,
-            braid_angle_rad: DMSP_BRAID_ANGLE_RAD,
+            braid_angle_rad,
+            thread_m,
+            volume_factor: 1.0 / (4.0 * std::f64::consts::PI * turns * turns),
         }
     }
 
-    /// The braid's thread length `b` and turns `N` (Chou & Hannaford).
-    fn braid(&self) -> (f64, f64) {
-        let b = self.rest_length_m / self.braid_angle_rad.cos();
-        let turns = self.rest_length_m * self.braid_angle_rad.tan()
-            / (std::f64::consts::PI * self.diameter_m);
-        (b, turns)
+    /// Nominal (rest) length (m).
+    pub fn rest_length_m(&self) -> f64 {
+        self.rest_length_m
+    }
+
+    /// Inner diameter at rest (m): 10 / 20 / 40 mm for DMSP-10 / 20 / 40.
+    pub fn diameter_m(&self) -> f64 {
+        self.diameter_m
+    }
+
+    /// Braid angle at rest (rad).
+    pub fn braid_angle_rad(&self) -> f64 {
+        self.braid_angle_rad
     }
 
     /// The air volume (m3) at contraction `x_m`, and its derivative in `x_m` (m2).
     pub fn volume(&self, x_m: f64) -> (f64, f64) {
-        let (b, turns) = self.braid();
-        let k = 1.0 / (4.0 * std::f64::consts::PI * turns * turns);
+        let (b, k) = (self.thread_m, self.volume_factor);
         // A stretched muscle (x < 0) keeps its rest volume's slope; a contraction beyond
         // the braid's lock keeps the volume there. Both lie outside any working stroke.
         let l_min = b / 3f64.sqrt();
@@ -433,15 +457,30 @@ impl FlowParams {
         state: &mut FlowState,
         set_pa: f64,
         h_s: f64,
+        motion: (f64, f64),
+        step_max_s: f64,
+    ) {
+        let mut spool = SpoolFactor::default();
+        self.advance_remembering(state, set_pa, h_s, motion, step_max_s, &mut spool);
+    }
+
+    /// [`FlowParams::advance_within`] with the spool's factor kept in `spool` between
+    /// calls: a valve advanced substep by substep asks for the same one each time.
+    pub(crate) fn advance_remembering(
+        &self,
+        state: &mut FlowState,
+        set_pa: f64,
+        h_s: f64,
         (x_m, v_m_s): (f64, f64),
         step_max_s: f64,
+        spool: &mut SpoolFactor,
     ) {
         if h_s <= 0.0 {
             return;
         }
         let n = (h_s / step_max_s).ceil().max(1.0);
         let dt = h_s / n;
-        let spool = 1.0 - (-dt / self.spool_time_constant_s).exp();
+        let spool = spool.at(dt, self.spool_time_constant_s);
         // The muscle's length is held over the step: its volume (a braid's cosine and
         // tangent each) once, not at every internal step.
         let air = self.air_volume(x_m);
@@ -452,6 +491,40 @@ impl FlowParams {
             state.pressure_pa =
                 (state.pressure_pa + dt * rate).clamp(-ATMOSPHERE_PA, self.supply_pa);
         }
+    }
+}
+
+/// The spool's first-order factor `1 - exp(-dt / tau)` over an internal step `dt`,
+/// recomputed only when `dt` or `tau` changes (the same value bit for bit): the
+/// exponential was a fifteenth of a valve's cost at every substep (issue 50).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct SpoolFactor {
+    dt_s: f64,
+    tau_s: f64,
+    factor: f64,
+}
+
+impl Default for SpoolFactor {
+    fn default() -> Self {
+        // NaN matches no step: the first call computes.
+        Self {
+            dt_s: f64::NAN,
+            tau_s: f64::NAN,
+            factor: 0.0,
+        }
+    }
+}
+
+impl SpoolFactor {
+    fn at(&mut self, dt_s: f64, tau_s: f64) -> f64 {
+        if dt_s.to_bits() != self.dt_s.to_bits() || tau_s.to_bits() != self.tau_s.to_bits() {
+            *self = Self {
+                dt_s,
+                tau_s,
+                factor: 1.0 - (-dt_s / tau_s).exp(),
+            };
+        }
+        self.factor
     }
 }
 
@@ -710,6 +783,51 @@ mod tests {
             (coarse.fall_90_10_s - fine.fall_90_10_s).abs() <= 1e-3,
             "{coarse:?} {fine:?}"
         );
+    }
+
+    /// Issue 50: a valve keeps its spool factor between substeps and a chamber its
+    /// braid's geometry, worked out once. Both must give, bit for bit, what the formulas
+    /// worked out afresh at every call give: the trajectories of every figure rest on it.
+    #[test]
+    fn regression_the_remembered_spool_factor_and_braid_change_no_bit() {
+        let (length, diameter) = (0.4, 0.02);
+        let chamber = Chamber::dmsp(diameter, length);
+        // The volume as it was computed at every call before (Chou & Hannaford).
+        let volume_afresh = |x: f64| {
+            let b = length / DMSP_BRAID_ANGLE_RAD.cos();
+            let turns = length * DMSP_BRAID_ANGLE_RAD.tan() / (std::f64::consts::PI * diameter);
+            let k = 1.0 / (4.0 * std::f64::consts::PI * turns * turns);
+            let l = (length - x).clamp(b / 3f64.sqrt(), b);
+            (k * l * (b * b - l * l), -k * (b * b - 3.0 * l * l))
+        };
+        for x in [-0.01, 0.0, 0.013, 0.05, 0.3] {
+            assert_eq!(chamber.volume(x), volume_afresh(x), "x = {x}");
+        }
+        // A valve's substeps, some split by a command's arrival (shorter pieces): the
+        // remembered factor against a fresh one at each call.
+        let flow = PneumaticsSettings::default().flow(&mpye_1_4(), chamber);
+        let start = FlowState {
+            pressure_pa: 1e5,
+            opening: 0.0,
+        };
+        let (mut kept, mut fresh) = (start, start);
+        let mut spool = SpoolFactor::default();
+        for k in 0..400 {
+            let set_pa = if (k / 40) % 2 == 0 { 4.5e5 } else { 0.5e5 };
+            let h = if k % 7 == 3 { 1.3e-4 } else { 2.5e-4 };
+            let motion = (0.03, -0.02);
+            flow.advance_remembering(
+                &mut kept,
+                set_pa,
+                h,
+                motion,
+                PRESSURE_STEP_MAX_S,
+                &mut spool,
+            );
+            flow.advance(&mut fresh, set_pa, h, motion.0, motion.1);
+            assert_eq!(kept, fresh, "substep {k}");
+        }
+        assert!(kept.pressure_pa > 0.4e5, "{kept:?}");
     }
 
     /// The rise and fall of the trainer's muscle behind the shipped valve move by less

@@ -1,5 +1,5 @@
 use crate::error::{non_negative, positive, within, Invalid};
-use crate::pneumatics::{FlowParams, FlowState};
+use crate::pneumatics::{FlowParams, FlowState, SpoolFactor, PRESSURE_STEP_MAX_S};
 use crate::DampingMode;
 
 /// Shortest command period the dead-time buffer is sized for (s). Commands sent faster
@@ -162,6 +162,8 @@ pub struct Valve {
     /// The last step's length (s) and its lag factor `1 - exp(-h / tau)`: every substep
     /// has the same length, and the exponential was 14 % of a single-muscle period.
     lag_step: (f64, f64),
+    /// A flow-limited valve's spool factor, kept as `lag_step` is.
+    spool: SpoolFactor,
 }
 
 impl Valve {
@@ -182,6 +184,7 @@ impl Valve {
             pending_head: 0,
             pending_len: 0,
             lag_step: (f64::NAN, 0.0),
+            spool: SpoolFactor::default(),
         })
     }
 
@@ -232,7 +235,14 @@ impl Valve {
                 pressure_pa: valve.pressure_pa,
                 opening: valve.opening,
             };
-            flow.advance(&mut state, valve.target_pa, piece, x_m, v_m_s);
+            flow.advance_remembering(
+                &mut state,
+                valve.target_pa,
+                piece,
+                (x_m, v_m_s),
+                PRESSURE_STEP_MAX_S,
+                &mut valve.spool,
+            );
             valve.opening = state.opening;
             valve.set_pressure(state.pressure_pa);
         });

@@ -499,6 +499,25 @@ impl Exoskeleton {
             .unwrap_or(f64::NAN)
     }
 
+    /// Joint `j`'s coordinate (rad) and rate (rad/s) from one lookup of its multibody:
+    /// the muscles and the orthoses read both at every substep.
+    fn coordinate_and_rate(&self, j: JointRef) -> (f64, f64) {
+        match self.world.multibody_joints.get(j.handle) {
+            Some((mb, id)) => (
+                mb.link(id).map_or(f64::NAN, |l| l.joint().coords()[3]),
+                mb.generalized_velocity()[j.dof],
+            ),
+            None => (f64::NAN, f64::NAN),
+        }
+    }
+
+    /// Leg `leg`'s joint angles and velocities: [`Exoskeleton::angles`] and
+    /// [`Exoskeleton::velocities`] in one reading.
+    pub fn angles_and_velocities(&self, leg: usize) -> ([f64; 2], [f64; 2]) {
+        let [(q0, v0), (q1, v1)] = self.legs[leg].joints.map(|j| self.coordinate_and_rate(j));
+        ([q0, q1], [v0, v1])
+    }
+
     /// Leg `leg`'s joint angles `[hip, knee]` (rad, flexion positive).
     pub fn angles(&self, leg: usize) -> [f64; 2] {
         self.legs[leg].joints.map(|j| self.coordinate(j))
@@ -518,7 +537,7 @@ impl Exoskeleton {
     /// turns.
     pub fn ankle(&self, leg: usize) -> Option<(f64, f64)> {
         let a = self.legs[leg].ankle?;
-        Some((self.coordinate(a), self.rate(a)))
+        Some(self.coordinate_and_rate(a))
     }
 
     /// The orthosis's torque on leg `leg`'s ankle at the last substep (N m, dorsiflexion
@@ -577,18 +596,13 @@ impl Exoskeleton {
 
     /// Adds `torque_nm` about joint `j`'s axis to its child and the reaction to its parent.
     fn add_joint_torque(&mut self, j: JointRef, torque_nm: f64) {
-        let Some(axis) = self
-            .world
-            .bodies
-            .get(j.child)
-            .map(|rb| rb.position().rotation * j.axis_in_child)
-        else {
+        // One lookup of the child for its axis and its torque: each costs a set lookup
+        // and a change record, at every substep of every joint.
+        let Some(rb) = self.world.bodies.get_mut(j.child) else {
             return;
         };
-        let t = axis * torque_nm;
-        if let Some(rb) = self.world.bodies.get_mut(j.child) {
-            rb.add_torque(t, true);
-        }
+        let t = (rb.position().rotation * j.axis_in_child) * torque_nm;
+        rb.add_torque(t, true);
         if let Some(rb) = self.world.bodies.get_mut(j.parent) {
             rb.add_torque(-t, true);
         }

@@ -490,6 +490,35 @@ mod tests {
         assert_eq!(stick, [0.0; 2], "lifting off releases the shear");
     }
 
+    /// Issue 50: a contact works out `K` and `d^{3/2}` once, where it worked each out at
+    /// every use. Its normal force and its sticking spring must stay, bit for bit, those
+    /// of `normal_force` and `tangential_stiffness`.
+    #[test]
+    fn regression_a_contact_shares_its_hertz_terms_without_changing_a_bit() {
+        let p = ContactParams::default();
+        let (r, h) = (0.03, 2.5e-4);
+        for (z, rate) in [(0.0299, 0.0), (0.027, 0.2), (0.02, -0.05), (0.01, 1.0)] {
+            let mut stick = [2e-5, 0.0];
+            let c = sphere_contact(
+                &p,
+                r,
+                [0.0, 0.0, z],
+                [-0.5, 0.0, -rate],
+                0.5,
+                (&mut stick, h),
+            )
+            .expect("in contact");
+            let d = r - z;
+            assert_eq!(c.force_n[2], p.normal_force(r, d, rate), "d = {d}");
+            // Sticking at no slip: the spring's force at the shear it holds, with no damping.
+            assert_eq!(
+                c.force_n[0],
+                -p.tangential_stiffness(r, d) * 2e-5,
+                "d = {d}"
+            );
+        }
+    }
+
     #[test]
     fn a_sticking_sphere_is_a_spring_of_mindlins_stiffness() {
         // Sheared by 1 mm at rest, below the sliding limit: the force is k_t x 1 mm, and

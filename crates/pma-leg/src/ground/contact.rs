@@ -76,8 +76,15 @@ impl ContactParams {
         if depth_m <= 0.0 {
             return 0.0;
         }
-        let hertz = self.hertz_coefficient(radius_m) * depth_m.powf(1.5);
-        (hertz * (1.0 + 1.5 * self.dissipation_s_per_m * depth_rate_m_s)).max(0.0)
+        self.damped(
+            self.hertz_coefficient(radius_m) * depth_m.powf(1.5),
+            depth_rate_m_s,
+        )
+    }
+
+    /// Hunt-Crossley's normal force from its elastic part `K d^{3/2}` (N), never pulling.
+    fn damped(&self, elastic_n: f64, depth_rate_m_s: f64) -> f64 {
+        (elastic_n * (1.0 + 1.5 * self.dissipation_s_per_m * depth_rate_m_s)).max(0.0)
     }
 
     /// Largest friction (N) under `normal_n` at a slip of `slip_m_s`: a sliding sphere's.
@@ -187,14 +194,18 @@ pub fn sphere_contact(
         return None;
     }
     let point = [c[0], c[1], c[2] - radius_m];
-    let normal = params.normal_force(radius_m, depth, -v[2]);
+    // `K` and `d^{3/2}` once: each was worked out three and two times over (`powf` was a
+    // twentieth of the closed loop's own cost, issue 50); the same values bit for bit.
+    let hertz = params.hertz_coefficient(radius_m);
+    let depth_3_2 = depth.powf(1.5);
+    let normal = params.damped(hertz * depth_3_2, -v[2]);
     let slip = [v[0] + belt_speed_m_s, v[1]];
     let speed = slip[0].hypot(slip[1]);
     // Sticking: a spring sheared by the slip, damped as Hunt-Crossley damps the normal
-    // direction (3/2 c times the elastic force per unit of rate).
-    let k_t = params.tangential_stiffness(radius_m, depth);
-    let c_t =
-        1.5 * params.dissipation_s_per_m * params.hertz_coefficient(radius_m) * depth.powf(1.5);
+    // direction (3/2 c times the elastic force per unit of rate); the spring is Mindlin's
+    // (`ContactParams::tangential_stiffness`).
+    let k_t = hertz * depth.max(0.0).sqrt();
+    let c_t = 1.5 * params.dissipation_s_per_m * hertz * depth_3_2;
     let sheared = [stick_m[0] + slip[0] * h_s, stick_m[1] + slip[1] * h_s];
     let mut f = [
         -k_t * sheared[0] - c_t * slip[0],

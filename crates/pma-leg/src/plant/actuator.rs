@@ -74,7 +74,13 @@ impl MuscleActuator {
 
     /// Joint torque (N m, flexion positive).
     pub fn torque(&self, q: [f64; 2], qd: [f64; 2]) -> f64 {
-        self.geometry.moment_arm_m() * self.force(q, qd)
+        self.torque_of(self.force_unclamped(q, qd))
+    }
+
+    /// Joint torque (N m) of an unclamped force `force_unclamped_n` (N,
+    /// [`MuscleActuator::force_unclamped`]'s): a slack muscle's is zero.
+    pub fn torque_of(&self, force_unclamped_n: f64) -> f64 {
+        self.geometry.moment_arm_m() * force_unclamped_n.max(0.0)
     }
 
     /// Muscle pressure (Pa).

@@ -407,6 +407,9 @@ impl LegPlant {
         let h = self.period_s / f64::from(self.exo.substeps());
         let t0 = self.periods as f64 * self.period_s;
         let mut slack = [[0.0; 4]; MAX_LEGS];
+        // Each muscle's force at the substep's start, once: the slack time and (with the
+        // damping explicit) the torque read the same value.
+        let mut unclamped = [[0.0; 4]; MAX_LEGS];
         let before: [[f64; 2]; MAX_LEGS] = std::array::from_fn(|leg| {
             if leg < legs {
                 self.exo.velocities(leg)
@@ -416,9 +419,13 @@ impl LegPlant {
         });
         self.exo.step(|exo, sub| {
             let t = t0 + sub as f64 * h;
+            // Each leg's state once a substep, not once for each of its muscles.
+            let state = PerLeg::from_fn(legs, |leg| exo.angles_and_velocities(leg));
+            let angles = PerLeg::from_fn(legs, |leg| state[leg].0);
+            let velocities = PerLeg::from_fn(legs, |leg| state[leg].1);
             let mut tau = PerLeg::from_fn(legs, |leg| {
                 let patient = match patients.get_mut(leg) {
-                    Some(p) => p.torques(t, exo.angles(leg), exo.velocities(leg)).total(),
+                    Some(p) => p.torques(t, angles[leg], velocities[leg]).total(),
                     None => [0.0; 2],
                 };
                 let w = wave.map_or([0.0; 2], |w| w.torque_nm(leg, t));
@@ -428,25 +435,27 @@ impl LegPlant {
                 ]
             });
             for m in muscles.iter_mut() {
-                let (q, qd) = (exo.angles(m.leg), exo.velocities(m.leg));
+                let (q, qd) = (angles[m.leg], velocities[m.leg]);
                 m.valve
                     .advance_at(h, m.contraction(q), m.contraction_rate(qd));
-                if m.force_unclamped(q, qd) <= 0.0 {
+                let f = m.force_unclamped(q, qd);
+                if f <= 0.0 {
                     slack[m.leg][m.index_in_leg()] += h;
                 }
+                unclamped[m.leg][m.index_in_leg()] = f;
             }
-            if attached {
-                // The rates the muscles' damping sees: the step's end (implicit) or its start.
+            if attached && implicit {
+                // The rates the muscles' damping sees: the step's end.
                 let rates = PerLeg::from_fn(legs, |leg| {
-                    let qd = exo.velocities(leg);
-                    if implicit {
-                        implicit_rates(exo, muscles, leg, tau[leg], h).unwrap_or(qd)
-                    } else {
-                        qd
-                    }
+                    implicit_rates(exo, muscles, leg, tau[leg], h).unwrap_or(velocities[leg])
                 });
                 for m in muscles.iter() {
-                    tau[m.leg][m.joint] += m.torque(exo.angles(m.leg), rates[m.leg]);
+                    tau[m.leg][m.joint] += m.torque(angles[m.leg], rates[m.leg]);
+                }
+            } else if attached {
+                // The step's start: the forces above.
+                for m in muscles.iter() {
+                    tau[m.leg][m.joint] += m.torque_of(unclamped[m.leg][m.index_in_leg()]);
                 }
             }
             tau
@@ -465,7 +474,8 @@ impl LegPlant {
     fn readings(&mut self) -> PerLeg<LegReading> {
         let legs = self.exo.leg_count();
         let cuffs = PerLeg::from_fn(legs, |leg| {
-            self.cuff_torque_nm(leg, self.exo.angles(leg), self.exo.velocities(leg))
+            let (q, qd) = self.exo.angles_and_velocities(leg);
+            self.cuff_torque_nm(leg, q, qd)
         });
         let exo = &self.exo;
         let muscles = &self.muscles;
@@ -504,10 +514,23 @@ impl LegPlant {
     /// (N m): the muscles' torque less the frames' inverse dynamics, the acceleration the
     /// mean over the last period.
     fn cuff_torque_nm(&self, leg: usize, q: [f64; 2], qd: [f64; 2]) -> [f64; 2] {
+        let forces = self.leg_muscles(leg).iter().map(|m| m.force(q, qd));
+        self.cuff_torque_of(leg, q, qd, forces)
+    }
+
+    /// [`LegPlant::cuff_torque_nm`] from the leg's muscles' pulling forces at `q`, `qd`
+    /// (N, in the leg's order), where they are known already.
+    fn cuff_torque_of(
+        &self,
+        leg: usize,
+        q: [f64; 2],
+        qd: [f64; 2],
+        forces_n: impl Iterator<Item = f64>,
+    ) -> [f64; 2] {
         let mut muscles_nm = [0.0; 2];
         if self.muscles_attached {
-            for mm in self.leg_muscles(leg) {
-                muscles_nm[mm.joint] += mm.torque(q, qd);
+            for (mm, f) in self.leg_muscles(leg).iter().zip(forces_n) {
+                muscles_nm[mm.joint] += mm.geometry.moment_arm_m() * f;
             }
         }
         let frames = self
@@ -520,12 +543,13 @@ impl LegPlant {
 
     /// Leg `leg`'s true state now.
     pub fn leg_state(&self, leg: usize) -> LegState {
-        let (q, qd) = (self.exo.angles(leg), self.exo.velocities(leg));
+        let (q, qd) = self.exo.angles_and_velocities(leg);
         let m = self.leg_muscles(leg);
         let each = |f: &dyn Fn(&MuscleActuator) -> f64| -> [f64; 4] {
             std::array::from_fn(|i| m.get(i).map_or(f64::NAN, f))
         };
-        let interaction_nm = self.cuff_torque_nm(leg, q, qd);
+        let force_n = each(&|m| m.force(q, qd));
+        let interaction_nm = self.cuff_torque_of(leg, q, qd, force_n.into_iter());
         LegState {
             angle_rad: q,
             velocity_rad_s: qd,
@@ -537,7 +561,7 @@ impl LegPlant {
                 &self.cuffs,
             ),
             pressure_pa: each(&|m| m.pressure()),
-            force_n: each(&|m| m.force(q, qd)),
+            force_n,
             length_m: each(&|m| m.contraction(q)),
             slack_s: self.slack_s[leg],
             patient: self
