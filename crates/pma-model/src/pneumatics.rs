@@ -293,7 +293,7 @@ impl Default for PneumaticsSettings {
 ///
 /// The geometry is worked out once, when the chamber is made: the volume is read at
 /// every physics substep of every muscle, and its cosine and tangent of the braid angle
-/// were a tenth of the valves' cost (issue 50). The fields are private so that the
+/// were a fifth of the valves' cost (issue 50). The fields are private so that the
 /// geometry cannot fall out of step with them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Chamber {
@@ -481,8 +481,8 @@ impl FlowParams {
         let n = (h_s / step_max_s).ceil().max(1.0);
         let dt = h_s / n;
         let spool = spool.at(dt, self.spool_time_constant_s);
-        // The muscle's length is held over the step: its volume (a braid's cosine and
-        // tangent each) once, not at every internal step.
+        // The muscle's length is held over the step: its volume once, not at every
+        // internal step.
         let air = self.air_volume(x_m);
         for _ in 0..n as u32 {
             let want = self.demanded_opening(set_pa, state.pressure_pa);
@@ -496,7 +496,7 @@ impl FlowParams {
 
 /// The spool's first-order factor `1 - exp(-dt / tau)` over an internal step `dt`,
 /// recomputed only when `dt` or `tau` changes (the same value bit for bit): the
-/// exponential was a fifteenth of a valve's cost at every substep (issue 50).
+/// exponential was a fourteenth of a valve's cost at every substep (issue 50).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct SpoolFactor {
     dt_s: f64,

@@ -596,8 +596,8 @@ impl Exoskeleton {
 
     /// Adds `torque_nm` about joint `j`'s axis to its child and the reaction to its parent.
     fn add_joint_torque(&mut self, j: JointRef, torque_nm: f64) {
-        // One lookup of the child for its axis and its torque: each costs a set lookup
-        // and a change record, at every substep of every joint.
+        // One lookup of the child for both its axis and its torque: it runs at every
+        // substep for every joint.
         let Some(rb) = self.world.bodies.get_mut(j.child) else {
             return;
         };

@@ -194,8 +194,8 @@ pub fn sphere_contact(
         return None;
     }
     let point = [c[0], c[1], c[2] - radius_m];
-    // `K` and `d^{3/2}` once: each was worked out three and two times over (`powf` was a
-    // twentieth of the closed loop's own cost, issue 50); the same values bit for bit.
+    // `K` and `d^{3/2}` once: they were worked out three and two times over (issue 50);
+    // the same values bit for bit.
     let hertz = params.hertz_coefficient(radius_m);
     let depth_3_2 = depth.powf(1.5);
     let normal = params.damped(hertz * depth_3_2, -v[2]);
