@@ -460,7 +460,7 @@ impl FlowParams {
         motion: (f64, f64),
         step_max_s: f64,
     ) {
-        let mut spool = SpoolFactor::default();
+        let mut spool = FirstOrderFactor::default();
         self.advance_remembering(state, set_pa, h_s, motion, step_max_s, &mut spool);
     }
 
@@ -473,7 +473,7 @@ impl FlowParams {
         h_s: f64,
         (x_m, v_m_s): (f64, f64),
         step_max_s: f64,
-        spool: &mut SpoolFactor,
+        spool: &mut FirstOrderFactor,
     ) {
         if h_s <= 0.0 {
             return;
@@ -494,17 +494,18 @@ impl FlowParams {
     }
 }
 
-/// The spool's first-order factor `1 - exp(-dt / tau)` over an internal step `dt`,
-/// recomputed only when `dt` or `tau` changes (the same value bit for bit): the
-/// exponential was a fourteenth of a valve's cost at every substep (issue 50).
+/// A first-order factor `1 - exp(-dt / tau)` over a step `dt`, recomputed only when `dt`
+/// or `tau` changes (the same value bit for bit): the lag valve's over its substep, the
+/// flow valve's spool over its internal step, where the exponential was a fourteenth of
+/// the valve's cost (issue 50).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct SpoolFactor {
+pub(crate) struct FirstOrderFactor {
     dt_s: f64,
     tau_s: f64,
     factor: f64,
 }
 
-impl Default for SpoolFactor {
+impl Default for FirstOrderFactor {
     fn default() -> Self {
         // NaN matches no step: the first call computes.
         Self {
@@ -515,8 +516,8 @@ impl Default for SpoolFactor {
     }
 }
 
-impl SpoolFactor {
-    fn at(&mut self, dt_s: f64, tau_s: f64) -> f64 {
+impl FirstOrderFactor {
+    pub(crate) fn at(&mut self, dt_s: f64, tau_s: f64) -> f64 {
         if dt_s.to_bits() != self.dt_s.to_bits() || tau_s.to_bits() != self.tau_s.to_bits() {
             *self = Self {
                 dt_s,
@@ -811,7 +812,7 @@ mod tests {
             opening: 0.0,
         };
         let (mut kept, mut fresh) = (start, start);
-        let mut spool = SpoolFactor::default();
+        let mut spool = FirstOrderFactor::default();
         for k in 0..400 {
             let set_pa = if (k / 40) % 2 == 0 { 4.5e5 } else { 0.5e5 };
             let h = if k % 7 == 3 { 1.3e-4 } else { 2.5e-4 };

@@ -1,5 +1,5 @@
 use crate::error::{non_negative, positive, within, Invalid};
-use crate::pneumatics::{FlowParams, FlowState, SpoolFactor, PRESSURE_STEP_MAX_S};
+use crate::pneumatics::{FirstOrderFactor, FlowParams, FlowState, PRESSURE_STEP_MAX_S};
 use crate::DampingMode;
 
 /// Shortest command period the dead-time buffer is sized for (s). Commands sent faster
@@ -159,11 +159,11 @@ pub struct Valve {
     pending: Vec<(f64, f64)>,
     pending_head: usize,
     pending_len: usize,
-    /// The last step's length (s) and its lag factor `1 - exp(-h / tau)`: every substep
-    /// has the same length, and the exponential was 14 % of a single-muscle period.
-    lag_step: (f64, f64),
-    /// A flow-limited valve's spool factor, kept as `lag_step` is.
-    spool: SpoolFactor,
+    /// The lag's factor `1 - exp(-h / tau)`, kept between steps: every substep has the
+    /// same length, and the exponential was 14 % of a single-muscle period.
+    lag: FirstOrderFactor,
+    /// A flow-limited valve's spool factor over its internal step, kept alike.
+    spool: FirstOrderFactor,
 }
 
 impl Valve {
@@ -183,8 +183,8 @@ impl Valve {
             pending: vec![(0.0, p); capacity],
             pending_head: 0,
             pending_len: 0,
-            lag_step: (f64::NAN, 0.0),
-            spool: SpoolFactor::default(),
+            lag: FirstOrderFactor::default(),
+            spool: FirstOrderFactor::default(),
         })
     }
 
@@ -275,7 +275,7 @@ impl Valve {
         }
         let target = self.target_pa;
         let mut next = if self.params.time_constant_s > 0.0 {
-            let a = self.lag_factor(h_s);
+            let a = self.lag.at(h_s, self.params.time_constant_s);
             self.pressure_pa + a * (target - self.pressure_pa)
         } else {
             target
@@ -322,15 +322,6 @@ impl Valve {
     /// When the oldest command in transit arrives (s), if one is.
     fn next_due_s(&self) -> Option<f64> {
         (self.pending_len > 0).then(|| self.pending[self.pending_head].0)
-    }
-
-    /// `1 - exp(-h / tau)`, recomputed only when the step's length changes (the same
-    /// value bit for bit).
-    fn lag_factor(&mut self, h_s: f64) -> f64 {
-        if h_s.to_bits() != self.lag_step.0.to_bits() {
-            self.lag_step = (h_s, 1.0 - (-h_s / self.params.time_constant_s).exp());
-        }
-        self.lag_step.1
     }
 
     fn set_pressure(&mut self, p: f64) {

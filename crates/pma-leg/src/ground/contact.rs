@@ -95,8 +95,13 @@ impl ContactParams {
     /// Tangential stiffness (N/m) of a sphere of `radius_m` at penetration `depth_m`:
     /// Mindlin's `2 (1 - nu) / (2 - nu)` of the normal stiffness `3/2 K d^{1/2}`, `nu = 0.5`.
     pub fn tangential_stiffness(&self, radius_m: f64, depth_m: f64) -> f64 {
-        self.hertz_coefficient(radius_m) * depth_m.max(0.0).sqrt()
+        mindlin(self.hertz_coefficient(radius_m), depth_m)
     }
+}
+
+/// Mindlin's tangential stiffness (N/m) from Hertz's `K` at penetration `depth_m`.
+fn mindlin(hertz: f64, depth_m: f64) -> f64 {
+    hertz * depth_m.max(0.0).sqrt()
 }
 
 /// One contact sphere on a foot, in the foot's frame.
@@ -204,7 +209,7 @@ pub fn sphere_contact(
     // Sticking: a spring sheared by the slip, damped as Hunt-Crossley damps the normal
     // direction (3/2 c times the elastic force per unit of rate); the spring is Mindlin's
     // (`ContactParams::tangential_stiffness`).
-    let k_t = hertz * depth.max(0.0).sqrt();
+    let k_t = mindlin(hertz, depth);
     let c_t = 1.5 * params.dissipation_s_per_m * hertz * depth_3_2;
     let sheared = [stick_m[0] + slip[0] * h_s, stick_m[1] + slip[1] * h_s];
     let mut f = [
