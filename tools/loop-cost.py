@@ -36,6 +36,11 @@ def rows(text):
             yield int(m.group(1).replace(",", "")), m.group(2)
 
 
+def function(row):
+    """The function's name of a `file:function [object]` row."""
+    return re.sub(r" \[[^\]]*\]$", "", row.split(":", 1)[-1])
+
+
 def annotate(out, inclusive):
     args = ["callgrind_annotate", "--auto=no", "--threshold=100", out]
     if inclusive:
@@ -56,8 +61,14 @@ def cost(binary, scenario, duration_s):
             sys.exit(f"valgrind did not run {binary} simulate {scenario}")
         inclusive = list(rows(annotate(out, True)))
         exclusive = rows(annotate(out, False))
-    loop = max((n for n, f in inclusive if "LegSim::run_until_fault" in f), default=0)
-    rapier = max((n for n, f in inclusive if "PhysicsWorld::step [" in f), default=0)
+    # A function's inclusive cost is its largest row: callgrind_annotate splits an inlined
+    # function by source file, and which row carries the `[object]` mark depends on the
+    # build's paths (a build in the repository's own target/ marked a 108-instruction row).
+    loop = max((n for n, f in inclusive if function(f) == "pma_leg::sim::run::LegSim::run_until_fault"),
+               default=0)
+    rapier = max((n for n, f in inclusive
+                  if function(f) == "rapier3d::pipeline::physics_world::PhysicsWorld::step"),
+                 default=0)
     named = sum(n for n, f in exclusive if RAPIER_NAMES.search(f.split(":", 1)[-1]))
     if loop == 0 or rapier == 0:
         sys.exit(f"no run loop or no rapier step in the profile of {scenario}")

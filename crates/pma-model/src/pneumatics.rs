@@ -498,34 +498,59 @@ impl FlowParams {
 /// or `tau` changes (the same value bit for bit): the lag valve's over its substep, the
 /// flow valve's spool over its internal step, where the exponential was a fourteenth of
 /// the valve's cost (issue 50).
+///
+/// Two steps are kept. A valve's dead time splits one substep a period into two pieces of
+/// odd lengths, each seen once; the substep's own step, kept in the first slot, then still
+/// matches when the pieces are over (with one slot, three exponentials a period and valve).
+/// A step matched in the second slot moves to the first.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct FirstOrderFactor {
+    slots: [FactorAt; 2],
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct FactorAt {
     dt_s: f64,
     tau_s: f64,
     factor: f64,
 }
 
+impl FactorAt {
+    fn matches(&self, dt_s: f64, tau_s: f64) -> bool {
+        dt_s.to_bits() == self.dt_s.to_bits() && tau_s.to_bits() == self.tau_s.to_bits()
+    }
+}
+
 impl Default for FirstOrderFactor {
     fn default() -> Self {
-        // NaN matches no step: the first call computes.
-        Self {
+        // NaN matches no step: the first calls compute.
+        let empty = FactorAt {
             dt_s: f64::NAN,
             tau_s: f64::NAN,
             factor: 0.0,
-        }
+        };
+        Self { slots: [empty; 2] }
     }
 }
 
 impl FirstOrderFactor {
     pub(crate) fn at(&mut self, dt_s: f64, tau_s: f64) -> f64 {
-        if dt_s.to_bits() != self.dt_s.to_bits() || tau_s.to_bits() != self.tau_s.to_bits() {
-            *self = Self {
-                dt_s,
-                tau_s,
-                factor: 1.0 - (-dt_s / tau_s).exp(),
-            };
+        if self.slots[0].matches(dt_s, tau_s) {
+            return self.slots[0].factor;
         }
-        self.factor
+        if self.slots[1].matches(dt_s, tau_s) {
+            self.slots.swap(0, 1);
+            return self.slots[0].factor;
+        }
+        let computed = FactorAt {
+            dt_s,
+            tau_s,
+            factor: 1.0 - (-dt_s / tau_s).exp(),
+        };
+        // The first step ever seen takes the first slot; later new steps the second.
+        let slot = usize::from(!self.slots[0].dt_s.is_nan());
+        self.slots[slot] = computed;
+        computed.factor
     }
 }
 
@@ -829,6 +854,28 @@ mod tests {
             assert_eq!(kept, fresh, "substep {k}");
         }
         assert!(kept.pressure_pa > 0.4e5, "{kept:?}");
+    }
+
+    #[test]
+    fn regression_a_two_step_factor_cache_gives_each_steps_own_factor() {
+        // Substeps, the pieces a command's arrival cuts (each of its own length), a new
+        // time constant and a new substep: every call's factor is its own step's.
+        let mut cache = FirstOrderFactor::default();
+        let mut calls = Vec::new();
+        for k in 0..200u32 {
+            let tau = if k < 120 { 5e-3 } else { 7e-3 };
+            let h = if k < 160 { 2.5e-4 } else { 1.25e-4 };
+            if k % 4 == 1 {
+                let cut = h * (0.1 + 0.8 * f64::from(k % 13) / 13.0);
+                calls.extend([(cut, tau), (h - cut, tau)]);
+            } else {
+                calls.push((h, tau));
+            }
+        }
+        for (i, &(dt, tau)) in calls.iter().enumerate() {
+            let want = 1.0 - (-dt / tau).exp();
+            assert_eq!(cache.at(dt, tau).to_bits(), want.to_bits(), "call {i}");
+        }
     }
 
     /// The rise and fall of the trainer's muscle behind the shipped valve move by less

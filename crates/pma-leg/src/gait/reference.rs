@@ -315,6 +315,15 @@ impl FourierSeries {
         }
         (y, dy, ddy)
     }
+
+    /// The angle alone (deg), as [`Self::eval`] sums it, bit for bit.
+    fn value(&self, harmonics: &[(f64, f64); HARMONICS]) -> f64 {
+        let mut y = self.cos_deg[0];
+        for (k, &(s, c)) in (1..=HARMONICS).zip(harmonics) {
+            y += self.cos_deg[k] * c + self.sin_deg[k] * s;
+        }
+        y
+    }
 }
 
 #[derive(Debug, Deserialize)]
@@ -652,6 +661,17 @@ impl GaitReference {
             velocity_rad_s: (ds * g + s * dg) * deg,
             acceleration_rad_s2: (dds * g + 2.0 * ds * dg + s * ddg) * deg,
         }
+    }
+
+    /// The hip's and the knee's angles at `t_s` (rad), the same as [`Self::sample`]'s bit
+    /// for bit, without the rates, the accelerations and the ankle: the virtual other leg
+    /// asks for them at every physics substep.
+    pub fn angles_rad(&self, t_s: f64) -> [f64; 2] {
+        let (s, _, _) = self.ramp(t_s);
+        let (cycles, _) = self.cycles(t_s);
+        let harmonics = FourierSeries::harmonics(cycles);
+        let deg = std::f64::consts::PI / 180.0;
+        [self.hip.value(&harmonics), self.knee.value(&harmonics)].map(|g| s * g * deg)
     }
 
     /// References at time `t_s` (before 0: standing).

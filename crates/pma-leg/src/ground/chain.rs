@@ -20,27 +20,42 @@ pub struct SagittalChain {
     pub spheres: Vec<FootSphere>,
 }
 
+/// The `(sin, cos)` of a pose's ankle, knee and hip angles on a [`SagittalChain`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChainRotations([(f64, f64); 3]);
+
 impl SagittalChain {
     /// Centre of sphere `i` in the pelvis frame (m, `[x, z]`) at hip and knee flexion and
     /// ankle dorsiflexion `q` (rad).
     pub fn sphere_centre(&self, i: usize, q: [f64; 3]) -> [f64; 2] {
+        self.sphere_centre_at(i, &self.rotations(q))
+    }
+
+    /// [`Self::sphere_centre`] with the chain's [`Self::rotations`] at `q` given: every
+    /// sphere of a pose shares them (the virtual other leg's at every substep, issue 50).
+    pub fn sphere_centre_at(&self, i: usize, rotations: &ChainRotations) -> [f64; 2] {
         let c = self.spheres[i].center_m;
-        self.in_pelvis([c[0], c[2]], q)
+        self.in_pelvis_at([c[0], c[2]], rotations)
+    }
+
+    /// The `(sin, cos)` of the ankle's, the knee's and the hip's angles at `q`.
+    pub fn rotations(&self, q: [f64; 3]) -> ChainRotations {
+        let angle = |j: usize| self.pitch_rad[j] + self.flexion_sign[j] * q[j];
+        ChainRotations([angle(2).sin_cos(), angle(1).sin_cos(), angle(0).sin_cos()])
     }
 
     /// A point of the foot `[x, z]` (foot frame) in the pelvis frame at `q`.
     fn in_pelvis(&self, p: [f64; 2], q: [f64; 3]) -> [f64; 2] {
+        self.in_pelvis_at(p, &self.rotations(q))
+    }
+
+    fn in_pelvis_at(&self, p: [f64; 2], rotations: &ChainRotations) -> [f64; 2] {
         // A rotation about -Y by `a` takes (x, z) to (x cos a - z sin a, x sin a + z cos a).
-        let rot = |p: [f64; 2], a: f64| {
-            let (s, c) = a.sin_cos();
-            [p[0] * c - p[1] * s, p[0] * s + p[1] * c]
-        };
+        let rot = |p: [f64; 2], (s, c): (f64, f64)| [p[0] * c - p[1] * s, p[0] * s + p[1] * c];
         let add = |a: [f64; 2], b: [f64; 2]| [a[0] + b[0], a[1] + b[1]];
-        let ankle = self.pitch_rad[2] + self.flexion_sign[2] * q[2];
+        let [ankle, knee, hip] = rotations.0;
         let in_shank = add(self.origins_m[2], rot(p, ankle));
-        let knee = self.pitch_rad[1] + self.flexion_sign[1] * q[1];
         let in_thigh = add(self.origins_m[1], rot(in_shank, knee));
-        let hip = self.pitch_rad[0] + self.flexion_sign[0] * q[0];
         add(self.origins_m[0], rot(in_thigh, hip))
     }
 

@@ -4,7 +4,8 @@ use crate::ground::{ContactParams, SagittalChain};
 /// on the belt.
 #[derive(Debug, Clone)]
 pub(crate) struct OtherLeg {
-    pub gait: crate::gait::GaitReference,
+    /// The reference half a stride later, shifted once here rather than at every substep.
+    later: crate::gait::GaitReference,
     /// A pose held instead of the gait (rad), when this leg holds one too.
     pub hold: Option<[f64; 2]>,
     pub chain: SagittalChain,
@@ -16,7 +17,7 @@ impl OtherLeg {
     pub(crate) fn new(gait: crate::gait::GaitReference, chain: SagittalChain) -> Self {
         let n = chain.spheres.len();
         Self {
-            gait,
+            later: gait.for_leg(1),
             hold: None,
             chain,
             previous_z: vec![f64::NAN; n],
@@ -25,10 +26,7 @@ impl OtherLeg {
 
     /// Its joint angles at `t_s` (rad).
     pub(crate) fn pose(&self, t_s: f64) -> [f64; 2] {
-        self.hold.unwrap_or_else(|| {
-            let g = self.gait.sample_half_stride_later(t_s);
-            [g.hip.angle_rad, g.knee.angle_rad]
-        })
+        self.hold.unwrap_or_else(|| self.later.angles_rad(t_s))
     }
 
     /// Upward force (N) on a pelvis whose frame is at height `z_m` above the belt, rising at
@@ -42,9 +40,10 @@ impl OtherLeg {
         vz_m_s: f64,
     ) -> f64 {
         let q = self.pose(t_s);
+        let rotations = self.chain.rotations([q[0], q[1], 0.0]);
         let mut total = 0.0;
         for (i, s) in self.chain.spheres.iter().enumerate() {
-            let cz = self.chain.sphere_centre(i, [q[0], q[1], 0.0])[1];
+            let cz = self.chain.sphere_centre_at(i, &rotations)[1];
             let rate = if self.previous_z[i].is_finite() {
                 (cz - self.previous_z[i]) / h_s
             } else {

@@ -125,8 +125,9 @@ pub struct LegPlant {
 }
 
 /// How far the pelvis may sink below its height at the start of a run before the
-/// trainer's safety counts a collapse (m): five times the 18 mm the nominal trainer's
-/// pelvis moves in a stride (`simulate gait_treadmill`), and a third of the 284 mm a
+/// trainer's safety counts a collapse (m): five times the 20 mm the nominal trainer's
+/// pelvis moves in a stride (`simulate gait_treadmill`: 20.4 mm at four substeps; 18 mm
+/// when the threshold was set, issue 46), and a third of the 284 mm a
 /// collapsing patient sank (issue 46). A gait trainer's harness catches the patient
 /// there: Lokomat-type body-weight support units hold a fall within a few centimetres.
 pub const COLLAPSE_PELVIS_DROP_M: f64 = 0.10;

@@ -235,3 +235,22 @@ fn bad_periods_are_rejected() {
         GaitSpeed::VerySlow
     );
 }
+
+#[test]
+fn regression_the_other_legs_angles_alone_are_the_samples_bit_for_bit() {
+    // The virtual other leg reads `angles_rad` at every substep instead of a whole sample
+    // (issue 50): the trainer's figures must not move by a bit.
+    let standing = GaitReference::normative(GaitSpeed::Slow, 1.6, 2.0).unwrap();
+    for g in [standing, in_step(3.4)] {
+        for leg in [0, 1] {
+            let g = g.for_leg(leg);
+            for i in -50..12_000 {
+                let t = f64::from(i) * 7.3e-4;
+                let s = g.sample(t);
+                let [hip, knee] = g.angles_rad(t);
+                assert_eq!(hip.to_bits(), s.hip.angle_rad.to_bits(), "hip at {t} s");
+                assert_eq!(knee.to_bits(), s.knee.angle_rad.to_bits(), "knee at {t} s");
+            }
+        }
+    }
+}
