@@ -5,11 +5,12 @@ one run of this script on this machine.
 
 - MuJoCo: the URDF through MuJoCo's compiler, a torque motor on each joint, gravity, the
   URDF's joint limits; `mj_step` in MuJoCo's own C loop (`mj_step(m, d, nstep=N)`), Euler,
-  at 1, 2 and the in-air scenarios' `physics_substeps` (8) steps per period, the last
+  at 1, 2 and the in-air scenarios' `physics_substeps` (64 since stop 74) steps per period, the last
   the ratios' base (rapier's in-air rows take as many); the torques a
   smooth function held over each timed block, as the muscles' torques are held over a
   period. Median of REPEATS blocks of N periods.
-- rapier: `cargo bench --bench leg` (criterion, release) for `rapier_bare` (the same
+- rapier: `cargo bench -p pma-leg --bench leg` (criterion, release; pma-leg's bench, which
+  does not build Rerun) for `rapier_bare` (the same
   leg, the scenario's substeps, torques set each period) and `closed_loop_x100` (rapier + 4 muscles +
   4 APRC-NDO controllers + references, 100 periods per iteration); the point estimates of
   their means from criterion's JSON.
@@ -118,7 +119,7 @@ def rapier_us(skip_bench):
     target = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
     if not skip_bench:
         subprocess.run(
-            ["cargo", "bench", "--bench", "leg", "--",
+            ["cargo", "bench", "-p", "pma-leg", "--bench", "leg", "--",
              "rapier_bare|closed_loop_x100$|rapier_treadmill_bare_2_leg|closed_loop_treadmill_x100",
              "--warm-up-time", "1", "--measurement-time", "5", "--noplot"],
             cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
@@ -133,7 +134,7 @@ def rapier_us(skip_bench):
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--skip-bench", action="store_true",
-                   help="read the last `cargo bench --bench leg` results instead of running it")
+                   help="read the last `cargo bench -p pma-leg --bench leg` results instead of running it")
     args = p.parse_args()
     rapier = rapier_us(args.skip_bench)
     rows = []

@@ -1,9 +1,9 @@
 //! One closed-loop period of the default gait scenario (rapier + 4 muscles + 4 APRC-NDO
 //! controllers + references) beside rapier's bare step of the same leg with the same
-//! physics substeps, in one run.
+//! physics substeps, in one run (`cargo bench -p pma-leg --bench leg`). The same loop saving
+//! a Rerun recording is the root package's `benches/leg_rerun.rs`.
 use criterion::{criterion_group, criterion_main, Criterion};
-use pma_leg::{Exoskeleton, LegOutput, LegSim, PerLeg, Scenario, SupervisedLeg, TrainerSample};
-use pma_loop::{FnRecorder, Period};
+use pma_leg::{Exoskeleton, LegSim, PerLeg, Scenario};
 use std::hint::black_box;
 
 fn leg(c: &mut Criterion) {
@@ -88,29 +88,6 @@ fn leg(c: &mut Criterion) {
     group.bench_function("closed_loop_treadmill_x100", |b| {
         b.iter(|| black_box(sim.run(0.1, &mut ()).expect("run")))
     });
-    for (label, rate) in [
-        ("closed_loop_x100_rerun_save_full_rate", None),
-        ("closed_loop_x100_rerun_save_100hz", Some(100.0)),
-    ] {
-        let path = std::env::temp_dir().join(format!("pma-exo-bench-{label}.rrd"));
-        let sink = pma_viz::Sink::Save(path.clone());
-        let mut sim = LegSim::new(&loaded).expect("sim");
-        let mut viz = pma_exo::viz::open(&sink, "bench", sc.period_s, rate)
-            .expect("viz")
-            .expect("on");
-        let channels = pma_exo::viz::leg_layout(&mut viz, &sim, "bench").expect("layout");
-        let (mut step, mut scalars) = (0i64, vec![0.0; channels]);
-        let mut log = FnRecorder(|p: &Period<'_, SupervisedLeg, PerLeg<LegOutput>>| {
-            step += 1;
-            let s = TrainerSample::of(p);
-            pma_exo::viz::push_leg(&mut viz, p.backend, &s, step, &mut scalars).expect("log");
-        });
-        group.bench_function(label, |b| {
-            b.iter(|| black_box(sim.run(0.1, &mut log).expect("run")))
-        });
-        drop(viz);
-        let _ = std::fs::remove_file(path);
-    }
     group.finish();
 }
 
