@@ -69,7 +69,7 @@ def cost(binary, scenario, duration_s):
     rapier = max((n for n, f in inclusive
                   if function(f) == "rapier3d::pipeline::physics_world::PhysicsWorld::step"),
                  default=0)
-    named = sum(n for n, f in exclusive if RAPIER_NAMES.search(f.split(":", 1)[-1]))
+    named = sum(n for n, f in exclusive if RAPIER_NAMES.search(function(f)))
     if loop == 0 or rapier == 0:
         sys.exit(f"no run loop or no rapier step in the profile of {scenario}")
     periods = duration_s * 1000
