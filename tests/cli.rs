@@ -1,6 +1,9 @@
 //! The `pma-exo` binary: JSON output, files, and one-line errors on bad input.
 use std::process::Command;
 
+mod common;
+use common::Scratch;
+
 fn pma_exo(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_pma-exo"))
         .args(args)
@@ -245,8 +248,7 @@ fn simulate_check_step_reruns_at_half_the_physics_step() {
 
 #[test]
 fn single_writes_the_csv_time_series() {
-    let dir = std::env::temp_dir().join(format!("pma-exo-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("cli");
     let csv = dir.join("run.csv");
     pma_exo_ok(&[
         "single",
@@ -287,8 +289,7 @@ fn bad_input_gives_one_line_errors() {
     assert_one_line_error(&["single", "--duration", "-3"], "duration");
     assert_one_line_error(&["single", "--duration", "nan"], "duration");
     assert_one_line_error(&["single", "--plant", "vacuum"], "vacuum");
-    let dir = std::env::temp_dir().join(format!("pma-exo-bad-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("bad");
     let write = |name: &str, text: &str| {
         let p = dir.join(name);
         std::fs::write(&p, text).unwrap();
@@ -386,7 +387,7 @@ fn event<'a>(g: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
 
 #[test]
 fn paper_writes_results_report_and_plots() {
-    let dir = std::env::temp_dir().join(format!("pma-exo-paper-{}", std::process::id()));
+    let dir = Scratch::new("paper");
     pma_exo_ok(&["paper", "--out", dir.to_str().unwrap()]);
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap();
@@ -505,7 +506,6 @@ fn paper_writes_results_report_and_plots() {
     assert!(mc("pid", "rte_median") < 1.5 && mc("psmc", "rte_p95") < 10.0);
     assert!(mc("aprc-ndo", "rte_median") > 10.0 && mc("ndo-smc", "rte_median") > 10.0);
     assert!(mc("sta", "rte_worst") > 100.0);
-    std::fs::remove_dir_all(dir).ok();
 }
 
 #[test]
@@ -562,8 +562,7 @@ fn simulate_bad_input_gives_one_line_errors() {
 
 #[test]
 fn rerun_save_writes_an_rrd_recording_for_both_commands() {
-    let dir = std::env::temp_dir().join(format!("pma-exo-rrd-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("rrd");
     for (args, file) in [
         (vec!["simulate", "--duration", "3.2"], "leg.rrd"),
         (vec!["single", "--duration", "0.5"], "bench.rrd"),
@@ -655,10 +654,8 @@ fn a_stuck_viewer_is_a_warning_after_the_flush_timeout_not_a_hang() {
 
 // Regressions of a newcomer's first hour (issue 11): one test per defect, named after it.
 
-fn temp(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("pma-exo-first-hour-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn temp(name: &str) -> Scratch {
+    Scratch::new(&format!("first-hour-{name}"))
 }
 
 #[test]
@@ -1029,8 +1026,8 @@ fn regression_12_every_physics_substeps_help_names_its_bound() {
 }
 
 /// `gait_training` with `extra` appended, in a temporary file.
-fn scenario_with(name: &str, extra: &str) -> std::path::PathBuf {
-    let path = temp(name).join("scenario.toml");
+fn scenario_with(dir: &std::path::Path, extra: &str) -> std::path::PathBuf {
+    let path = dir.join("scenario.toml");
     let base = include_str!("../crates/pma-leg/models/scenarios/gait_training.toml");
     std::fs::write(&path, format!("{base}\n{extra}\n")).unwrap();
     path
@@ -1046,7 +1043,8 @@ fn pendulum_json(args: &[&str]) -> serde_json::Value {
 
 #[test]
 fn pendulum_without_patient_or_damping_conserves_energy() {
-    let path = temp("undamped").join("scenario.toml");
+    let dir = temp("undamped");
+    let path = dir.join("scenario.toml");
     let base = include_str!("../crates/pma-leg/models/scenarios/gait_training.toml");
     let undamped = base.replace("damping_nm_s_per_rad = 0.5", "damping_nm_s_per_rad = 0.0");
     assert_ne!(undamped, base);
@@ -1124,7 +1122,8 @@ fn bad_patient_input_is_a_one_line_error_naming_the_field() {
             "fracton",
         ),
     ] {
-        let path = scenario_with(name, extra);
+        let dir = temp(name);
+        let path = scenario_with(&dir, extra);
         assert_one_line_error(&["simulate", path.to_str().unwrap()], field);
         assert_one_line_error(&["pendulum", path.to_str().unwrap()], field);
     }
@@ -1534,8 +1533,7 @@ fn impedance_mode_refuses_bad_input_in_one_line() {
         ],
         "--controller psmc: impedance mode",
     );
-    let dir = std::env::temp_dir().join(format!("pma-exo-impedance-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("impedance");
     let base = include_str!("../crates/pma-leg/models/scenarios/gait_training.toml");
     for (extra, needle) in [
         (
@@ -1585,8 +1583,7 @@ fn impedance_reports_ranges_and_three_tests_per_joint() {
 /// hold out of range, a body speed that is neither.
 #[test]
 fn the_treadmill_experiments_refuse_bad_input_in_one_line() {
-    let dir = std::env::temp_dir().join(format!("pma-exo-hold-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("hold");
     let base = include_str!("../crates/pma-leg/models/scenarios/gait_treadmill.toml");
     let path = dir.join("held.toml");
     std::fs::write(&path, format!("{base}pelvis_held_until_s = -1.0\n")).unwrap();
@@ -1670,8 +1667,7 @@ fn valve_steps_a_muscle_behind_a_flow_limited_valve() {
         "{b}"
     );
 
-    let dir = std::env::temp_dir().join(format!("pma-exo-valve-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("dir");
+    let dir = Scratch::new("valve");
     let file = |name: &str, body: &str| {
         let p = dir.join(name);
         std::fs::write(
@@ -1694,7 +1690,6 @@ fn valve_steps_a_muscle_behind_a_flow_limited_valve() {
     assert_one_line_error(&["valve", &ratio], "critical_pressure_ratio");
     assert_one_line_error(&["valve", "mpye-9"], "no such valve");
     assert_one_line_error(&["valve", "--tube-m", "0"], "tube_length_m");
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Issue 49: `compare-modes`, `size --out --csv` and `compare-leg --out` (and now `envelope`) had no stop
@@ -1764,7 +1759,6 @@ fn compare_modes_size_and_compare_leg_stop_on_a_signal_and_leave_nothing() {
             .map(|e| e.file_name().to_string_lossy().into_owned())
             .collect();
         assert!(left.is_empty(), "{args:?} left {left:?}");
-        std::fs::remove_dir_all(dir).ok();
     }
 }
 
@@ -1792,8 +1786,7 @@ fn regression_simulate_ran_the_gain_files_controller_instead_of_the_one_named() 
 /// line on stderr and exits 5; at the shipped rating the same run is within it, exit 0.
 #[test]
 fn an_in_air_run_over_its_rating_is_a_verdict_and_exit_5() {
-    let dir = std::env::temp_dir().join(format!("pma-exo-rating-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("dir");
+    let dir = Scratch::new("rating");
     let text = include_str!("../crates/pma-leg/models/scenarios/gait_training.toml");
     assert!(text.contains("\n[plant.valve]\n"));
     let lowered = text.replacen(
@@ -1817,5 +1810,4 @@ fn an_in_air_run_over_its_rating_is_a_verdict_and_exit_5() {
         stdout.contains("rating: every muscle within its rating"),
         "{stdout}"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }

@@ -206,9 +206,7 @@ fn static_pose_is_held_at_the_hand_computed_equilibrium_pressures() {
     }
 }
 
-fn tmp(name: &str, text: &str) -> String {
-    let dir = std::env::temp_dir().join(format!("pma-leg-test-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+fn tmp(dir: &std::path::Path, name: &str, text: &str) -> String {
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
     p.to_str().unwrap().to_owned()
@@ -219,10 +217,11 @@ fn scenario_text() -> String {
 }
 
 fn load_err(text: &str, extra_files: &[(&str, &str)]) -> String {
+    let dir = common::Scratch::new("leg-load");
     for (n, t) in extra_files {
-        tmp(n, t);
+        tmp(&dir, n, t);
     }
-    let path = tmp("scenario.toml", text);
+    let path = tmp(&dir, "scenario.toml", text);
     match Scenario::load(&path).and_then(|l| LegSim::new(&l).map(|_| ())) {
         Ok(()) => panic!("accepted: {text}"),
         Err(e) => e.to_string(),

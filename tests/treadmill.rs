@@ -3,6 +3,8 @@
 //! runs on; bad `[treadmill]` and `[gait]` input is a one-line error naming the field; the
 //! controllers walk both legs. The physics of the trainer is checked in
 //! `crates/pma-leg/tests/treadmill.rs`.
+mod common;
+use common::Scratch;
 
 fn pma_exo(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_pma-exo"))
@@ -80,10 +82,8 @@ fn ideal_valve(base: &str) -> String {
     text.replacen(schedule, "support_fraction = 0.0", 1)
 }
 
-fn temp_dir(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("pma-exo-trainer-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn temp_dir(name: &str) -> Scratch {
+    Scratch::new(&format!("trainer-{name}"))
 }
 
 const SCENARIO: &str = include_str!("../crates/pma-leg/models/scenarios/gait_treadmill.toml");
@@ -758,7 +758,6 @@ fn the_controllers_walk_both_legs_finite_and_within_their_limits() {
         assert!(over <= 1.0, "{c}: {over} of the rating at one substep");
         assert!(rms < 1.5, "{c}: {rms} deg RMS at one substep");
     }
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// Issue 46: the trainer's shipped force limit (`force_max_of_rating = 0.85`) keeps
@@ -793,7 +792,6 @@ fn the_shipped_force_limit_keeps_aprc_ndo_within_0_9_of_the_rating_where_it_went
     ]);
     let (over, _) = peaks(&v);
     assert!(over > 0.9, "without the limit: {over} of the rating");
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// The largest `key` over the entries of the JSON object `o` (joints or muscles).
@@ -879,7 +877,6 @@ fn without_support_aprc_ndo_pid_psmc_and_sta_walk_from_an_in_step_start() {
             "{c}: {text}"
         );
     }
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// The worst joint's RMS error (deg) and muscle's peak force over its rating of `path` in
@@ -922,7 +919,6 @@ fn impedance_mode_walks_the_passive_patient_from_85_percent_support_on_the_dmsp_
     assert!(walks_force <= 1.0, "85 %: {walks_force} of the rating");
     // At 80 % the knees sink: the trainer's safety stops the run and says so.
     assert!(!sank_walking && sinks > 5.0, "80 %: {sinks} deg RMS");
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
@@ -953,7 +949,6 @@ fn impedance_mode_learning_the_stance_walks_the_passive_patient_down_to_30_perce
         !unlearned_walked && unlearned > 5.0,
         "without learning: {unlearned} deg RMS"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// The largest fore-aft ground reaction of either foot (N) over `from_s..to_s` of a
@@ -1089,7 +1084,6 @@ fn admittance_with_phase_sync_walks_a_patient_on_their_own_timing_which_a_fixed_
     assert!(synced < 2.0, "synchronised: {synced} deg RMS");
     // On the fixed clock the legs are lost: the trainer's safety stops the run.
     assert!(!fixed_walked, "fixed clock: {fixed} deg RMS");
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
@@ -1121,7 +1115,6 @@ fn leaving_moments_or_timing_to_the_patient_is_refused_where_no_mode_yields() {
     )
     .unwrap();
     assert_refused(&path, "control.impedance.phase_sync_integral_per_s2");
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// The APRC-NDO gains the two-leg trainer shipped with before issue 46, tuned behind an
@@ -1204,7 +1197,6 @@ fn a_collapse_is_stopped_while_it_happens_and_said_in_one_line() {
         "the run stopped at the collapse"
     );
     assert!(!w["reasons"].as_array().expect("reasons").is_empty());
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Issue 49: a fixed-length list with extra entries was accepted and the extras dropped
@@ -1246,7 +1238,6 @@ fn a_fixed_length_list_of_another_length_is_refused() {
         let path = scenario_with(&dir, &format!("l{i}.toml"), &[(from, to)]);
         assert_refused(&path, needle);
     }
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// The `[plant.festo_scale.<muscle>]` tables that put each of the trainer's four muscles
@@ -1732,5 +1723,4 @@ fn a_short_and_a_tall_patient_walk_on_their_own_legs() {
         ],
     );
     assert_refused(&off, "0.419 m/s for a patient 1.47 m tall");
-    std::fs::remove_dir_all(&dir).ok();
 }

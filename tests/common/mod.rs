@@ -1,5 +1,46 @@
 //! What several test files of the binary share.
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// A test's own directory under the system's temporary one, `pma-exo-{name}-{pid}`,
+/// removed when the test ends; kept and named on stderr when the test fails, since what
+/// the failing run wrote is the evidence. Before it, a `cargo test --workspace` left
+/// about 45 directories in the temporary directory at every run.
+#[allow(dead_code)] // Not every test file that shares this module writes files.
+pub struct Scratch(PathBuf);
+
+#[allow(dead_code)]
+impl Scratch {
+    /// The directory, created empty (an earlier process of the same id may have left one).
+    pub fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("pma-exo-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("a scratch directory");
+        Self(dir)
+    }
+}
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            eprintln!("the failed test's files: {}", self.0.display());
+        } else {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}
 
 /// Writes into `dir` a scenario whose every run leaves physical bounds at once (the
 /// embedded `gait_training` on a 1 g shank at one physics step a period, which its muscles
