@@ -3,7 +3,7 @@
 //! Each test is named after the defect it pins.
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn pma_exo(args: &[&str]) -> Output {
@@ -14,10 +14,8 @@ fn pma_exo(args: &[&str]) -> Output {
         .expect("run pma-exo")
 }
 
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("pma-exo-hostile-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
+fn temp_dir(name: &str) -> common::Scratch {
+    common::Scratch::new(&format!("hostile-{name}"))
 }
 
 /// Exit 1 (or `code`), one line on stderr containing `needle`, no panic.
@@ -107,7 +105,6 @@ fn an_output_that_is_one_of_the_inputs_is_refused_and_the_input_kept() {
         "{:?}",
         leftovers(&dir, &[])
     );
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `tune --out G` over an existing gain file emptied it when the search
@@ -172,7 +169,6 @@ fn a_failed_or_interrupted_tune_leaves_the_previous_gain_file() {
         "{:?}",
         leftovers(&dir, &[])
     );
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `pulley_radius_m = 10` gave a hip RMS of 3.97e31 deg reported as finite;
@@ -228,7 +224,6 @@ fn diverging_leg_inputs_are_refused_with_their_plausible_range() {
         let p = write(&dir.join(format!("{name}.toml")), &text);
         assert_refused(&["simulate", &p, "--duration", "4"], needle);
     }
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: a sweep with `period_s = 2.0` and `duration_s = 1.0` reported perfect
@@ -251,7 +246,6 @@ fn a_degenerate_sweep_period_is_refused() {
         );
         assert!(!out.exists(), "an output was created for a refused sweep");
     }
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `dead_time_s = 1e9` and `sensor_latency_s = 1e9` aborted on a 160 TB
@@ -295,7 +289,6 @@ fn resource_exhaustion_is_refused_at_validation() {
         &["tune", "--controller", "pid", "--threads", "100000"],
         "--threads",
     );
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: messages that named the wrong thing or said nothing.
@@ -342,7 +335,6 @@ fn messages_name_the_right_thing() {
         err.contains("amplitude_nm") && !err.contains("missing"),
         "{err}"
     );
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression (found while fixing the above): results written through a temporary file

@@ -3,16 +3,13 @@
 //! (nor an input and an output) on one path, no file written unasked; provenance that names
 //! files by their path, every seed and every part of the patient; and a "wrote" line for
 //! every output.
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 mod common;
 
-fn temp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("pma-exo-outputs-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
+fn temp(name: &str) -> common::Scratch {
+    common::Scratch::new(&format!("outputs-{name}"))
 }
 
 /// `pma-exo args` in `dir` under `umask` (set in a shell, for the child only).
@@ -140,7 +137,6 @@ fn every_output_file_gets_the_mode_the_umask_gives() {
         for d in ["plots", "sweep"] {
             assert_eq!(mode(&dir.join(d)), dir_mode, "{d}/ under umask {umask}");
         }
-        std::fs::remove_dir_all(dir).ok();
     }
 }
 
@@ -161,7 +157,6 @@ fn an_overwritten_output_keeps_its_mode() {
             .expect("csv")
             .contains("t_s,"));
     }
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `simulate ... --rerun save=old.rrd` that failed replaced old.rrd. The
@@ -195,7 +190,6 @@ fn a_failed_run_keeps_the_previous_rerun_recording() {
         listing(&dir),
         ["diverging.toml", "light_shank.urdf", "old.rrd"]
     );
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `simulate --plot . --csv leg.png` exited 0 with leg.png holding the CSV,
@@ -244,7 +238,6 @@ fn two_outputs_of_one_command_on_one_path_are_refused() {
         &["--plot", "--csv", "one path"],
     );
     assert!(listing(&dir).is_empty(), "{:?}", listing(&dir));
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `rig run --log x.csv --rerun save=x.csv` was refused with "x.csv exists"
@@ -268,7 +261,6 @@ fn rig_run_refuses_its_log_as_its_recording_up_front() {
         &["--log", "--rerun save", "x.csv", "one path"],
     );
     assert!(listing(&dir).is_empty(), "{:?}", listing(&dir));
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `size` without `--out` wrote `./muscles.toml` over whatever was there (in
@@ -294,7 +286,6 @@ fn size_without_out_writes_nothing() {
     )
     .expect("json");
     assert!(v["muscle_geometry"].is_null(), "{v}");
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `--plot /nonexistent/dir` created the whole path. An output directory is
@@ -313,7 +304,6 @@ fn plot_creates_one_directory_level_not_a_tree() {
         &["typo/cmp", "one directory level"],
     );
     assert!(listing(&dir).is_empty(), "{:?}", listing(&dir));
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `--csv` and `--rerun save` printed no "wrote" line, unlike the other
@@ -343,7 +333,6 @@ fn csv_and_rerun_outputs_say_they_were_written() {
         "{err}"
     );
     assert!(std::fs::metadata(dir.join("o.rrd")).expect("rrd").len() > 0);
-    std::fs::remove_dir_all(dir).ok();
 }
 
 fn provenance(out: &Output) -> serde_json::Value {
@@ -387,7 +376,6 @@ fn provenance_names_a_plant_file_by_its_path() {
         ],
     ));
     assert_eq!(p["plant"], "realistic", "{p}");
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `simulate gait_realistic` reported seed null though its encoder noise is
@@ -416,7 +404,6 @@ fn provenance_names_every_seed_and_every_part_of_the_patient() {
         "{patient}"
     );
     assert!(p["seeds"]["hip spasms"].is_u64(), "{p}");
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `compare-leg --scenarios gait_training,t.toml` (t.toml named gait_training
@@ -488,7 +475,6 @@ fn a_scenario_file_is_named_by_its_path_not_its_inner_name() {
         ),
         "{header}"
     );
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `rig run --gains mypid.toml` without `--controller` failed (the
@@ -534,7 +520,6 @@ fn rig_run_infers_the_controller_of_its_gain_file_and_names_it() {
     }
     // The logs with their provenance line still replay and identify.
     ok(&dir, &["rig", "replay", "run.csv"]);
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `pendulum --knee-deg 500` echoed 500.00000000000006 (the degrees' round
@@ -547,7 +532,6 @@ fn pendulum_echoes_the_knee_angle_as_given() {
         &["pendulum", "--knee-deg", "500"],
         &["= 500 is invalid"],
     );
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `simulate --help` sent users to crates/pma-control/models/gains/leg (the
@@ -567,7 +551,6 @@ fn help_names_the_leg_gains_directory_and_the_leg_grids() {
         .is_file());
     let sweep = String::from_utf8_lossy(&ok(&dir, &["sweep", "--help"]).stdout).into_owned();
     assert!(sweep.contains("leg runs"), "{sweep}");
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Issue 49: `simulate --plot DIR` over an earlier run's figures, on a filesystem that fills
@@ -637,5 +620,4 @@ fn an_output_path_ending_in_a_slash_is_refused_before_the_run() {
         );
     }
     assert_eq!(std::fs::read_dir(&dir).expect("dir").count(), 0);
-    std::fs::remove_dir_all(dir).ok();
 }

@@ -1,7 +1,7 @@
 //! Sweeps through the binary: the same lines for any thread count and any sharding, a
 //! killed sweep resumed losing nothing, bad files as one-line errors, and (where a Slurm
 //! cluster is up, as in CI) a job array.
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 mod common;
@@ -56,11 +56,8 @@ spasm_amplitude_nm = [5.0, 30.0]
 effort_fraction = [-0.3, 0.3]
 "#;
 
-fn temp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("pma-exo-sweep-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
+fn temp(name: &str) -> common::Scratch {
+    common::Scratch::new(&format!("sweep-{name}"))
 }
 
 fn pma_exo(args: &[&str]) -> std::process::Output {
@@ -134,7 +131,6 @@ fn threads_and_shards_give_the_same_lines() {
             );
         }
     }
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// A leg grid shards and merges like a bench grid; its runs carry the patient they ran
@@ -196,7 +192,6 @@ fn a_leg_sweep_shards_merges_and_records_its_patients() {
         md.contains("## Leg: scenario `gait_spasms`, patients population"),
         "{md}"
     );
-    std::fs::remove_dir_all(dir).ok();
 }
 
 #[cfg(unix)]
@@ -248,7 +243,6 @@ fn a_killed_sweep_resumes_and_loses_nothing() {
     std::fs::write(&runs, torn).expect("tear");
     ok(&["sweep", &file, "--out", &killed.display().to_string()]);
     assert_eq!(sorted_lines(&runs), sorted_lines(&full.join("runs.jsonl")));
-    std::fs::remove_dir_all(dir).ok();
 }
 
 fn one_line_error(args: &[&str], needle: &str) {
@@ -316,7 +310,6 @@ fn bad_sweeps_are_one_line_errors() {
         &["sweep", &good, "--out", &first, "--shard", "2/4"],
         "another --out",
     );
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Runs only where a Slurm cluster is up (`.ci/run` starts a one-node cluster on
@@ -370,7 +363,6 @@ fn a_slurm_job_array_runs_the_shards() {
         sorted_lines(&merged.join("runs.jsonl")),
         sorted_lines(&whole.join("runs.jsonl"))
     );
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: two sweeps into one directory both did all the work and left 2,388
@@ -398,7 +390,6 @@ fn a_second_sweep_into_a_busy_directory_is_refused() {
     let err = String::from_utf8_lossy(&second.stderr);
     assert_eq!(second.status.code(), Some(1), "{err}");
     assert!(err.contains("another `pma-exo sweep`"), "{err}");
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: a record appended by hand (or by another sweep) made a 36-run sweep report
@@ -423,7 +414,6 @@ fn a_foreign_record_in_runs_jsonl_is_refused() {
     let merged = dir.join("merged").display().to_string();
     let m = pma_exo(&["sweep", "merge", &o, "--out", &merged]);
     assert_eq!(m.status.code(), Some(1));
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// A bench grid of two quick runs.
@@ -503,7 +493,6 @@ fn a_leg_sweep_records_a_run_that_fails_and_goes_on() {
     let merged = dir.join("merged").display().to_string();
     ok(&["sweep", "merge", &o, "--out", &merged]);
     assert_eq!(sorted_lines(&dir.join("merged").join("runs.jsonl")), lines);
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: a sweep directory kept its `.lock` file after the run. It is removed when
@@ -517,7 +506,6 @@ fn a_sweep_directory_keeps_no_lock_after_the_run() {
     ok(&["sweep", &file, "--out", &out.display().to_string()]);
     assert!(out.join("runs.jsonl").is_file());
     assert!(!out.join(".lock").exists());
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `sweep merge sh1 sh2 --out sh1` rewrote its input shard. An --out that is
@@ -545,7 +533,6 @@ fn sweep_merge_refuses_to_write_into_one_of_its_shards() {
         before
     );
     assert!(!a.join("summary.json").exists());
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Regression: `sweep merge` with a shard missing wrote a summary and then exited 1. The
@@ -578,7 +565,6 @@ fn sweep_merge_with_missing_shards_writes_nothing() {
         "{err}"
     );
     assert!(!merged.exists());
-    std::fs::remove_dir_all(dir).ok();
 }
 
 /// Issue 49: a sweep over the two-legged trainer wrote `"hip_rms_deg": null` (the joints
@@ -612,5 +598,4 @@ fn a_sweep_over_the_two_legged_trainer_resumes_and_merges() {
     let merged = dir.join("merged").display().to_string();
     ok(&["sweep", "merge", &o, "--out", &merged]);
     assert!(dir.join("merged/summary.json").is_file());
-    std::fs::remove_dir_all(dir).ok();
 }
